@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: MIT
+// Logging: one category per component, levels set from config or the
+// PROCAM_LOG environment variable ("info", "debug", or "daemon=debug,sim=warn").
+//
+// Thread-safety: all functions are thread-safe; each line is written whole.
+#pragma once
+
+#include <sstream>
+#include <string>
+#include <string_view>
+
+namespace procam::log {
+
+enum class Level { debug = 0, info = 1, warn = 2, error = 3, off = 4 };
+
+// Parse "debug"/"info"/"warn"/"error"/"off"; false if unknown.
+bool parse_level(std::string_view text, Level& out);
+
+// Apply a spec: "info" sets the default; "daemon=debug,sim=warn" per category.
+// Returns false (and changes nothing) if the spec is malformed.
+bool configure(std::string_view spec);
+bool enabled(std::string_view category, Level level);
+void write(std::string_view category, Level level, const std::string& message);
+
+class Line {
+public:
+  Line(std::string_view category, Level level) : category_(category), level_(level) {}
+  ~Line() { write(category_, level_, os_.str()); }
+  Line(const Line&) = delete;
+  Line& operator=(const Line&) = delete;
+  template <typename T>
+  Line& operator<<(const T& v) { os_ << v; return *this; }
+
+private:
+  std::string_view category_;
+  Level level_;
+  std::ostringstream os_;
+};
+
+}  // namespace procam::log
+
+// LOG(daemon, info) << "listening on " << endpoint;
+#define PROCAM_LOG(category, level)                                           \
+  if (!::procam::log::enabled(#category, ::procam::log::Level::level)) {      \
+  } else                                                                      \
+    ::procam::log::Line(#category, ::procam::log::Level::level)

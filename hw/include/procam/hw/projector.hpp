@@ -1,0 +1,49 @@
+// SPDX-License-Identifier: MIT
+// Projector interface: show a pattern frame, report when it is on screen.
+//
+// Threads: a Projector is thread-bound to the rig's capture thread (the scan
+// worker); info() is thread-safe. Errors are returned, never thrown.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+
+#include "procam/core/calibration.hpp"
+#include "procam/core/status.hpp"
+#include "procam/plugin_abi.h"
+
+namespace procam::hw {
+
+struct ProjectorInfo {
+  std::string backend;     // "sim", "glfw", ...
+  std::string name;        // model or monitor name
+  uint32_t width = 0, height = 0;
+  double refresh_hz = 60;  // pattern rate the backend can sustain
+};
+
+struct Presentation {
+  uint64_t pattern_id = 0;
+  int64_t shown_ns = 0;    // CLOCK_MONOTONIC when the pattern was on screen
+};
+
+class Projector {
+public:
+  virtual ~Projector() = default;
+  virtual const ProjectorInfo& info() const = 0;
+
+  // Queue `pattern` (projector-sized, 1 channel, U8/U16/F32 in [0,1]) for
+  // display; returns once accepted. The view is copied: the caller's buffer
+  // may be released on return. Fails with invalid_argument on a wrong size.
+  virtual Status show(const procam_image& pattern, uint64_t pattern_id) = 0;
+
+  // Block until `pattern_id` is on screen; fails with timeout or unavailable.
+  virtual Result<Presentation> wait_presented(uint64_t pattern_id,
+                                              std::chrono::milliseconds timeout) = 0;
+
+  // Focal-plane distance in mm (<= 0: the configured default). Backends with a
+  // fixed lens return failed_precondition for any other value.
+  virtual Status set_focus_mm(double focus_mm) = 0;
+};
+
+}  // namespace procam::hw

@@ -1,0 +1,71 @@
+// SPDX-License-Identifier: MIT
+// Rig: a projector plus one or more cameras with their calibration, built by
+// backend name from a rig config (configs/rigs/*.json). Extension point: see
+// hw/README.md "How to add a backend".
+//
+// Threads: a Rig is created and used on one thread at a time (the daemon's scan
+// worker); describe() results are plain data and may be copied anywhere.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "procam/core/calibration.hpp"
+#include "procam/core/image.hpp"
+#include "procam/core/status.hpp"
+#include "procam/hw/camera.hpp"
+#include "procam/hw/projector.hpp"
+
+namespace procam::hw {
+
+// Per-camera-pixel truth a simulated rig knows (float maps use NaN where
+// undefined). Coordinates: pixel centres at integers.
+struct GroundTruth {
+  Image depth_mm;       // F32: z of the first surface in the camera frame
+  Image proj_col;       // F32: continuous projector column seen at this pixel
+  Image proj_row;       // F32: continuous projector row
+  Image lit;            // U8: 255 where the projector lights the visible point
+};
+
+class Rig {
+public:
+  virtual ~Rig() = default;
+
+  virtual Projector& projector() = 0;
+  virtual size_t camera_count() const = 0;
+  virtual Camera& camera(size_t index) = 0;
+
+  // Calibration used for decoding; cameras()[i] belongs to camera(i).
+  virtual const Intrinsics& projector_intrinsics() const = 0;
+  virtual const std::vector<CameraCalibration>& camera_calibrations() const = 0;
+
+  // The rig description of proto/PROTOCOL.md ("Rig description"): name,
+  // backends, resolutions, calibration, and backend state.
+  virtual nlohmann::json describe() const = 0;
+
+  // Per-scan options (the scan request's "rig_options"), e.g. the sim rig's
+  // {"scene": "v-groove"}. Unknown keys are an invalid_argument error naming
+  // the key. Applies until the next call.
+  virtual Status apply_scan_options(const nlohmann::json& options) = 0;
+
+  // Ground truth for camera `index` of the current scene; not_found/unavailable
+  // on hardware rigs.
+  virtual Result<GroundTruth> ground_truth(size_t index) = 0;
+};
+
+struct RigContext {
+  std::string config_dir;                // relative paths in the config resolve here
+  std::vector<std::string> scene_dirs;   // where scene names are looked up
+};
+
+// Build a rig from its config JSON. Errors name the offending field and the
+// backends available.
+Result<std::unique_ptr<Rig>> create_rig(const nlohmann::json& config, const RigContext& ctx);
+
+// Names of compiled-in backends, e.g. {"sim"}.
+std::vector<std::string> available_backends();
+
+}  // namespace procam::hw

@@ -1,0 +1,203 @@
+/* SPDX-License-Identifier: MIT
+ * procam decoder-plugin C ABI. The only thing that crosses between procamd (or
+ * the offline decoder) and a plugin shared library.
+ *
+ * A plugin is a shared library exporting exactly two symbols:
+ *
+ *   const procam_plugin_info procam_plugin_info;   (data, no pointers)
+ *   const procam_plugin_vtable* procam_plugin_create(uint32_t host_abi);
+ *
+ * Loading order (host side, daemon/engine/plugin_host.cpp):
+ *   1. The host reads `procam_plugin_info` straight from the ELF file, WITHOUT
+ *      loading it, and checks `magic`, `abi_version` and `struct_size`. A
+ *      mismatch is reported and the file is skipped; no plugin code has run.
+ *   2. Only then the host dlopen()s the library and calls procam_plugin_create,
+ *      and checks the returned table's abi_version/struct_size and that every
+ *      function pointer is set.
+ *
+ * Rules for both sides:
+ *   - No C++ types, exceptions or longjmps cross this ABI. A plugin catches
+ *     everything and returns PROCAM_ERR_* with a message in procam_error.
+ *   - Ownership: memory is freed by whoever allocated it. Everything a plugin
+ *     returns (plans, outputs, strings) is owned by the plugin session and stays
+ *     valid until the next call on that session or its destruction. Everything
+ *     the host passes in (frames, JSON strings) is owned by the host and valid
+ *     only during the call: copy what you keep.
+ *   - Threads: one session is used by one host thread at a time (thread-bound
+ *     between calls, never concurrent). Different sessions may run concurrently
+ *     on different threads, so plugin globals must be immutable or locked.
+ *     A plugin may use threads internally; `threads` in the rig JSON is the
+ *     host's suggestion.
+ *   - Units: lengths in millimetres, times in microseconds, angles in degrees,
+ *     image coordinates in pixels with pixel centres at integers (OpenCV).
+ *   - Plugins never touch hardware: they describe frames (plan) and decode
+ *     frames the host captured.
+ *
+ * Scan protocol, per session (one scan):
+ *   session_create(method, params, rig)
+ *   loop:
+ *     next_plan(&plan) -> 1 (a round to capture) or 0 (no more rounds)
+ *     for each frame i of plan, in any order, as they arrive: add_frame(i, img)
+ *     end_round()      decode this round; may decide another round is needed
+ *   get_outputs()
+ *   session_destroy()
+ * Multi-round methods (error correction, adaptive codes) return further plans
+ * from next_plan after end_round; single-round methods return 0 the 2nd time.
+ *
+ * Version history
+ *   1 (procam 0.1): initial ABI.
+ */
+#ifndef PROCAM_PLUGIN_ABI_H
+#define PROCAM_PLUGIN_ABI_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PROCAM_PLUGIN_ABI_VERSION 1u
+#define PROCAM_PLUGIN_MAGIC 0x49504350u /* "PCPI" little-endian */
+
+/* Symbol names the host looks up. */
+#define PROCAM_PLUGIN_INFO_SYMBOL "procam_plugin_info"
+#define PROCAM_PLUGIN_CREATE_SYMBOL "procam_plugin_create"
+
+/* Return codes of every ABI function that can fail. */
+enum {
+  PROCAM_OK = 0,
+  PROCAM_ERR_INVALID_ARGUMENT = -1, /* bad method, parameter or frame index */
+  PROCAM_ERR_BAD_FRAME = -2,        /* frame has the wrong size/format or is corrupt */
+  PROCAM_ERR_STATE = -3,            /* call out of the documented order */
+  PROCAM_ERR_NO_MEMORY = -4,
+  PROCAM_ERR_INTERNAL = -5          /* bug or unexpected exception in the plugin */
+};
+
+/* Error detail a plugin fills on failure. NUL-terminated, truncated to fit. */
+typedef struct procam_error {
+  char message[512];
+} procam_error;
+
+/* Plain, pointer-free plugin description, readable from the ELF file before
+ * any plugin code runs. */
+typedef struct procam_plugin_info {
+  uint32_t magic;            /* PROCAM_PLUGIN_MAGIC */
+  uint32_t abi_version;      /* PROCAM_PLUGIN_ABI_VERSION the plugin was built for */
+  uint32_t struct_size;      /* sizeof(procam_plugin_info) */
+  uint32_t reserved;
+  char name[64];             /* plugin name, e.g. "structured-light" */
+  char version[32];          /* plugin version, e.g. "0.1.0" */
+  char methods[1024];        /* comma-separated method names, e.g. "gray,xor02" */
+} procam_plugin_info;
+
+/* Pixel storage. Integer data carries `bit_depth` significant bits
+ * (8, 10, 12, 14 or 16), right-aligned: a 12-bit frame in U16 ranges 0..4095. */
+typedef enum procam_pixel_type {
+  PROCAM_PIXEL_U8 = 1,
+  PROCAM_PIXEL_U16 = 2,
+  PROCAM_PIXEL_F32 = 3
+} procam_pixel_type;
+
+/* A view of an image; never owns its pixels. Row r starts at
+ * (const uint8_t*)data + r * stride_bytes. Channels are interleaved. */
+typedef struct procam_image {
+  uint32_t width;
+  uint32_t height;
+  uint32_t channels;      /* 1 = grey */
+  uint32_t pixel_type;    /* procam_pixel_type */
+  uint32_t bit_depth;     /* significant bits of integer data; 32 for F32 */
+  uint32_t reserved;
+  size_t stride_bytes;
+  const void* data;
+} procam_image;
+
+/* Per-frame capture settings. Fields set to their "unset" value keep the
+ * rig's configured value. Extended by appending fields (struct_size tells). */
+typedef struct procam_frame_settings {
+  uint32_t struct_size;
+  int32_t camera_index;       /* which camera of the rig; 0 = first. */
+  double exposure_us;         /* camera exposure; <= 0: rig default */
+  double gain_db;             /* camera analog gain; < 0: rig default */
+  double projector_focus_mm;  /* projector focal-plane distance; <= 0: rig default */
+  double polarizer_deg;       /* camera analyser angle; NaN: none/unchanged */
+  double projector_polarizer_deg; /* projector polariser angle; NaN: none/unchanged */
+} procam_frame_settings;
+
+/* One frame to capture: show `pattern` on the projector, capture with `settings`. */
+typedef struct procam_pattern_frame {
+  const char* label;              /* e.g. "col bit 9 inverse"; used in file names */
+  procam_image pattern;           /* projector-sized, 1 channel U8/U16/F32 in [0,1] */
+  procam_frame_settings settings;
+} procam_pattern_frame;
+
+typedef struct procam_plan {
+  uint32_t frame_count;
+  const procam_pattern_frame* frames;
+  const char* note;               /* why this round (shown to users), may be NULL */
+} procam_plan;
+
+typedef enum procam_output_kind {
+  PROCAM_OUTPUT_IMAGE = 1,   /* a map: depth, correspondence, mask, ... */
+  PROCAM_OUTPUT_SCALAR = 2,  /* a number: decode_ms, valid_fraction, ... */
+  PROCAM_OUTPUT_POINTS = 3,  /* a point cloud: xyz (+ optional attributes) */
+  PROCAM_OUTPUT_JSON = 4     /* structured report: model choice, per-round notes */
+} procam_output_kind;
+
+/* A named result. Names are lower_snake_case and carry their unit where one
+ * applies ("depth_mm", "proj_col_px"); `unit` repeats it for tools. */
+typedef struct procam_output {
+  const char* name;
+  uint32_t kind;              /* procam_output_kind */
+  const char* unit;           /* "mm", "px", "ms", "" */
+  const char* description;
+  procam_image image;         /* IMAGE. F32 maps use NaN where invalid. */
+  double scalar;              /* SCALAR */
+  const float* points;        /* POINTS: point_count rows of point_stride floats; */
+  uint64_t point_count;       /* the first three are x, y, z in mm, camera frame */
+  uint32_t point_stride;      /* floats per point, >= 3 */
+  const char* point_fields;   /* e.g. "x,y,z,intensity" */
+  const char* json;           /* JSON */
+} procam_output;
+
+typedef struct procam_session procam_session; /* opaque, plugin-owned */
+
+typedef struct procam_plugin_vtable {
+  uint32_t abi_version;   /* PROCAM_PLUGIN_ABI_VERSION */
+  uint32_t struct_size;   /* sizeof(procam_plugin_vtable) */
+
+  /* JSON array describing methods and their parameters (name, type, default,
+   * range, description). Static, owned by the plugin. */
+  const char* (*describe)(void);
+
+  /* Start a scan. `rig_json` describes resolutions, calibration (see
+   * proto/PROTOCOL.md "Rig description"); `params_json` is a JSON object. */
+  int (*session_create)(const char* method, const char* params_json,
+                        const char* rig_json, procam_session** out,
+                        procam_error* err);
+  void (*session_destroy)(procam_session* s);
+
+  /* Returns 1 and sets *plan for a round to capture, 0 when done, <0 on error. */
+  int (*next_plan)(procam_session* s, const procam_plan** plan, procam_error* err);
+
+  /* Hand over frame `index` of the current round's plan (any order, once each). */
+  int (*add_frame)(procam_session* s, uint32_t index, const procam_image* frame,
+                   procam_error* err);
+
+  /* All frames of the round were added: decode. */
+  int (*end_round)(procam_session* s, procam_error* err);
+
+  /* Results, valid until session_destroy. */
+  int (*get_outputs)(procam_session* s, const procam_output** outputs,
+                     uint32_t* count, procam_error* err);
+} procam_plugin_vtable;
+
+/* Signature of the exported create function. Returns NULL if the plugin cannot
+ * serve `host_abi_version`. */
+typedef const procam_plugin_vtable* (*procam_plugin_create_fn)(uint32_t host_abi_version);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
+
+#endif /* PROCAM_PLUGIN_ABI_H */
