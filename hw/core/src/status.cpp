@@ -18,6 +18,10 @@ const char* code_name(Code c) noexcept {
     case Code::timeout: return "timeout";
     case Code::cancelled: return "cancelled";
     case Code::internal: return "internal";
+    case Code::bad_message: return "bad_message";
+    case Code::unsupported_version: return "unsupported_version";
+    case Code::unknown_type: return "unknown_type";
+    case Code::too_large: return "too_large";
   }
   return "internal";
 }

@@ -30,6 +30,11 @@ enum class Code {
   timeout,            // deadline passed
   cancelled,          // cancelled by request or shutdown
   internal,           // a bug in procam: please report
+  // Protocol-level errors (only produced by proto/ decoding):
+  bad_message,        // not JSON, not an object, or a field of the wrong type
+  unsupported_version,// "procam" version the daemon does not speak
+  unknown_type,       // request "type" not in the protocol
+  too_large,          // message or field over its size limit
 };
 
 const char* code_name(Code c) noexcept;
