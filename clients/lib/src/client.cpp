@@ -1,0 +1,205 @@
+// SPDX-License-Identifier: MIT
+// ZeroMQ DEALER client for procamd.
+#include "procam/client/client.hpp"
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+#include <zmq.hpp>
+
+namespace procam::client {
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::string default_endpoint() {
+  const char* e = std::getenv("PROCAM_ENDPOINT");
+  return e && *e ? e : kDefaultEndpoint;
+}
+
+struct Client::Impl {
+  zmq::context_t ctx{1};
+  zmq::socket_t sock{ctx, zmq::socket_type::dealer};
+  bool connected = false;
+  Status connect_error;
+};
+
+Client::Client(std::string endpoint, std::chrono::milliseconds timeout)
+    : endpoint_(std::move(endpoint)), timeout_(timeout), impl_(std::make_unique<Impl>()) {
+  try {
+    impl_->sock.set(zmq::sockopt::linger, 0);
+    impl_->sock.set(zmq::sockopt::heartbeat_ivl, 2000);
+    impl_->sock.set(zmq::sockopt::heartbeat_timeout, 6000);
+    impl_->sock.connect(endpoint_);
+    impl_->connected = true;
+  } catch (const zmq::error_t& e) {
+    impl_->connect_error = Error(Code::invalid_argument, "bad endpoint '" + endpoint_ + "': " + e.what(),
+                                 "use e.g. tcp://127.0.0.1:5560");
+  }
+}
+
+Client::~Client() = default;
+
+Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::string* extra) {
+  if (!impl_->connected) return impl_->connect_error;
+  proto::Request req{"c" + std::to_string(::getpid()) + "-" + std::to_string(next_id_++), body};
+  const std::string bytes = proto::encode_request(req);
+  try {
+    impl_->sock.send(zmq::message_t(), zmq::send_flags::sndmore);
+    impl_->sock.send(zmq::buffer(bytes), zmq::send_flags::none);
+  } catch (const zmq::error_t& e) {
+    return Error(Code::unavailable, std::string("cannot send to procamd: ") + e.what());
+  }
+  const auto deadline = Clock::now() + timeout_;
+  for (;;) {
+    auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    if (left.count() <= 0)
+      return Error(Code::unavailable, "no reply from procamd at " + endpoint_ + " within " +
+                                          std::to_string(timeout_.count() / 1000.0).substr(0, 4) + " s",
+                   "is procamd running? start it with `procamd --config configs/procamd.json`");
+    zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
+    try {
+      zmq::poll(items, 1, left);
+    } catch (const zmq::error_t& e) {
+      if (e.num() == EINTR) continue;
+      return Error(Code::unavailable, std::string("poll: ") + e.what());
+    }
+    if (!(items[0].revents & ZMQ_POLLIN)) continue;
+    std::vector<zmq::message_t> msg;
+    try {
+      (void)zmq::recv_multipart(impl_->sock, std::back_inserter(msg));
+    } catch (const zmq::error_t& e) {
+      return Error(Code::unavailable, std::string("receive: ") + e.what());
+    }
+    size_t i = 0;
+    while (i < msg.size() && msg[i].size() == 0) ++i;  // delimiter
+    if (i >= msg.size()) continue;
+    auto in = proto::decode_incoming(std::string_view(static_cast<const char*>(msg[i].data()), msg[i].size()));
+    if (!in) return in.status().with_context("reply from procamd");
+    if (auto* ev = std::get_if<proto::Event>(&in->message)) {
+      pending_events_.push_back(std::move(*ev));
+      continue;
+    }
+    auto& rep = std::get<proto::Reply>(in->message);
+    if (!rep.id.empty() && rep.id != req.id) continue;  // late reply to an earlier, timed-out call
+    if (extra) *extra = i + 1 < msg.size() ? msg[i + 1].to_string() : std::string();
+    return rep;
+  }
+}
+
+Result<nlohmann::json> Client::call(const proto::RequestBody& body) {
+  auto r = roundtrip(body, nullptr);
+  if (!r) return r.status();
+  if (!r->ok) return r->error;
+  return r->body;
+}
+
+Result<nlohmann::json> Client::scan(const proto::Scan& request,
+                                    const std::function<void(const proto::Event&)>& on_event,
+                                    std::chrono::milliseconds limit) {
+  proto::Scan s = request;
+  s.events = true;
+  auto accepted = call(s);
+  if (!accepted) return accepted.status();
+  const std::string scan_id = (*accepted).value("scan_id", "");
+  const auto deadline = Clock::now() + limit;
+  auto last_poll = Clock::now();
+  auto deliver = [&]() -> bool {  // true when the scan ended
+    bool ended = false;
+    for (auto& ev : pending_events_) {
+      if (ev.scan_id != scan_id) continue;
+      if (on_event) on_event(ev);
+      if (ev.event == "state") {
+        const std::string st = ev.body.value("state", "");
+        ended |= st == "done" || st == "failed";
+      }
+    }
+    pending_events_.clear();
+    return ended;
+  };
+  for (;;) {
+    if (deliver()) break;
+    if (Clock::now() > deadline)
+      return Error(Code::timeout, "scan " + scan_id + " did not finish in time", "check `procam status`");
+    // Wait for events; every second confirm with status (events are advisory).
+    zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
+    try {
+      zmq::poll(items, 1, std::chrono::milliseconds(200));
+    } catch (const zmq::error_t&) {
+    }
+    if (items[0].revents & ZMQ_POLLIN) {
+      std::vector<zmq::message_t> msg;
+      try {
+        (void)zmq::recv_multipart(impl_->sock, std::back_inserter(msg));
+      } catch (const zmq::error_t& e) {
+        return Error(Code::unavailable, std::string("receive: ") + e.what());
+      }
+      size_t i = 0;
+      while (i < msg.size() && msg[i].size() == 0) ++i;
+      if (i < msg.size()) {
+        auto in = proto::decode_incoming(std::string_view(static_cast<const char*>(msg[i].data()), msg[i].size()));
+        if (in)
+          if (auto* ev = std::get_if<proto::Event>(&in->message)) pending_events_.push_back(std::move(*ev));
+      }
+      continue;
+    }
+    if (Clock::now() - last_poll > std::chrono::seconds(1)) {
+      last_poll = Clock::now();
+      auto st = call(proto::StatusQuery{scan_id});
+      if (!st) return st.status();
+      const std::string state = (*st)["scan"].value("state", "");
+      if (state == "done" || state == "failed") {
+        deliver();
+        break;
+      }
+    }
+  }
+  auto st = call(proto::StatusQuery{scan_id});
+  if (!st) return st.status();
+  return (*st)["scan"];
+}
+
+Status Client::fetch_file(const std::string& scan_id, const std::string& file, const std::string& dest) {
+  const std::string tmp = dest + ".part";
+  std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+  if (!out) return Error(Code::io_error, "cannot write '" + tmp + "'", "check the output folder");
+  uint64_t offset = 0;
+  for (;;) {
+    std::string data;
+    proto::Fetch f{scan_id, file, offset, 4u << 20};
+    auto r = roundtrip(f, &data);
+    if (!r) return r.status();
+    if (!r->ok) return r->error;
+    const uint64_t n = r->body.value("bytes", uint64_t{0});
+    if (data.size() != n) return Error(Code::corrupt_data, "fetch of '" + file + "' returned " +
+                                       std::to_string(data.size()) + " bytes, header said " + std::to_string(n));
+    out.write(data.data(), static_cast<std::streamsize>(data.size()));
+    offset += n;
+    if (r->body.value("eof", true) || n == 0) break;
+  }
+  out.close();
+  if (!out) return Error(Code::io_error, "writing '" + dest + "' failed");
+  std::error_code ec;
+  fs::rename(tmp, dest, ec);
+  if (ec) return Error(Code::io_error, "cannot move '" + dest + "' into place: " + ec.message());
+  return Status::Ok();
+}
+
+Result<nlohmann::json> Client::fetch_all(const std::string& scan_id, const std::string& dir) {
+  auto res = call(proto::ResultQuery{scan_id});
+  if (!res) return res.status();
+  nlohmann::json manifest = (*res)["manifest"];
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return Error(Code::io_error, "cannot create '" + dir + "': " + ec.message());
+  for (const auto& f : manifest.value("files", nlohmann::json::array())) {
+    const std::string name = f.value("name", "");
+    if (!proto::is_safe_file_name(name)) continue;  // never write outside `dir`
+    PROCAM_TRY(fetch_file(scan_id, name, (fs::path(dir) / name).string()));
+  }
+  return manifest;
+}
+
+}  // namespace procam::client

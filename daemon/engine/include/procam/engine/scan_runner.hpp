@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: MIT
+// Runs one scan: plan → projector/camera capture → frames → decoder, round by
+// round, and the same loop fed from files for offline decoding.
+//
+// Threads: run on the rig's worker thread; `progress` is called on that thread.
+// Errors: the first failure stops the scan and is returned with context
+// ("round 1, frame 7 'col bit 3': camera timed out"); nothing is thrown.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "procam/core/status.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "procam/hw/rig.hpp"
+
+namespace procam::engine {
+
+struct Progress {
+  std::string stage;   // "capture", "decode"
+  int round = 1;
+  size_t done = 0, total = 0;
+  std::string message;
+};
+using ProgressFn = std::function<void(const Progress&)>;
+
+struct CaptureOptions {
+  std::chrono::milliseconds frame_timeout{2000};
+  int retries = 2;     // re-captures of one frame after a timeout/corrupt frame
+};
+
+struct RoundSummary {
+  std::string note;
+  size_t frames = 0;
+};
+
+struct ScanOutcome {
+  std::vector<RoundSummary> rounds;
+  size_t patterns = 0;
+  double capture_ms = 0, decode_ms = 0;
+  size_t frames_retried = 0;
+};
+
+// Drives `session` against `rig` until the plugin has no more rounds.
+Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const CaptureOptions& opts,
+                             const ProgressFn& progress, const std::atomic<bool>& cancel);
+
+// Offline: feeds image files instead of a rig. `frames_dir` holds the round-1
+// frames in the plan's order (sorted by file name); a multi-round method reads
+// later rounds from sub-folders "round2", "round3", ... Errors list the files
+// expected (by plan label) versus found.
+Result<ScanOutcome> run_offline(host::Session& session, const std::string& frames_dir,
+                                const ProgressFn& progress);
+
+// Image files in a folder, sorted by name (png, jpg, jpeg, tif, tiff, exr, pgm, ppm, bmp).
+std::vector<std::string> list_image_files(const std::string& dir);
+
+}  // namespace procam::engine

@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: MIT
+// Scan loop: capture each planned frame in lockstep and stream it to the decoder.
+#include "procam/engine/scan_runner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include "procam/core/image_io.hpp"
+#include "procam/core/log.hpp"
+
+namespace procam::engine {
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+std::string frame_context(int round, size_t i, const std::string& label) {
+  return "round " + std::to_string(round) + ", frame " + std::to_string(i) + " '" + label + "'";
+}
+
+// Capture one planned frame: show, wait until on screen, configure, capture.
+Result<hw::Frame> capture_one(hw::Rig& rig, const host::PlannedFrame& f, uint64_t pattern_id,
+                              const CaptureOptions& opts, size_t& retried) {
+  const auto& s = f.settings;
+  if (s.camera_index < 0 || static_cast<size_t>(s.camera_index) >= rig.camera_count())
+    return Error(Code::invalid_argument,
+                 "plan asks for camera " + std::to_string(s.camera_index) + " but the rig has " +
+                     std::to_string(rig.camera_count()));
+  const auto& pinfo = rig.projector().info();
+  if (f.pattern.width != pinfo.width || f.pattern.height != pinfo.height)
+    return Error(Code::plugin_error,
+                 "pattern is " + std::to_string(f.pattern.width) + "x" + std::to_string(f.pattern.height) +
+                     " but the projector is " + std::to_string(pinfo.width) + "x" + std::to_string(pinfo.height));
+  PROCAM_TRY(rig.projector().set_focus_mm(s.projector_focus_mm));
+  hw::Camera& cam = rig.camera(static_cast<size_t>(s.camera_index));
+  hw::CameraSettings cs;
+  cs.exposure_us = s.exposure_us;
+  cs.gain_db = s.gain_db;
+  cs.polarizer_deg = s.polarizer_deg;
+  PROCAM_TRY(cam.configure(cs));
+  Status last;
+  for (int attempt = 0; attempt <= opts.retries; ++attempt) {
+    if (attempt > 0) ++retried;
+    PROCAM_TRY(rig.projector().show(f.pattern, pattern_id));
+    auto shown = rig.projector().wait_presented(pattern_id, opts.frame_timeout);
+    if (!shown) {
+      last = shown.status();
+      continue;
+    }
+    auto frame = cam.capture(opts.frame_timeout);
+    if (!frame) {
+      last = frame.status();
+      if (last.code() == Code::timeout || last.code() == Code::corrupt_data) continue;
+      return last;
+    }
+    const auto& info = cam.info();
+    if (frame->image.width() != info.width || frame->image.height() != info.height ||
+        frame->image.empty()) {
+      last = Error(Code::corrupt_data, "camera delivered a frame of the wrong size");
+      continue;
+    }
+    return frame;
+  }
+  return last.with_context("after " + std::to_string(opts.retries + 1) + " attempts");
+}
+
+}  // namespace
+
+Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const CaptureOptions& opts,
+                             const ProgressFn& progress, const std::atomic<bool>& cancel) {
+  ScanOutcome out;
+  uint64_t pattern_id = 0;
+  for (int round = 1;; ++round) {
+    auto plan = session.next_plan();
+    if (!plan) return plan.status().with_context("planning round " + std::to_string(round));
+    if (!plan->has_value()) break;
+    const host::Plan& p = **plan;
+    out.rounds.push_back({p.note, p.frames.size()});
+    out.patterns += p.frames.size();
+    PROCAM_LOG(engine, info) << "round " << round << ": " << p.frames.size() << " frames"
+                             << (p.note.empty() ? "" : " — " + p.note);
+    auto t0 = Clock::now();
+    double add_ms = 0;
+    for (size_t i = 0; i < p.frames.size(); ++i) {
+      if (cancel.load()) return Error(Code::cancelled, "scan cancelled");
+      const auto& f = p.frames[i];
+      auto frame = capture_one(rig, f, ++pattern_id, opts, out.frames_retried);
+      if (!frame) return frame.status().with_context(frame_context(round, i, f.label));
+      auto ta = Clock::now();
+      Status s = session.add_frame(static_cast<uint32_t>(i), frame->image.view());
+      add_ms += ms_since(ta);
+      if (!s) return s.with_context(frame_context(round, i, f.label));
+      if (progress) progress({"capture", round, i + 1, p.frames.size(), f.label});
+    }
+    out.capture_ms += ms_since(t0) - add_ms;
+    if (progress) progress({"decode", round, 0, 1, ""});
+    auto td = Clock::now();
+    Status s = session.end_round();
+    out.decode_ms += ms_since(td) + add_ms;  // streaming work in add_frame is decode time
+    if (!s) return s.with_context("decoding round " + std::to_string(round));
+    if (progress) progress({"decode", round, 1, 1, ""});
+  }
+  return out;
+}
+
+std::vector<std::string> list_image_files(const std::string& dir) {
+  static const char* exts[] = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".pgm", ".ppm", ".bmp"};
+  std::vector<std::string> files;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file()) continue;
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (std::find_if(std::begin(exts), std::end(exts), [&](const char* x) { return ext == x; }) != std::end(exts))
+      files.push_back(e.path().string());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+Result<ScanOutcome> run_offline(host::Session& session, const std::string& frames_dir,
+                                const ProgressFn& progress) {
+  ScanOutcome out;
+  if (!fs::is_directory(frames_dir))
+    return Error(Code::not_found, "frames folder '" + frames_dir + "' does not exist");
+  for (int round = 1;; ++round) {
+    auto plan = session.next_plan();
+    if (!plan) return plan.status().with_context("planning round " + std::to_string(round));
+    if (!plan->has_value()) break;
+    const host::Plan& p = **plan;
+    const std::string dir = round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
+    auto files = list_image_files(dir);
+    if (files.size() != p.frames.size()) {
+      std::string labels;
+      for (size_t i = 0; i < p.frames.size(); ++i)
+        labels += (i ? ", " : "") + std::to_string(i) + ":" + p.frames[i].label;
+      return Error(Code::invalid_argument,
+                   "round " + std::to_string(round) + " needs " + std::to_string(p.frames.size()) +
+                       " frames in '" + dir + "' but found " + std::to_string(files.size()) + " image files",
+                   "name the files so that sorting by name gives the plan order: " + labels);
+    }
+    out.rounds.push_back({p.note, p.frames.size()});
+    out.patterns += p.frames.size();
+    auto t0 = Clock::now();
+    for (size_t i = 0; i < files.size(); ++i) {
+      auto img = read_image(files[i]);
+      if (!img) return img.status().with_context(frame_context(round, i, p.frames[i].label));
+      Status s = session.add_frame(static_cast<uint32_t>(i), img->view());
+      if (!s) return s.with_context(frame_context(round, i, p.frames[i].label) + " from " + files[i]);
+      if (progress) progress({"decode", round, i + 1, files.size(), p.frames[i].label});
+    }
+    Status s = session.end_round();
+    if (!s) return s.with_context("decoding round " + std::to_string(round));
+    out.decode_ms += ms_since(t0);
+  }
+  return out;
+}
+
+}  // namespace procam::engine

@@ -1,0 +1,186 @@
+// SPDX-License-Identifier: MIT
+// PluginHost: finds decoder plugins, checks them before and while loading,
+// and runs scan sessions through the C ABI (procam/plugin_abi.h).
+//
+// Loading a file, in order (details and every rejection reason: README.md):
+//   1. read procam_plugin_info straight from the ELF file (no plugin code runs)
+//      and check magic, ABI version, struct size, strings, name, machine;
+//   2. probe in a forked child: dlopen, procam_plugin_create, vtable, describe()
+//      -- a crash, hang or failure there rejects the plugin, the daemon lives;
+//   3. dlopen in this process and repeat the checks of step 2.
+//
+// Threads: PluginHost is filled (load_*) on one thread, then read-only:
+// plugins(), rejected(), find() and create_session() are safe from any thread.
+// Probing fork()s, so load_* must run BEFORE the process starts threads
+// (see LoadOptions::probe_in_child). A Session is used by one thread at a time.
+//
+// Errors: nothing throws; every failure is a Status naming the plugin and what
+// was wrong. Everything a plugin returns is validated before use; a plugin
+// returning garbage gives Code::plugin_error.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "procam/core/status.hpp"
+#include "procam/plugin_abi.h"
+
+namespace procam::host {
+
+namespace detail {
+struct LoadedPlugin;  // dlopen handle + vtable; defined in src/plugin_loader.hpp
+}
+
+// One method of a plugin. `describe` is that method's object from the
+// plugin's describe() JSON array (it has at least "name"; parameters etc. are
+// passed through as the plugin wrote them).
+struct MethodInfo {
+  std::string name;
+  std::string description;  // describe()'s "description" for the method, or ""
+  nlohmann::json describe;
+};
+
+struct PluginInfo {
+  std::string name;     // procam_plugin_info.name, matches [a-z0-9_-]{1,63}
+  std::string version;  // procam_plugin_info.version
+  std::string file;     // path it was loaded from
+  std::vector<MethodInfo> methods;  // in procam_plugin_info.methods order
+};
+
+struct Rejected {
+  std::string file;  // the path (or directory) that was rejected
+  Status error;      // abi_mismatch, corrupt_data, plugin_error, timeout, ...
+};
+
+struct LoadOptions {
+  // Probe every plugin in a forked child first (see file comment). Turn off
+  // only where fork() is forbidden or the process already runs threads: then a
+  // plugin that crashes or hangs while loading takes the process down with it.
+  bool probe_in_child = true;
+  // How long the child may take (dlopen + create + describe) before it is
+  // killed and the plugin rejected with Code::timeout.
+  std::chrono::milliseconds probe_timeout{5000};
+};
+
+// One frame of a round: show `pattern` on the projector, capture with `settings`.
+struct PlannedFrame {
+  std::string label;               // validated: 1..255 bytes, no '/', '\\' or control chars
+  procam_image pattern{};          // 1-channel; view into plugin memory, valid until
+                                   // the next call on the Session
+  procam_frame_settings settings{};
+};
+
+struct Plan {
+  std::string note;  // why this round ("" if the plugin gave none)
+  std::vector<PlannedFrame> frames;
+};
+
+// One named result. Views (image, points) point into plugin memory and stay
+// valid until the Session dies.
+struct Output {
+  std::string name;  // lower_snake_case [a-z0-9_]{1,64}: safe as a file name
+  std::string unit;
+  std::string description;
+  procam_output_kind kind = PROCAM_OUTPUT_SCALAR;
+  procam_image image{};            // IMAGE
+  double scalar = 0;               // SCALAR
+  const float* points = nullptr;   // POINTS: point_count rows of point_stride floats
+  uint64_t point_count = 0;
+  uint32_t point_stride = 0;
+  std::string point_fields;
+  std::string json;                // JSON (validated to parse)
+};
+
+// A scan on one plugin method. Move-only RAII over procam_session*; keeps its
+// plugin library loaded even if the PluginHost dies first.
+// Protocol: loop { next_plan() -> plan: add_frame(i) for every i, end_round() }
+// until next_plan() gives nullopt, then outputs(). Calls out of this order
+// give failed_precondition without reaching the plugin. Not thread-safe: one
+// thread at a time (it may move between threads between calls).
+class Session {
+public:
+  // At most this many rounds per session; more is treated as a plugin bug.
+  static constexpr uint32_t kMaxRounds = 1000;
+
+  Session(Session&& other) noexcept;
+  Session& operator=(Session&& other) noexcept;
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+  ~Session();  // session_destroy
+
+  const std::string& plugin_name() const;
+  const std::string& method() const { return method_; }
+
+  // The next round to capture, or nullopt when the scan needs no more frames.
+  Result<std::optional<Plan>> next_plan();
+  // Frame `index` of the current plan (any order, each exactly once). The
+  // view must be valid (procam::validate_view); it is only read during the call.
+  Status add_frame(uint32_t index, const procam_image& frame);
+  // All frames of the round were added: the plugin decodes.
+  Status end_round();
+  // Results; call after next_plan() returned nullopt.
+  Result<std::vector<Output>> outputs();
+
+private:
+  friend class PluginHost;
+  Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_session* session,
+          std::string method);
+  Status plugin_failure(const char* call, int rc, const procam_error& err) const;
+
+  std::shared_ptr<const detail::LoadedPlugin> plugin_;
+  procam_session* session_ = nullptr;
+  std::string method_;
+  bool in_round_ = false;   // next_plan gave a plan, end_round not yet called
+  bool finished_ = false;   // next_plan gave nullopt
+  uint32_t rounds_ = 0;
+  std::vector<bool> added_; // per frame of the current plan
+};
+
+class PluginHost {
+public:
+  explicit PluginHost(LoadOptions options = {});
+  ~PluginHost();
+  PluginHost(PluginHost&&) noexcept;
+  PluginHost& operator=(PluginHost&&) noexcept;
+  PluginHost(const PluginHost&) = delete;
+  PluginHost& operator=(const PluginHost&) = delete;
+
+  // Loads every regular file whose name ends in ".so" directly in each dir
+  // (not recursive), in name order. Never fails as a whole: bad files go to
+  // rejected(); a missing directory is logged and skipped, an unreadable one
+  // is recorded in rejected(). A plugin whose name is already loaded is
+  // rejected ("duplicate plugin name, first loaded from ...").
+  // Forks when probing: call before the process starts threads.
+  void load_directories(const std::vector<std::string>& dirs);
+  // Loads one file with the same checks; records it in plugins() or
+  // rejected() and returns the reason on failure. Forks when probing.
+  Status load_file(const std::string& path);
+
+  const std::vector<PluginInfo>& plugins() const { return plugins_; }
+  const std::vector<Rejected>& rejected() const { return rejected_; }
+  const PluginInfo* find(std::string_view name) const;
+
+  // Starts a scan. not_found: unknown plugin (message lists the loaded ones)
+  // or unknown method (lists the plugin's methods); invalid_argument: params
+  // or rig is not a JSON object; plugin_error: the plugin refused (its message).
+  Result<Session> create_session(const std::string& plugin, const std::string& method,
+                                 const std::string& params_json,
+                                 const std::string& rig_json) const;
+
+private:
+  Status load_file_impl(const std::string& path);
+
+  LoadOptions options_;
+  std::vector<PluginInfo> plugins_;
+  std::vector<std::shared_ptr<const detail::LoadedPlugin>> loaded_;  // parallel to plugins_
+  std::vector<Rejected> rejected_;
+};
+
+}  // namespace procam::host

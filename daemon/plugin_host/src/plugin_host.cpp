@@ -1,0 +1,166 @@
+// SPDX-License-Identifier: MIT
+// PluginHost: directory scan, the per-file load sequence, session creation.
+#include "procam/host/plugin_host.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <system_error>
+
+#include "plugin_loader.hpp"
+#include "procam/core/log.hpp"
+
+namespace procam::host {
+namespace fs = std::filesystem;
+
+PluginHost::PluginHost(LoadOptions options) : options_(options) {}
+PluginHost::~PluginHost() = default;
+PluginHost::PluginHost(PluginHost&&) noexcept = default;
+PluginHost& PluginHost::operator=(PluginHost&&) noexcept = default;
+
+const PluginInfo* PluginHost::find(std::string_view name) const {
+  for (const auto& p : plugins_)
+    if (p.name == name) return &p;
+  return nullptr;
+}
+
+void PluginHost::load_directories(const std::vector<std::string>& dirs) {
+  for (const auto& dir : dirs) {
+    try {
+      std::error_code ec;
+      const auto st = fs::status(dir, ec);
+      if (ec || !fs::exists(st)) {
+        PROCAM_LOG(plugins, info) << "plugin directory '" << dir << "' does not exist; skipped";
+        continue;
+      }
+      if (!fs::is_directory(st)) {
+        rejected_.push_back({dir, Error(Code::io_error, "plugin directory '" + dir +
+                                                            "' is not a directory")});
+        PROCAM_LOG(plugins, warn) << rejected_.back().error.message();
+        continue;
+      }
+      std::vector<std::string> files;
+      fs::directory_iterator it(dir, ec), end;
+      for (; !ec && it != end; it.increment(ec)) {
+        const std::string fname = it->path().filename().string();
+        if (fname.size() <= 3 || fname.compare(fname.size() - 3, 3, ".so") != 0) continue;
+        std::error_code ec2;
+        if (!it->is_regular_file(ec2) || ec2) continue;  // follows symlinks
+        files.push_back(it->path().string());
+      }
+      if (ec) {
+        rejected_.push_back({dir, Error(Code::io_error, "cannot read plugin directory '" + dir +
+                                                            "': " + ec.message())});
+        PROCAM_LOG(plugins, warn) << rejected_.back().error.message();
+        continue;
+      }
+      std::sort(files.begin(), files.end());
+      for (const auto& f : files) (void)load_file(f);
+    } catch (const std::exception& e) {
+      rejected_.push_back({dir, Error(Code::internal, "scanning plugin directory '" + dir +
+                                                          "': " + e.what())});
+    }
+  }
+}
+
+Status PluginHost::load_file(const std::string& path) {
+  Status st;
+  try {
+    st = load_file_impl(path);
+  } catch (const std::exception& e) {
+    st = Error(Code::internal, "plugin '" + path + "': unexpected error while loading: " + e.what());
+  }
+  if (!st.ok()) {
+    rejected_.push_back({path, st});
+    PROCAM_LOG(plugins, warn) << "rejected " << st.to_string();
+  }
+  return st;
+}
+
+Status PluginHost::load_file_impl(const std::string& path) {
+  // 1. The info block, read from the file: no plugin code runs.
+  auto file = detail::read_plugin_info(path);
+  if (!file.ok()) return file.status();
+  const std::string name(file->info.name);
+  if (const PluginInfo* first = find(name))
+    return Error(Code::failed_precondition,
+                 "plugin '" + path + "': duplicate plugin name '" + name + "', first loaded from '" +
+                     first->file + "'; it was skipped: remove one of the two files");
+
+  // 2. Probe in a child: crashes and hangs stay there.
+  if (options_.probe_in_child) PROCAM_TRY(detail::probe_in_child(path, *file, options_.probe_timeout));
+
+  // 3. Load here and check again.
+  auto checked = detail::load_and_check(path, *file, [](detail::Phase) {});
+  if (!checked.ok()) return checked.status();
+
+  PluginInfo info;
+  info.name = name;
+  info.version = file->info.version;
+  info.file = path;
+  info.methods = std::move(checked->methods);
+  PROCAM_LOG(plugins, info) << "loaded plugin '" << info.name << "' " << info.version << " from '"
+                            << path << "' (" << info.methods.size() << " methods)";
+  plugins_.push_back(std::move(info));
+  loaded_.push_back(std::move(checked->plugin));
+  return {};
+}
+
+Result<Session> PluginHost::create_session(const std::string& plugin, const std::string& method,
+                                           const std::string& params_json,
+                                           const std::string& rig_json) const {
+  try {
+    size_t idx = plugins_.size();
+    for (size_t i = 0; i < plugins_.size(); ++i)
+      if (plugins_[i].name == plugin) idx = i;
+    if (idx == plugins_.size()) {
+      std::string known;
+      for (const auto& p : plugins_) known += (known.empty() ? "" : ", ") + p.name;
+      return Error(Code::not_found, "no plugin '" + plugin + "' is loaded (loaded plugins: " +
+                                        (known.empty() ? std::string("none") : known) + ")");
+    }
+    const PluginInfo& info = plugins_[idx];
+    bool has_method = false;
+    std::string methods;
+    for (const auto& m : info.methods) {
+      has_method = has_method || m.name == method;
+      methods += (methods.empty() ? "" : ", ") + m.name;
+    }
+    if (!has_method)
+      return Error(Code::not_found, "plugin '" + plugin + "' has no method '" + method +
+                                        "' (its methods: " + methods + ")");
+    auto check_object = [](const std::string& text, const char* what) -> Status {
+      if (text.find('\0') != std::string::npos)
+        return Error(Code::invalid_argument, std::string(what) + " contains a NUL byte");
+      auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+      if (j.is_discarded()) return Error(Code::invalid_argument, std::string(what) + " is not valid JSON");
+      if (!j.is_object())
+        return Error(Code::invalid_argument,
+                     std::string(what) + " must be a JSON object, got " + j.type_name());
+      return {};
+    };
+    const std::string params = params_json.empty() ? "{}" : params_json;
+    const std::string rig = rig_json.empty() ? "{}" : rig_json;
+    PROCAM_TRY(check_object(params, "params"));
+    PROCAM_TRY(check_object(rig, "rig description"));
+
+    const auto& loaded = loaded_[idx];
+    procam_session* s = nullptr;
+    procam_error err{};
+    const int rc = loaded->vtable->session_create(method.c_str(), params.c_str(), rig.c_str(), &s, &err);
+    if (rc != PROCAM_OK) {
+      if (rc > 0 && s != nullptr) loaded->vtable->session_destroy(s);
+      return Error(Code::plugin_error,
+                   "plugin '" + plugin + "' could not start method '" + method + "' (" +
+                       detail::rc_name(rc) + "): " +
+                       (rc < 0 ? detail::error_message(err) : std::string("not allowed by the ABI")));
+    }
+    if (s == nullptr)
+      return Error(Code::plugin_error, "plugin '" + plugin + "' session_create returned PROCAM_OK "
+                                                             "but no session");
+    return Session(loaded, s, method);
+  } catch (const std::exception& e) {
+    return Error(Code::internal, "create_session: " + std::string(e.what()));
+  }
+}
+
+}  // namespace procam::host

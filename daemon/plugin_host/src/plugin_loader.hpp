@@ -1,0 +1,83 @@
+// SPDX-License-Identifier: MIT
+// Internal steps of loading one plugin file: read + check its info from the
+// ELF file, probe it in a child process, dlopen + check it in this process.
+//
+// Every function returns a Status whose message starts with "plugin '<file>'"
+// and says what was found and what to do. Nothing throws.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "procam/core/status.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "procam/plugin_abi.h"
+
+namespace procam::host::detail {
+
+// A plugin library loaded into this process. Owns the dlopen handle (closed
+// when the last Session and the PluginHost entry using it are gone).
+// Immutable after construction; safe to share between threads.
+struct LoadedPlugin {
+  std::string name;
+  std::string file;
+  void* handle = nullptr;
+  const procam_plugin_vtable* vtable = nullptr;
+
+  LoadedPlugin() = default;
+  LoadedPlugin(const LoadedPlugin&) = delete;
+  LoadedPlugin& operator=(const LoadedPlugin&) = delete;
+  ~LoadedPlugin();
+};
+
+// What step 1 found in the file.
+struct FileInfo {
+  procam_plugin_info info{};         // exact bytes of the symbol in the file
+  std::vector<std::string> methods;  // info.methods split on ',' and validated
+};
+
+// Step 1: reads procam_plugin_info from the ELF file without loading it and
+// checks machine, magic, ABI version, struct size, strings, names, and that
+// procam_plugin_create is defined. No plugin code runs.
+Result<FileInfo> read_plugin_info(const std::string& path);
+
+// Where step 3 got to; the probe child reports each phase to its parent so a
+// crash or hang can be blamed on the right step.
+enum class Phase : uint8_t { none = 0, dlopen, create, vtable, describe, done };
+const char* phase_text(Phase p);
+
+struct Checked {
+  std::shared_ptr<LoadedPlugin> plugin;
+  std::vector<MethodInfo> methods;
+};
+
+// Step 3 (and what the probe child does): dlopen(RTLD_NOW | RTLD_LOCAL),
+// compare the in-memory procam_plugin_info with the file's, call
+// procam_plugin_create(PROCAM_PLUGIN_ABI_VERSION), check the vtable and the
+// describe() JSON. `on_phase` is called before each step. Runs plugin code:
+// a broken plugin may crash or hang the calling process (hence step 2).
+Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
+                               const std::function<void(Phase)>& on_phase);
+
+// Step 2: runs load_and_check in a fork()ed child and waits up to `timeout`.
+// Crash (signal) -> plugin_error, hang -> timeout (child killed), failure ->
+// the child's Status. Must be called while the process is single-threaded.
+Status probe_in_child(const std::string& path, const FileInfo& file,
+                      std::chrono::milliseconds timeout);
+
+// Helpers shared with Session.
+bool valid_plugin_name(std::string_view s);  // [a-z0-9_-]{1,63}
+bool valid_output_name(std::string_view s);  // [a-z0-9_]{1,64}
+// A printable rendering of untrusted text for messages (non-printables as \xNN).
+std::string printable(std::string_view s, size_t max_len = 80);
+// The plugin's error message, copied up to the first NUL or the buffer end.
+std::string error_message(const procam_error& err);
+// "PROCAM_ERR_BAD_FRAME" etc.; "undocumented return code N" otherwise.
+std::string rc_name(int rc);
+
+}  // namespace procam::host::detail

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: MIT
+// Ground-truth maps from a prepared view, and their files.
+#include "procam/hw/sim/ground_truth.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "procam/core/image_io.hpp"
+
+namespace procam::sim {
+
+hw::GroundTruth ground_truth_from_view(const PreparedView& v) {
+  hw::GroundTruth gt;
+  gt.depth_mm = Image(v.width, v.height, PixelType::f32);
+  gt.proj_col = Image(v.width, v.height, PixelType::f32);
+  gt.proj_row = Image(v.width, v.height, PixelType::f32);
+  gt.lit = Image(v.width, v.height, PixelType::u8);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  float* depth = gt.depth_mm.ptr<float>();
+  float* col = gt.proj_col.ptr<float>();
+  float* row = gt.proj_row.ptr<float>();
+  uint8_t* lit = gt.lit.ptr<uint8_t>();
+  for (size_t i = 0; i < v.pixel_count(); ++i) {
+    depth[i] = v.depth_mm[i];
+    const bool l = v.lit[i] != 0;
+    col[i] = l ? v.proj_x[i] : nan;
+    row[i] = l ? v.proj_y[i] : nan;
+    lit[i] = l ? 255 : 0;
+  }
+  return gt;
+}
+
+Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folder,
+                          const std::map<std::string, std::string>& attributes) {
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec)
+    return Error(Code::io_error, "cannot create ground-truth folder '" + folder + "': " + ec.message());
+  const std::filesystem::path dir(folder);
+  struct Item { const char* file; const Image* image; const char* unit; };
+  const Item items[] = {{"depth_mm.exr", &truth.depth_mm, "mm"},
+                        {"proj_col.exr", &truth.proj_col, "px"},
+                        {"proj_row.exr", &truth.proj_row, "px"},
+                        {"lit.png", &truth.lit, ""}};
+  for (const Item& it : items) {
+    if (it.image->empty())
+      return Error(Code::invalid_argument, std::string("ground truth map for '") + it.file + "' is empty");
+    std::map<std::string, std::string> attrs = attributes;
+    if (*it.unit) attrs["procam:unit"] = it.unit;
+    const std::string path = (dir / it.file).string();
+    Status st = write_image(path, *it.image, std::string(it.file).ends_with(".exr") ? attrs : std::map<std::string, std::string>{});
+    if (!st.ok()) return st.with_context("writing ground truth '" + path + "'");
+  }
+  return Status::Ok();
+}
+
+}  // namespace procam::sim

@@ -1,0 +1,385 @@
+// SPDX-License-Identifier: MIT
+// Scene preparation (ray casting, shadows, Lambertian gains), thin-lens defocus
+// maps, blurred pattern stacks and the direct transport component.
+#include "procam/hw/sim/renderer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "parallel.hpp"
+#include "procam/hw/sim/raycast.hpp"
+
+namespace procam::sim {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// Shadow-ray tolerance: the first hit along the projector ray counts as the
+// point itself when it lies within this fraction of the distance to it.
+constexpr double kShadowRelEps = 1e-6;
+
+void fill_view_rows(const SceneTracer& tracer, const ProjectorModel& projector,
+                    const Rigid3& world_from_cam, const Rigid3& proj_from_world,
+                    const Vec3& proj_centre_world, PreparedView& v, uint32_t row_begin,
+                    uint32_t row_end) {
+  const Intrinsics& K = v.camera.intrinsics;
+  const Intrinsics& Kp = projector.intrinsics;
+  const double intensity = projector.irradiance_at_1m * 1.0e6;  // iu·mm²
+  const double W = static_cast<double>(Kp.width), H = static_cast<double>(Kp.height);
+  const int64_t stride = static_cast<int64_t>(Kp.width) + 2;
+  const Vec3 origin = world_from_cam.translation_mm;
+  for (uint32_t row = row_begin; row < row_end; ++row) {
+    for (uint32_t col = 0; col < v.width; ++col) {
+      const size_t i = size_t{row} * v.width + col;
+      const Vec3 d_cam = K.ray(static_cast<double>(col), static_cast<double>(row));
+      const Vec3 d_world = world_from_cam.rotation * d_cam;
+      Hit hit;
+      if (!tracer.first_hit(origin, d_world, 1e-9, hit)) continue;  // defaults: no surface
+      const Vec3 x_cam = d_cam * hit.t;  // d_cam has z = 1, so z = t
+      Vec3 n_world = hit.normal;
+      if (dot(n_world, d_world) > 0) n_world = -n_world;  // face the camera
+      const Vec3 n_cam = world_from_cam.rotation.transposed() * n_world;
+      const double albedo = tracer.material(hit.object).albedo;
+      v.depth_mm[i] = static_cast<float>(x_cam.z);
+      v.point_mm[3 * i + 0] = static_cast<float>(x_cam.x);
+      v.point_mm[3 * i + 1] = static_cast<float>(x_cam.y);
+      v.point_mm[3 * i + 2] = static_cast<float>(x_cam.z);
+      v.normal[3 * i + 0] = static_cast<float>(n_cam.x);
+      v.normal[3 * i + 1] = static_cast<float>(n_cam.y);
+      v.normal[3 * i + 2] = static_cast<float>(n_cam.z);
+      v.object[i] = hit.object;
+      v.albedo[i] = static_cast<float>(albedo);
+
+      const Vec3 x_proj = proj_from_world * hit.point_mm;
+      if (!(x_proj.z > 0)) continue;  // behind the projector: not lit, no coordinates
+      double xp = 0, yp = 0;
+      Kp.project(x_proj, xp, yp);
+      v.proj_x[i] = static_cast<float>(xp);
+      v.proj_y[i] = static_cast<float>(yp);
+      v.proj_z_mm[i] = static_cast<float>(x_proj.z);
+
+      const bool inside = xp >= -0.5 && xp < W - 0.5 && yp >= -0.5 && yp < H - 0.5;
+      const Vec3 to_proj = proj_centre_world - hit.point_mm;
+      const double dist = norm(to_proj);
+      const double cos_p = dot(n_world, to_proj) / dist;
+      if (!inside || !(cos_p > 0)) continue;
+      // Occlusion: the first surface along the projector ray must be this point.
+      Hit first;
+      const Vec3 ray = hit.point_mm - proj_centre_world;  // t = 1 at the point
+      if (tracer.first_hit(proj_centre_world, ray, 1e-12, first) && first.t < 1.0 - kShadowRelEps)
+        continue;
+      v.lit[i] = 1;
+      v.direct_gain[i] = static_cast<float>(albedo / M_PI * intensity * cos_p / (dist * dist));
+      const auto ix = static_cast<int64_t>(std::floor(xp + 0.5));
+      const auto iy = static_cast<int64_t>(std::floor(yp + 0.5));
+      v.nearest[i] = static_cast<int32_t>((iy + 1) * stride + (ix + 1));
+      const double x0 = std::floor(xp), y0 = std::floor(yp);
+      v.bilinear[i] = static_cast<int32_t>((static_cast<int64_t>(y0) + 1) * stride + (static_cast<int64_t>(x0) + 1));
+      v.frac_x[i] = static_cast<float>(xp - x0);
+      v.frac_y[i] = static_cast<float>(yp - y0);
+    }
+  }
+}
+
+// Standard normal CDF.
+double phi(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+
+// Gaussian of σ integrated over each unit pixel box (so level k = box image ∗ G_σ
+// sampled at pixel centres), truncated at ~3σ + 1 and renormalised.
+std::vector<float> box_gaussian_kernel(double sigma) {
+  const int r = static_cast<int>(std::ceil(3.0 * sigma + 1.0));
+  std::vector<double> w(static_cast<size_t>(2 * r + 1));
+  double sum = 0;
+  for (int j = -r; j <= r; ++j) {
+    const double wj = phi((j + 0.5) / sigma) - phi((j - 0.5) / sigma);
+    w[static_cast<size_t>(j + r)] = wj;
+    sum += wj;
+  }
+  std::vector<float> out(w.size());
+  for (size_t k = 0; k < w.size(); ++k) out[k] = static_cast<float>(w[k] / sum);
+  return out;
+}
+
+}  // namespace
+
+Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& projector,
+                                  const CameraCalibration& camera, const Rigid3& world_from_proj,
+                                  int threads) {
+  if (!camera.intrinsics.valid())
+    return Error(Code::invalid_argument, "camera intrinsics invalid: width, height, fx, fy must be > 0");
+  if (!projector.intrinsics.valid())
+    return Error(Code::invalid_argument, "projector intrinsics invalid: width, height, fx, fy must be > 0");
+  PreparedView v;
+  v.width = camera.intrinsics.width;
+  v.height = camera.intrinsics.height;
+  v.proj_width = projector.intrinsics.width;
+  v.proj_height = projector.intrinsics.height;
+  v.camera = camera;
+  v.projector = projector.intrinsics;
+  const size_t n = v.pixel_count();
+  v.depth_mm.assign(n, kNaN);
+  v.point_mm.assign(3 * n, kNaN);
+  v.normal.assign(3 * n, 0.f);
+  v.object.assign(n, -1);
+  v.albedo.assign(n, 0.f);
+  v.proj_x.assign(n, kNaN);
+  v.proj_y.assign(n, kNaN);
+  v.proj_z_mm.assign(n, kNaN);
+  v.lit.assign(n, 0);
+  v.direct_gain.assign(n, 0.f);
+  v.ambient.assign(n, 0.f);
+  v.nearest.assign(n, -1);
+  v.bilinear.assign(n, -1);
+  v.frac_x.assign(n, 0.f);
+  v.frac_y.assign(n, 0.f);
+
+  const SceneTracer tracer(scene);
+  // world_from_cam = world_from_proj · proj_from_cam
+  const Rigid3 world_from_cam = world_from_proj * camera.cam_from_proj.inverse();
+  const Rigid3 proj_from_world = world_from_proj.inverse();
+  const Vec3 proj_centre_world = world_from_proj.translation_mm;
+  detail::parallel_rows(v.height, threads, [&](uint32_t b, uint32_t e) {
+    fill_view_rows(tracer, projector, world_from_cam, proj_from_world, proj_centre_world, v, b, e);
+  });
+  for (size_t i = 0; i < n; ++i)
+    v.ambient[i] = static_cast<float>(static_cast<double>(v.albedo[i]) / M_PI * scene.ambient);
+  return v;
+}
+
+Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& projector,
+                                  const CameraCalibration& camera, int threads) {
+  return prepare_view(scene, projector, camera, camera.cam_from_proj, threads);
+}
+
+DefocusMap compute_defocus(const PreparedView& view, const ProjectorModel& projector, double focus_mm) {
+  DefocusMap d;
+  d.focus_mm = focus_mm;
+  const size_t n = view.pixel_count();
+  d.sigma_px.assign(n, 0.f);
+  d.level.assign(n, 0);
+  d.weight.assign(n, 0.f);
+  constexpr size_t L = kBlurLevelSigmaPx.size();
+  size_t needed = 1;
+  for (size_t i = 0; i < n; ++i) {
+    if (!view.lit[i]) continue;
+    const double z = static_cast<double>(view.proj_z_mm[i]);
+    const double sigma = projector.aperture_mm > 0 ? projector.blur_sigma_px(z, focus_mm) : 0.0;
+    d.sigma_px[i] = static_cast<float>(sigma);
+    size_t k = 0;
+    while (k + 1 < L && static_cast<double>(kBlurLevelSigmaPx[k + 1]) <= sigma) ++k;
+    double w = 0;
+    if (k + 1 < L) {
+      const double s0 = static_cast<double>(kBlurLevelSigmaPx[k]), s1 = static_cast<double>(kBlurLevelSigmaPx[k + 1]);
+      w = (sigma * sigma - s0 * s0) / (s1 * s1 - s0 * s0);  // variance-matched blend
+    }
+    d.level[i] = static_cast<uint8_t>(k);
+    d.weight[i] = static_cast<float>(w);
+    needed = std::max(needed, k + (w > 0 ? 2 : 1));
+  }
+  d.levels_needed = needed;
+  return d;
+}
+
+// ---- PreparedPattern -------------------------------------------------------
+
+Result<PreparedPattern> PreparedPattern::from_pattern(const procam_image& pattern, const ProjectorModel& projector) {
+  if (const char* bad = validate_view(pattern))
+    return Error(Code::invalid_argument, std::string("pattern image is malformed: ") + bad);
+  if (pattern.channels != 1)
+    return Error(Code::invalid_argument, "pattern must have 1 channel, got " + std::to_string(pattern.channels));
+  if (pattern.width != projector.intrinsics.width || pattern.height != projector.intrinsics.height)
+    return Error(Code::invalid_argument,
+                 "pattern is " + std::to_string(pattern.width) + "x" + std::to_string(pattern.height) +
+                     " but the projector is " + std::to_string(projector.intrinsics.width) + "x" +
+                     std::to_string(projector.intrinsics.height),
+                 "render patterns at the projector resolution from the rig description");
+  PreparedPattern p;
+  p.width_ = pattern.width;
+  p.height_ = pattern.height;
+  const size_t stride = p.stride();
+  p.levels_.resize(1);
+  std::vector<float>& l0 = p.levels_[0];
+  l0.assign(stride * (size_t{p.height_} + 2), 0.f);
+  const auto* base = static_cast<const uint8_t*>(pattern.data);
+  if (pattern.pixel_type == PROCAM_PIXEL_U8 || pattern.pixel_type == PROCAM_PIXEL_U16) {
+    const bool u8 = pattern.pixel_type == PROCAM_PIXEL_U8;
+    const uint32_t max_code = (1u << pattern.bit_depth) - 1u;
+    std::vector<float> lut(u8 ? 256u : 65536u);
+    for (size_t c = 0; c < lut.size(); ++c)
+      lut[c] = static_cast<float>(projector.emitted(static_cast<double>(c) / static_cast<double>(max_code)));
+    for (uint32_t y = 0; y < p.height_; ++y) {
+      float* dst = l0.data() + (size_t{y} + 1) * stride + 1;
+      const uint8_t* row = base + size_t{y} * pattern.stride_bytes;
+      if (u8) {
+        for (uint32_t x = 0; x < p.width_; ++x) dst[x] = lut[row[x]];
+      } else {
+        const auto* r16 = reinterpret_cast<const uint16_t*>(row);
+        for (uint32_t x = 0; x < p.width_; ++x) dst[x] = lut[r16[x]];
+      }
+    }
+  } else {
+    // F32: emitted curve tabulated at 65536 steps, linearly interpolated
+    // (error < 1e-9 for gamma >= 1); exact at 0 and 1.
+    constexpr size_t N = 65536;
+    std::vector<float> lut(N + 1);
+    for (size_t c = 0; c <= N; ++c)
+      lut[c] = static_cast<float>(projector.emitted(static_cast<double>(c) / static_cast<double>(N)));
+    for (uint32_t y = 0; y < p.height_; ++y) {
+      float* dst = l0.data() + (size_t{y} + 1) * stride + 1;
+      const auto* row = reinterpret_cast<const float*>(base + size_t{y} * pattern.stride_bytes);
+      for (uint32_t x = 0; x < p.width_; ++x) {
+        float v = row[x];
+        v = std::isnan(v) ? 0.f : std::clamp(v, 0.f, 1.f);
+        const float f = v * static_cast<float>(N);
+        const auto i0 = std::min(static_cast<size_t>(f), N - 1);
+        const float t = f - static_cast<float>(i0);
+        dst[x] = lut[i0] + t * (lut[i0 + 1] - lut[i0]);
+      }
+    }
+  }
+  return p;
+}
+
+Result<PreparedPattern> PreparedPattern::from_emitted(const Image& emitted) {
+  if (emitted.empty() || emitted.type() != PixelType::f32 || emitted.channels() != 1)
+    return Error(Code::invalid_argument, "emitted light must be a non-empty 1-channel F32 image");
+  PreparedPattern p;
+  p.width_ = emitted.width();
+  p.height_ = emitted.height();
+  const size_t stride = p.stride();
+  p.levels_.resize(1);
+  p.levels_[0].assign(stride * (size_t{p.height_} + 2), 0.f);
+  for (uint32_t y = 0; y < p.height_; ++y) {
+    const float* src = emitted.row<float>(y);
+    float* dst = p.levels_[0].data() + (size_t{y} + 1) * stride + 1;
+    for (uint32_t x = 0; x < p.width_; ++x) {
+      if (!std::isfinite(src[x]))
+        return Error(Code::invalid_argument, "emitted light has a non-finite value at (" + std::to_string(x) +
+                                                 ", " + std::to_string(y) + ")");
+      dst[x] = src[x];
+    }
+  }
+  return p;
+}
+
+size_t PreparedPattern::levels_built() const {
+  size_t k = 0;
+  while (k < levels_.size() && !levels_[k].empty()) ++k;
+  return k;
+}
+
+const float* PreparedPattern::level(size_t k) const {
+  if (k >= levels_.size() || levels_[k].empty()) return nullptr;
+  return levels_[k].data();
+}
+
+void PreparedPattern::build_levels(size_t count, int threads) {
+  if (levels_.empty()) return;
+  count = std::min(count, kBlurLevelSigmaPx.size());
+  if (levels_.size() < count) levels_.resize(count);
+  const size_t stride = this->stride();
+  const size_t rows = size_t{height_} + 2;
+  std::vector<float> tmp;
+  for (size_t k = 1; k < count; ++k) {
+    if (!levels_[k].empty()) continue;
+    const std::vector<float> kernel = box_gaussian_kernel(static_cast<double>(kBlurLevelSigmaPx[k]));
+    const auto r = static_cast<int64_t>(kernel.size() / 2);
+    const std::vector<float>& src = levels_[0];
+    tmp.assign(stride * rows, 0.f);
+    // Horizontal pass over the padded image (zero outside): per tap a saxpy
+    // along the row, which the compiler vectorises.
+    detail::parallel_rows(static_cast<uint32_t>(rows), threads, [&](uint32_t b, uint32_t e) {
+      for (uint32_t y = b; y < e; ++y) {
+        const float* in = src.data() + size_t{y} * stride;
+        float* out = tmp.data() + size_t{y} * stride;
+        for (int64_t j = -r; j <= r; ++j) {
+          const float w = kernel[static_cast<size_t>(j + r)];
+          const int64_t x_lo = std::max<int64_t>(0, -j);
+          const int64_t x_hi = std::min<int64_t>(static_cast<int64_t>(stride), static_cast<int64_t>(stride) - j);
+          for (int64_t x = x_lo; x < x_hi; ++x) out[x] += w * in[x + j];
+        }
+      }
+    });
+    std::vector<float> dst(stride * rows, 0.f);
+    detail::parallel_rows(static_cast<uint32_t>(rows), threads, [&](uint32_t b, uint32_t e) {
+      for (uint32_t y = b; y < e; ++y) {
+        float* out = dst.data() + size_t{y} * stride;
+        for (int64_t j = -r; j <= r; ++j) {
+          const int64_t yy = static_cast<int64_t>(y) + j;
+          if (yy < 0 || yy >= static_cast<int64_t>(rows)) continue;
+          const float w = kernel[static_cast<size_t>(j + r)];
+          const float* in = tmp.data() + static_cast<size_t>(yy) * stride;
+          for (size_t x = 0; x < stride; ++x) out[x] += w * in[x];
+        }
+      }
+    });
+    levels_[k] = std::move(dst);
+  }
+}
+
+// ---- Direct component -------------------------------------------------------
+
+void DirectComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
+                            float* radiance) const {
+  const PreparedView& v = frame.view;
+  const DefocusMap& d = frame.defocus;
+  const size_t stride = frame.pattern.stride();
+  const float* levels[kBlurLevelSigmaPx.size()] = {};
+  for (size_t k = 0; k < kBlurLevelSigmaPx.size(); ++k) levels[k] = frame.pattern.level(k);
+  const float* l0 = levels[0];
+  auto bilinear = [&](const float* L, size_t i) {
+    const float* p = L + v.bilinear[i];
+    const float fx = v.frac_x[i], fy = v.frac_y[i];
+    const float top = p[0] + fx * (p[1] - p[0]);
+    const float bot = p[stride] + fx * (p[stride + 1] - p[stride]);
+    return top + fy * (bot - top);
+  };
+  const size_t b = size_t{row_begin} * v.width, e = size_t{row_end} * v.width;
+  for (size_t i = b; i < e; ++i) {
+    if (!v.lit[i]) continue;
+    const size_t k = d.level[i];
+    const float w = d.weight[i];
+    const float a = k == 0 ? l0[v.nearest[i]] : bilinear(levels[k], i);
+    const float value = w > 0.f ? a + w * (bilinear(levels[k + 1], i) - a) : a;
+    radiance[i] += v.direct_gain[i] * value;
+  }
+}
+
+// ---- Renderer ---------------------------------------------------------------
+
+Renderer::Renderer(PreparedView view, ProjectorModel projector, int threads)
+    : view_(std::move(view)), projector_(std::move(projector)), threads_(threads < 1 ? 1 : threads) {
+  defocus_ = compute_defocus(view_, projector_, projector_.focus_mm);
+  components_.push_back(std::make_unique<DirectComponent>());
+}
+
+void Renderer::set_focus_mm(double focus_mm) {
+  if (!(focus_mm > 0) || !std::isfinite(focus_mm)) focus_mm = projector_.focus_mm;
+  if (focus_mm == defocus_.focus_mm) return;
+  defocus_ = compute_defocus(view_, projector_, focus_mm);
+}
+
+void Renderer::add_component(std::unique_ptr<TransportComponent> component) {
+  if (component) components_.push_back(std::move(component));
+}
+
+Status Renderer::render_radiance(PreparedPattern& pattern, float* radiance, bool include_ambient) const {
+  if (pattern.empty() || pattern.width() != view_.proj_width || pattern.height() != view_.proj_height)
+    return Error(Code::invalid_argument,
+                 "prepared pattern is " + std::to_string(pattern.width()) + "x" + std::to_string(pattern.height()) +
+                     ", the projector is " + std::to_string(view_.proj_width) + "x" + std::to_string(view_.proj_height));
+  if (radiance == nullptr) return Error(Code::invalid_argument, "render_radiance: null output buffer");
+  pattern.build_levels(defocus_.levels_needed, threads_);
+  const FrameContext frame{view_, defocus_, pattern};
+  detail::parallel_rows(view_.height, threads_, [&](uint32_t b, uint32_t e) {
+    const size_t i0 = size_t{b} * view_.width, i1 = size_t{e} * view_.width;
+    if (include_ambient) std::copy(view_.ambient.begin() + static_cast<ptrdiff_t>(i0),
+                                   view_.ambient.begin() + static_cast<ptrdiff_t>(i1), radiance + i0);
+    else std::fill(radiance + i0, radiance + i1, 0.f);
+    for (const auto& c : components_) c->apply(frame, b, e, radiance);
+  });
+  return Status::Ok();
+}
+
+}  // namespace procam::sim

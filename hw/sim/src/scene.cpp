@@ -1,0 +1,208 @@
+// SPDX-License-Identifier: MIT
+// Scene JSON parsing and lookup by name (schema: hw/sim/SCENES.md).
+#include "procam/hw/sim/scene.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "json_fields.hpp"
+
+namespace procam::sim {
+namespace fs = std::filesystem;
+using detail::FieldReader;
+using detail::ParseErrors;
+
+namespace {
+
+Material parse_material(FieldReader& obj) {
+  Material m;
+  const nlohmann::json* mj = obj.object("material", false);
+  if (mj == nullptr) return m;
+  FieldReader r(*mj, obj.field("material"), obj.errors());
+  r.only({"albedo"});
+  m.albedo = r.number("albedo", 0.5, "diffuse reflectance 0..1", 0.0, 1.0);
+  return m;
+}
+
+// Unit vector from a field; fails if (near) zero.
+Vec3 unit_vec(FieldReader& r, const char* key, std::optional<Vec3> def) {
+  Vec3 v = r.vec3(key, def, "direction, any length");
+  if (r.errors().ok() && !(norm(v) > 1e-12)) {
+    r.fail(key, "must be a non-zero vector");
+    return {0, 0, 1};
+  }
+  return normalized(v);
+}
+
+Plane parse_plane(FieldReader& r) {
+  r.only({"type", "name", "material", "point_mm", "normal", "size_mm", "u_axis"});
+  Plane p;
+  p.point_mm = r.vec3("point_mm", std::nullopt, "a point on the plane, mm");
+  p.normal = unit_vec(r, "normal", std::nullopt);
+  if (r.has("size_mm")) {
+    auto s = r.numbers<2>("size_mm", std::nullopt, "[width, height] mm");
+    if (r.errors().ok() && !(s[0] > 0 && s[1] > 0)) r.fail("size_mm", "both extents must be > 0");
+    p.finite = true;
+    p.width_mm = s[0];
+    p.height_mm = s[1];
+  } else if (r.has("u_axis")) {
+    r.fail("u_axis", "only meaningful with size_mm (a finite rectangle)", "add \"size_mm\": [w, h] or remove u_axis");
+  }
+  // u axis: given, else camera x projected into the plane (camera y if x is ~normal).
+  Vec3 u = r.has("u_axis") ? unit_vec(r, "u_axis", std::nullopt) : Vec3{1, 0, 0};
+  if (!r.has("u_axis") && std::abs(dot(u, p.normal)) > 0.99) u = {0, 1, 0};
+  Vec3 u_in = u - p.normal * dot(u, p.normal);
+  if (r.errors().ok() && !(norm(u_in) > 1e-6)) {
+    r.fail("u_axis", "must not be parallel to normal");
+    return p;
+  }
+  p.u_axis = normalized(u_in);
+  p.v_axis = cross(p.normal, p.u_axis);
+  return p;
+}
+
+Box parse_box(FieldReader& r) {
+  r.only({"type", "name", "material", "center_mm", "size_mm", "euler_deg"});
+  Box b;
+  b.center_mm = r.vec3("center_mm", std::nullopt, "box centre, mm");
+  b.size_mm = r.vec3("size_mm", std::nullopt, "[sx, sy, sz] full edge lengths, mm");
+  if (r.errors().ok() && !(b.size_mm.x > 0 && b.size_mm.y > 0 && b.size_mm.z > 0))
+    r.fail("size_mm", "all three edge lengths must be > 0");
+  Vec3 e = r.vec3("euler_deg", Vec3{0, 0, 0}, "[rx, ry, rz] degrees, R = Rz*Ry*Rx");
+  b.rotation = rotation_from_euler_deg(e.x, e.y, e.z);
+  return b;
+}
+
+Sphere parse_sphere(FieldReader& r) {
+  r.only({"type", "name", "material", "center_mm", "radius_mm"});
+  Sphere s;
+  s.center_mm = r.vec3("center_mm", std::nullopt, "sphere centre, mm");
+  s.radius_mm = r.positive("radius_mm", std::nullopt, "mm");
+  return s;
+}
+
+std::string read_file(const std::string& path, Status& st) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    st = Error(fs::exists(path) ? Code::io_error : Code::not_found,
+               "scene file '" + path + "' " + (fs::exists(path) ? "cannot be read" : "does not exist"),
+               "check the path, or give a scene name found in the scene directories");
+    return {};
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
+  try {
+    ParseErrors errors{source.empty() ? std::string("scene") : source, {}};
+    FieldReader root(j, "", errors);
+    root.only({"name", "description", "ambient", "objects"});
+    Scene scene;
+    scene.source = source;
+    scene.name = root.string("name", fs::path(source).stem().string());
+    scene.description = root.string("description", std::string());
+    scene.ambient = root.number("ambient", 0.0, "irradiance, iu", 0.0);
+    const nlohmann::json* objs = root.get("objects");
+    if (objs == nullptr) {
+      root.fail("objects", "missing (required array of objects)");
+    } else if (!objs->is_array()) {
+      root.fail("objects", std::string("must be an array, got ") + objs->type_name());
+    } else {
+      for (size_t i = 0; i < objs->size() && errors.ok(); ++i) {
+        FieldReader r((*objs)[i], "objects[" + std::to_string(i) + "]", errors);
+        if (!errors.ok()) break;
+        Object o;
+        std::string type = r.string("type", std::nullopt);
+        o.name = r.string("name", std::string());
+        if (!errors.ok()) break;
+        if (type == "plane") {
+          o.shape = parse_plane(r);
+        } else if (type == "box") {
+          o.shape = parse_box(r);
+        } else if (type == "sphere") {
+          o.shape = parse_sphere(r);
+        } else {
+          r.fail("type", "unknown object type '" + type + "'", "use one of: plane, box, sphere");
+          break;
+        }
+        o.material = parse_material(r);
+        scene.objects.push_back(std::move(o));
+      }
+    }
+    if (!errors.ok()) return errors.first;
+    return scene;
+  } catch (const std::exception& e) {
+    return Error(Code::internal, (source.empty() ? std::string("scene") : source) +
+                                     ": unexpected error while parsing: " + e.what());
+  }
+}
+
+Result<Scene> load_scene_file(const std::string& path) {
+  Status st;
+  std::string text = read_file(path, st);
+  if (!st.ok()) return st;
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) {
+    // Re-parse with exceptions only to get the position for the message.
+    std::string detail;
+    try {
+      (void)nlohmann::json::parse(text);
+    } catch (const std::exception& e) {
+      detail = e.what();
+    }
+    return Error(Code::invalid_argument, path + ": not valid JSON: " + detail,
+                 "fix the syntax (see hw/sim/SCENES.md for the schema)");
+  }
+  return parse_scene(j, path);
+}
+
+std::vector<std::string> list_scenes(const std::vector<std::string>& scene_dirs) {
+  std::set<std::string> names;
+  for (const auto& dir : scene_dirs) {
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) continue;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      if (entry.path().extension() == ".json") names.insert(entry.path().stem().string());
+    }
+  }
+  return {names.begin(), names.end()};
+}
+
+Result<Scene> load_scene(const std::string& name_or_path, const std::vector<std::string>& scene_dirs,
+                         const std::string& base_dir) {
+  try {
+    if (name_or_path.empty())
+      return Error(Code::invalid_argument, "scene: empty scene name", "give a scene name such as \"plane\" or a path to a .json file");
+    const bool is_path = name_or_path.find('/') != std::string::npos ||
+                         fs::path(name_or_path).extension() == ".json";
+    if (is_path) {
+      fs::path p(name_or_path);
+      if (p.is_relative() && !base_dir.empty() && fs::exists(fs::path(base_dir) / p))
+        return load_scene_file((fs::path(base_dir) / p).string());
+      return load_scene_file(p.string());
+    }
+    std::string searched;
+    for (const auto& dir : scene_dirs) {
+      fs::path p = fs::path(dir) / (name_or_path + ".json");
+      if (fs::exists(p)) return load_scene_file(p.string());
+      searched += (searched.empty() ? "" : ", ") + dir;
+    }
+    std::string known;
+    for (const auto& n : list_scenes(scene_dirs)) known += (known.empty() ? "" : ", ") + n;
+    return Error(Code::not_found,
+                 "scene '" + name_or_path + "' not found in scene directories [" + searched + "]",
+                 known.empty() ? "no scene files found; pass a path to a scene .json file"
+                               : "available scenes: " + known);
+  } catch (const std::exception& e) {
+    return Error(Code::io_error, "scene '" + name_or_path + "': " + e.what());
+  }
+}
+
+}  // namespace procam::sim

@@ -1,0 +1,663 @@
+// SPDX-License-Identifier: MIT
+// procam wire protocol v1: strict request decoding, reply/event encoding and
+// client-side decoding (proto/PROTOCOL.md is the specification).
+#include "procam/proto/protocol.hpp"
+
+#include <algorithm>
+#include <array>
+#include <climits>
+#include <cstdio>
+#include <ctime>
+#include <exception>
+#include <initializer_list>
+#include <set>
+#include <utility>
+
+namespace procam::proto {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr std::array<std::string_view, 7> kTypes = {
+    "hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch"};
+
+constexpr const char* kSpecHint = "see proto/PROTOCOL.md";
+
+// Serialise without ever throwing on bad UTF-8 (replaced by U+FFFD).
+std::string dump(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+
+std::string join(const std::vector<std::string>& parts, std::string_view sep) {
+  std::string out;
+  for (size_t i = 0; i < parts.size(); ++i) {
+    if (i) out += sep;
+    out += parts[i];
+  }
+  return out;
+}
+
+std::string versions_text() {
+  std::vector<std::string> v;
+  for (int x : supported_versions()) v.push_back(std::to_string(x));
+  return "[" + join(v, ", ") + "]";
+}
+
+// ---- Strict parsing ---------------------------------------------------------
+
+struct ParseAbort {
+  Code code;
+  std::string message;
+};
+
+// nlohmann's parse_error text without the "[json.exception.parse_error.101] " tag.
+std::string parse_error_text(const char* what) {
+  std::string s = what;
+  if (auto p = s.find("] "); p != std::string::npos && s.rfind("[json.exception", 0) == 0)
+    s.erase(0, p + 2);
+  return s;
+}
+
+// Parses JSON, rejecting nesting deeper than max_depth (too_large) and
+// duplicate object keys (bad_message). The parser is iterative and the depth
+// check runs while parsing, so hostile input cannot exhaust the stack.
+Result<json> parse_strict(std::string_view bytes, int max_depth) {
+  std::vector<std::set<std::string>> keys;
+  auto callback = [&](int depth, json::parse_event_t event, json& parsed) -> bool {
+    switch (event) {
+      case json::parse_event_t::object_start:
+      case json::parse_event_t::array_start:
+        if (depth + 1 > max_depth)
+          throw ParseAbort{Code::too_large, "JSON nesting deeper than " +
+                                                std::to_string(max_depth) + " levels"};
+        if (event == json::parse_event_t::object_start) keys.emplace_back();
+        break;
+      case json::parse_event_t::key:
+        if (!keys.empty() && !keys.back().insert(parsed.get<std::string>()).second)
+          throw ParseAbort{Code::bad_message,
+                           "duplicate key '" + parsed.get<std::string>() + "' in a JSON object"};
+        break;
+      case json::parse_event_t::object_end:
+        if (!keys.empty()) keys.pop_back();
+        break;
+      default:
+        break;
+    }
+    return true;
+  };
+  try {
+    return json::parse(bytes.begin(), bytes.end(), callback, /*allow_exceptions=*/true,
+                       /*ignore_comments=*/false);
+  } catch (const ParseAbort& a) {
+    return Error(a.code, a.message, kSpecHint);
+  } catch (const json::exception& e) {
+    return Error(Code::bad_message, "not valid UTF-8 JSON: " + parse_error_text(e.what()),
+                 "a message body is one frame holding one JSON object; " + std::string(kSpecHint));
+  }
+}
+
+int depth_of(const json& j) {
+  if (!j.is_structured()) return 0;
+  int d = 0;
+  for (const auto& e : j) d = std::max(d, depth_of(e));
+  return d + 1;
+}
+
+// ---- Field access with errors that name the field ----------------------------
+
+class Fields {
+public:
+  Fields(const json& obj, std::string_view type) : obj_(obj), type_(type) {}
+
+  // Every key must be a common field or one of `allowed`.
+  Status only(std::initializer_list<std::string_view> allowed) const {
+    for (const auto& [key, value] : obj_.items()) {
+      if (key == "procam" || key == "id" || key == "type") continue;
+      if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
+      std::vector<std::string> names = {"procam", "id", "type"};
+      for (auto a : allowed) names.emplace_back(a);
+      return Error(Code::bad_message,
+                   "unknown field '" + key + "' in " + std::string(type_) + " request",
+                   "allowed fields: " + join(names, ", ") + " (names are case-sensitive)");
+    }
+    return {};
+  }
+
+  const json* find(const char* name) const {
+    auto it = obj_.find(name);
+    return it == obj_.end() ? nullptr : &*it;
+  }
+
+  Status missing(const char* name) const {
+    return Error(Code::bad_message,
+                 "missing field '" + std::string(name) + "' in " + std::string(type_) + " request",
+                 kSpecHint);
+  }
+
+  Status wrong_type(const char* name, const char* expected, const json& got) const {
+    return Error(Code::bad_message,
+                 "field '" + std::string(name) + "' must be " + expected + ", got " +
+                     got.type_name(),
+                 kSpecHint);
+  }
+
+  // A string of 1..max bytes (0..max when allow_empty). Over max: too_large.
+  Result<std::optional<std::string>> string(const char* name, bool required, size_t max,
+                                            bool allow_empty = false) const {
+    const json* v = find(name);
+    if (!v) {
+      if (required) return missing(name);
+      return std::optional<std::string>{};
+    }
+    if (!v->is_string()) return wrong_type(name, "a string", *v);
+    const auto& s = v->get_ref<const std::string&>();
+    if (s.empty() && !allow_empty)
+      return Error(Code::bad_message, "field '" + std::string(name) + "' must not be empty",
+                   kSpecHint);
+    if (s.size() > max)
+      return Error(Code::too_large,
+                   "field '" + std::string(name) + "' is " + std::to_string(s.size()) +
+                       " bytes; the limit is " + std::to_string(max),
+                   kSpecHint);
+    return std::optional<std::string>{s};
+  }
+
+  // A plugin or method name: string, 1..64 bytes of [a-z0-9_-].
+  Result<std::string> name(const char* field) const {
+    auto s = string(field, true, kMaxNameBytes);
+    PROCAM_TRY(s);
+    if (!is_valid_name(**s))
+      return Error(Code::invalid_argument,
+                   "field '" + std::string(field) + "' has characters outside [a-z0-9_-]: '" +
+                       **s + "'",
+                   "names are lower-case; list them with a list_plugins request");
+    return std::move(**s);
+  }
+
+  Result<std::optional<bool>> boolean(const char* name) const {
+    const json* v = find(name);
+    if (!v) return std::optional<bool>{};
+    if (!v->is_boolean()) return wrong_type(name, "true or false", *v);
+    return std::optional<bool>{v->get<bool>()};
+  }
+
+  // A non-negative JSON integer (no fraction, no exponent).
+  Result<std::optional<uint64_t>> unsigned_int(const char* name) const {
+    const json* v = find(name);
+    if (!v) return std::optional<uint64_t>{};
+    if (!v->is_number_integer()) return wrong_type(name, "an integer", *v);
+    if (!v->is_number_unsigned())
+      return Error(Code::invalid_argument, "field '" + std::string(name) + "' must be >= 0",
+                   kSpecHint);
+    return std::optional<uint64_t>{v->get<uint64_t>()};
+  }
+
+  // An object of at most 64 KiB (compact JSON) nested at most 16 deep.
+  Result<json> small_object(const char* name) const {
+    const json* v = find(name);
+    if (!v) return json::object();
+    if (!v->is_object()) return wrong_type(name, "an object", *v);
+    if (int d = depth_of(*v); d > kMaxParamsDepth)
+      return Error(Code::too_large,
+                   "field '" + std::string(name) + "' is nested " + std::to_string(d) +
+                       " levels deep; the limit is " + std::to_string(kMaxParamsDepth),
+                   kSpecHint);
+    if (size_t n = dump(*v).size(); n > kMaxParamsBytes)
+      return Error(Code::too_large,
+                   "field '" + std::string(name) + "' is " + std::to_string(n) +
+                       " bytes as compact JSON; the limit is " + std::to_string(kMaxParamsBytes),
+                   kSpecHint);
+    return *v;
+  }
+
+private:
+  const json& obj_;
+  std::string_view type_;
+};
+
+Result<RequestBody> decode_hello(const Fields& f) {
+  PROCAM_TRY(f.only({"versions", "client"}));
+  Hello h;
+  const json* v = f.find("versions");
+  if (!v) return f.missing("versions");
+  if (!v->is_array()) return f.wrong_type("versions", "an array of integers", *v);
+  if (v->empty())
+    return Error(Code::invalid_argument, "field 'versions' must not be empty",
+                 "list the protocol versions the client speaks, e.g. [1]");
+  if (v->size() > 64)
+    return Error(Code::too_large, "field 'versions' has more than 64 entries", kSpecHint);
+  for (const auto& e : *v) {
+    if (!e.is_number_integer()) return f.wrong_type("versions", "an array of integers", *v);
+    if (!e.is_number_unsigned() || e.get<uint64_t>() < 1 || e.get<uint64_t>() > INT_MAX)
+      return Error(Code::invalid_argument,
+                   "field 'versions' holds " + dump(e) + "; versions are integers >= 1",
+                   kSpecHint);
+    h.versions.push_back(static_cast<int>(e.get<uint64_t>()));
+  }
+  auto client = f.string("client", false, kMaxClientBytes, true);
+  PROCAM_TRY(client);
+  h.client = client->value_or("");
+  return RequestBody{std::move(h)};
+}
+
+Result<RequestBody> decode_scan(const Fields& f) {
+  PROCAM_TRY(f.only({"plugin", "method", "params", "rig_options", "events", "label"}));
+  Scan s;
+  auto plugin = f.name("plugin");
+  PROCAM_TRY(plugin);
+  s.plugin = std::move(*plugin);
+  auto method = f.name("method");
+  PROCAM_TRY(method);
+  s.method = std::move(*method);
+  auto params = f.small_object("params");
+  PROCAM_TRY(params);
+  s.params = std::move(*params);
+  auto rig_options = f.small_object("rig_options");
+  PROCAM_TRY(rig_options);
+  s.rig_options = std::move(*rig_options);
+  auto events = f.boolean("events");
+  PROCAM_TRY(events);
+  s.events = events->value_or(false);
+  auto label = f.string("label", false, kMaxLabelBytes, true);
+  PROCAM_TRY(label);
+  s.label = label->value_or("");
+  return RequestBody{std::move(s)};
+}
+
+Result<RequestBody> decode_status(const Fields& f) {
+  PROCAM_TRY(f.only({"scan_id"}));
+  auto scan_id = f.string("scan_id", false, kMaxIdBytes);
+  PROCAM_TRY(scan_id);
+  return RequestBody{StatusQuery{std::move(*scan_id)}};
+}
+
+Result<RequestBody> decode_result(const Fields& f) {
+  PROCAM_TRY(f.only({"scan_id"}));
+  auto scan_id = f.string("scan_id", true, kMaxIdBytes);
+  PROCAM_TRY(scan_id);
+  return RequestBody{ResultQuery{std::move(**scan_id)}};
+}
+
+Result<RequestBody> decode_fetch(const Fields& f) {
+  PROCAM_TRY(f.only({"scan_id", "file", "offset", "max_bytes"}));
+  Fetch r;
+  auto scan_id = f.string("scan_id", true, kMaxIdBytes);
+  PROCAM_TRY(scan_id);
+  r.scan_id = std::move(**scan_id);
+  auto file = f.string("file", true, kMaxFileNameBytes);
+  PROCAM_TRY(file);
+  r.file = std::move(**file);
+  if (!is_safe_file_name(r.file))
+    return Error(Code::invalid_argument,
+                 "field 'file' must be a plain file name from the manifest's \"files\" list, got '" +
+                     r.file + "'",
+                 "no '/', '\\', '..', leading '.' or control characters");
+  auto offset = f.unsigned_int("offset");
+  PROCAM_TRY(offset);
+  r.offset = offset->value_or(0);
+  auto max_bytes = f.unsigned_int("max_bytes");
+  PROCAM_TRY(max_bytes);
+  r.max_bytes = max_bytes->value_or(kDefaultFetchBytes);
+  if (r.max_bytes < 1 || r.max_bytes > kMaxFetchBytes)
+    return Error(Code::invalid_argument,
+                 "field 'max_bytes' is " + std::to_string(r.max_bytes) + "; it must be 1.." +
+                     std::to_string(kMaxFetchBytes),
+                 "omit it for the default of 1 MiB");
+  return RequestBody{std::move(r)};
+}
+
+Result<Request> decode_request_impl(std::string_view bytes, std::string* id_out) {
+  if (bytes.size() > kMaxRequestBytes)
+    return Error(Code::too_large,
+                 "request is " + std::to_string(bytes.size()) + " bytes; the limit is " +
+                     std::to_string(kMaxRequestBytes),
+                 "params and rig_options are limited to 64 KiB each");
+  auto parsed = parse_strict(bytes, kMaxMessageDepth);
+  PROCAM_TRY(parsed);
+  const json& obj = *parsed;
+  if (!obj.is_object())
+    return Error(Code::bad_message,
+                 std::string("a request must be a JSON object, got ") + obj.type_name(),
+                 kSpecHint);
+
+  // Remember a usable id first so even a version error can be correlated.
+  if (auto it = obj.find("id"); it != obj.end() && it->is_string()) {
+    const auto& s = it->get_ref<const std::string&>();
+    if (!s.empty() && s.size() <= kMaxIdBytes && id_out) *id_out = s;
+  }
+
+  auto pv = obj.find("procam");
+  if (pv == obj.end())
+    return Error(Code::bad_message, "missing field 'procam' (the protocol version)",
+                 "every request carries \"procam\": 1");
+  if (!pv->is_number_integer())
+    return Error(Code::bad_message,
+                 std::string("field 'procam' must be an integer, got ") + pv->type_name(),
+                 "every request carries \"procam\": 1");
+  if (!pv->is_number_unsigned() || pv->get<uint64_t>() != static_cast<uint64_t>(kVersion))
+    return Error(Code::unsupported_version,
+                 "protocol version " + dump(*pv) + " is not supported",
+                 "this daemon speaks versions " + versions_text() + "; send \"procam\": 1");
+
+  const Fields common(obj, "the");
+  auto id = common.string("id", true, kMaxIdBytes);
+  PROCAM_TRY(id);
+
+  auto tv = obj.find("type");
+  if (tv == obj.end()) return common.missing("type");
+  if (!tv->is_string()) return common.wrong_type("type", "a string", *tv);
+  const auto& type = tv->get_ref<const std::string&>();
+
+  const Fields f(obj, type);
+  Result<RequestBody> body = Error(Code::internal, "unreachable");
+  if (type == "hello") {
+    body = decode_hello(f);
+  } else if (type == "list_plugins") {
+    Status s = f.only({});
+    body = s.ok() ? Result<RequestBody>(RequestBody{ListPlugins{}}) : Result<RequestBody>(s);
+  } else if (type == "describe_rig") {
+    Status s = f.only({});
+    body = s.ok() ? Result<RequestBody>(RequestBody{DescribeRig{}}) : Result<RequestBody>(s);
+  } else if (type == "scan") {
+    body = decode_scan(f);
+  } else if (type == "status") {
+    body = decode_status(f);
+  } else if (type == "result") {
+    body = decode_result(f);
+  } else if (type == "fetch") {
+    body = decode_fetch(f);
+  } else {
+    std::vector<std::string> names(kTypes.begin(), kTypes.end());
+    return Error(Code::unknown_type, "unknown request type '" + type + "'",
+                 "request types: " + join(names, ", "));
+  }
+  PROCAM_TRY(body);
+  return Request{std::move(**id), std::move(*body)};
+}
+
+json request_fields(const RequestBody& body) {
+  struct Visitor {
+    json operator()(const Hello& h) const {
+      json j = {{"versions", h.versions}};
+      if (!h.client.empty()) j["client"] = h.client;
+      return j;
+    }
+    json operator()(const ListPlugins&) const { return json::object(); }
+    json operator()(const DescribeRig&) const { return json::object(); }
+    json operator()(const Scan& s) const {
+      json j = {{"plugin", s.plugin}, {"method", s.method},
+                {"params", s.params.is_null() ? json::object() : s.params}};
+      if (!s.rig_options.is_null() && !s.rig_options.empty()) j["rig_options"] = s.rig_options;
+      if (s.events) j["events"] = true;
+      if (!s.label.empty()) j["label"] = s.label;
+      return j;
+    }
+    json operator()(const StatusQuery& s) const {
+      json j = json::object();
+      if (s.scan_id) j["scan_id"] = *s.scan_id;
+      return j;
+    }
+    json operator()(const ResultQuery& r) const { return {{"scan_id", r.scan_id}}; }
+    json operator()(const Fetch& f) const {
+      return {{"scan_id", f.scan_id}, {"file", f.file}, {"offset", f.offset},
+              {"max_bytes", f.max_bytes}};
+    }
+  };
+  return std::visit(Visitor{}, body);
+}
+
+// Last-resort body when encoding itself failed (out of memory, caller bug).
+std::string fallback_error(std::string_view what) {
+  json j = {{"procam", kVersion}, {"id", nullptr}, {"type", "error"}, {"ok", false},
+            {"error", {{"code", "internal"},
+                       {"message", "failed to encode a message: " + std::string(what)},
+                       {"hint", "this is a bug in procam: please report it"}}}};
+  try {
+    return dump(j);
+  } catch (...) {
+    return R"({"procam":1,"id":null,"type":"error","ok":false,"error":{"code":"internal","message":"failed to encode a message","hint":""}})";
+  }
+}
+
+json without(const json& obj, std::initializer_list<const char*> keys) {
+  json body = obj;
+  for (const char* k : keys) body.erase(k);
+  return body;
+}
+
+Result<Incoming> decode_incoming_impl(std::string_view bytes) {
+  auto parsed = parse_strict(bytes, 256);
+  PROCAM_TRY(parsed);
+  const json& obj = *parsed;
+  if (!obj.is_object())
+    return Error(Code::bad_message,
+                 std::string("a reply or event must be a JSON object, got ") + obj.type_name());
+  auto pv = obj.find("procam");
+  if (pv == obj.end() || !pv->is_number_integer())
+    return Error(Code::bad_message, "reply without an integer 'procam' field");
+  if (!pv->is_number_unsigned() || pv->get<uint64_t>() != static_cast<uint64_t>(kVersion))
+    return Error(Code::unsupported_version,
+                 "daemon sent protocol version " + dump(*pv) + "; this client speaks " +
+                     versions_text());
+  auto tv = obj.find("type");
+  if (tv == obj.end() || !tv->is_string())
+    return Error(Code::bad_message, "reply without a string 'type' field");
+  const auto& type = tv->get_ref<const std::string&>();
+
+  if (type == "event") {
+    Event e;
+    auto sid = obj.find("scan_id");
+    auto seq = obj.find("seq");
+    auto ev = obj.find("event");
+    if (sid == obj.end() || !sid->is_string())
+      return Error(Code::bad_message, "event without a string 'scan_id'");
+    if (seq == obj.end() || !seq->is_number_unsigned())
+      return Error(Code::bad_message, "event without a non-negative integer 'seq'");
+    if (ev == obj.end() || !ev->is_string())
+      return Error(Code::bad_message, "event without a string 'event'");
+    e.scan_id = sid->get<std::string>();
+    e.seq = seq->get<uint64_t>();
+    e.event = ev->get<std::string>();
+    e.body = without(obj, {"procam", "type", "scan_id", "seq", "event"});
+    return Incoming{std::move(e)};
+  }
+
+  Reply r;
+  r.type = type;
+  auto okv = obj.find("ok");
+  if (okv == obj.end() || !okv->is_boolean())
+    return Error(Code::bad_message, "reply without a boolean 'ok' field");
+  r.ok = okv->get<bool>();
+  auto idv = obj.find("id");
+  if (idv == obj.end()) return Error(Code::bad_message, "reply without an 'id' field");
+  if (idv->is_string()) {
+    r.id = idv->get<std::string>();
+  } else if (!(idv->is_null() && !r.ok)) {
+    return Error(Code::bad_message, "reply 'id' must be a string (null only in error replies)");
+  }
+  if (r.ok != (type != "error"))
+    return Error(Code::bad_message, "reply has type '" + type + "' but ok " +
+                                        (r.ok ? "true" : "false") +
+                                        " (error replies have type \"error\" and ok false)");
+  if (!r.ok) {
+    auto errv = obj.find("error");
+    if (errv == obj.end()) return Error(Code::bad_message, "error reply without an 'error' object");
+    auto st = error_from_json(*errv);
+    PROCAM_TRY(st);
+    r.error = std::move(*st);
+  }
+  r.body = without(obj, {"procam", "id", "type", "ok"});
+  return Incoming{std::move(r)};
+}
+
+}  // namespace
+
+// ---- Public -----------------------------------------------------------------
+
+std::vector<int> supported_versions() { return {kVersion}; }
+
+std::string_view type_name(const RequestBody& body) {
+  return kTypes.at(body.index());
+}
+
+Result<Request> decode_request(std::string_view bytes, std::string* id_out) {
+  try {
+    return decode_request_impl(bytes, id_out);
+  } catch (const std::exception& e) {
+    return Error(Code::internal, std::string("decoding a request failed: ") + e.what(),
+                 "this is a bug in procam: please report it");
+  } catch (...) {
+    return Error(Code::internal, "decoding a request failed", "this is a bug in procam");
+  }
+}
+
+std::string encode_request(const Request& request) {
+  try {
+    json j = request_fields(request.body);
+    j["procam"] = kVersion;
+    j["id"] = request.id;
+    j["type"] = std::string(type_name(request.body));
+    return dump(j);
+  } catch (const std::exception& e) {
+    return fallback_error(e.what());
+  }
+}
+
+Result<int> negotiate_version(const Hello& hello) {
+  int best = 0;
+  for (int ours : supported_versions())
+    if (std::find(hello.versions.begin(), hello.versions.end(), ours) != hello.versions.end())
+      best = std::max(best, ours);
+  if (best > 0) return best;
+  std::vector<std::string> theirs;
+  for (int v : hello.versions) theirs.push_back(std::to_string(v));
+  return Error(Code::unsupported_version,
+               "no common protocol version: client speaks [" + join(theirs, ", ") +
+                   "], daemon speaks " + versions_text(),
+               "use a client built for protocol version " + versions_text());
+}
+
+std::string encode_reply(const std::string& id, std::string_view type, nlohmann::json fields) {
+  try {
+    if (fields.is_null()) fields = json::object();
+    if (!fields.is_object())
+      return encode_error(id, Error(Code::internal, "reply fields for '" + std::string(type) +
+                                                        "' are not a JSON object"));
+    fields["procam"] = kVersion;
+    fields["id"] = id;
+    fields["type"] = std::string(type);
+    fields["ok"] = true;
+    return dump(fields);
+  } catch (const std::exception& e) {
+    return fallback_error(e.what());
+  }
+}
+
+nlohmann::json error_to_json(const Status& error) {
+  const Code code = error.ok() ? Code::internal : error.code();
+  json j = {{"code", code_name(code)},
+            {"message", error.ok() ? std::string("an error was reported without a cause")
+                                   : error.message()},
+            {"hint", error.hint()}};
+  if (code == Code::unsupported_version) j["supported_versions"] = supported_versions();
+  return j;
+}
+
+Result<Status> error_from_json(const nlohmann::json& error) {
+  try {
+    if (!error.is_object()) return Error(Code::bad_message, "'error' must be an object");
+    auto c = error.find("code");
+    auto m = error.find("message");
+    if (c == error.end() || !c->is_string())
+      return Error(Code::bad_message, "'error' without a string 'code'");
+    if (m == error.end() || !m->is_string())
+      return Error(Code::bad_message, "'error' without a string 'message'");
+    std::string hint;
+    if (auto h = error.find("hint"); h != error.end() && h->is_string()) hint = h->get<std::string>();
+    const auto& name = c->get_ref<const std::string&>();
+    auto code = code_from_name(name);
+    if (code == Code::ok) return Error(Code::bad_message, "'error' with code \"ok\"");
+    if (!code) return Status(Code::internal, "[" + name + "] " + m->get<std::string>(), hint);
+    return Status(*code, m->get<std::string>(), hint);
+  } catch (const std::exception& e) {
+    return Error(Code::internal, std::string("reading an error object failed: ") + e.what());
+  }
+}
+
+std::optional<Code> code_from_name(std::string_view name) {
+  static constexpr std::array kAll = {
+      Code::ok,           Code::invalid_argument, Code::not_found,   Code::unavailable,
+      Code::failed_precondition, Code::io_error,  Code::corrupt_data, Code::abi_mismatch,
+      Code::plugin_error, Code::timeout,          Code::cancelled,   Code::internal,
+      Code::bad_message,  Code::unsupported_version, Code::unknown_type, Code::too_large};
+  for (Code c : kAll)
+    if (name == code_name(c)) return c;
+  return std::nullopt;
+}
+
+std::string encode_error(const std::optional<std::string>& id, const Status& error) {
+  try {
+    json j = {{"procam", kVersion}, {"type", "error"}, {"ok", false},
+              {"error", error_to_json(error)}};
+    j["id"] = id ? json(*id) : json(nullptr);
+    return dump(j);
+  } catch (const std::exception& e) {
+    return fallback_error(e.what());
+  }
+}
+
+std::string encode_event(const std::string& scan_id, uint64_t seq, std::string_view event,
+                         nlohmann::json fields) {
+  try {
+    if (fields.is_null()) fields = json::object();
+    if (!fields.is_object()) fields = json{{"value", std::move(fields)}};
+    fields["procam"] = kVersion;
+    fields["type"] = "event";
+    fields["scan_id"] = scan_id;
+    fields["seq"] = seq;
+    fields["event"] = std::string(event);
+    return dump(fields);
+  } catch (const std::exception& e) {
+    return fallback_error(e.what());
+  }
+}
+
+Result<Incoming> decode_incoming(std::string_view bytes) {
+  try {
+    return decode_incoming_impl(bytes);
+  } catch (const std::exception& e) {
+    return Error(Code::internal, std::string("decoding a reply failed: ") + e.what());
+  } catch (...) {
+    return Error(Code::internal, "decoding a reply failed");
+  }
+}
+
+bool is_valid_name(std::string_view name) {
+  if (name.empty() || name.size() > kMaxNameBytes) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+  });
+}
+
+bool is_safe_file_name(std::string_view name) {
+  if (name.empty() || name.size() > kMaxFileNameBytes) return false;
+  if (name.front() == '.') return false;
+  if (name.find("..") != std::string_view::npos) return false;
+  return std::none_of(name.begin(), name.end(), [](char c) {
+    const auto u = static_cast<unsigned char>(c);
+    return c == '/' || c == '\\' || u < 0x20 || u == 0x7f;
+  });
+}
+
+std::string utc_timestamp(std::chrono::system_clock::time_point t) {
+  using namespace std::chrono;
+  const auto ms = floor<milliseconds>(t.time_since_epoch()).count();
+  const auto secs = static_cast<std::time_t>(ms >= 0 ? ms / 1000 : (ms - 999) / 1000);
+  const auto frac = static_cast<int>(ms - static_cast<long long>(secs) * 1000);
+  std::tm tm{};
+  if (!gmtime_r(&secs, &tm)) return "1970-01-01T00:00:00.000Z";
+  char buf[40];
+  const size_t n = std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+  std::snprintf(buf + n, sizeof buf - n, ".%03dZ", frac);
+  return buf;
+}
+
+}  // namespace procam::proto
