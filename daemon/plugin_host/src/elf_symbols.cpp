@@ -95,9 +95,13 @@ uint16_t host_machine() {
 }
 
 ElfFile::ElfFile(ElfFile&& o) noexcept
-    : fd_(std::exchange(o.fd_, -1)), bytes_(std::move(o.bytes_)), size_(o.size_),
-      machine_(o.machine_), sections_(std::move(o.sections_)),
-      dynsym_entsize_(o.dynsym_entsize_), dynsym_(std::move(o.dynsym_)),
+    : fd_(std::exchange(o.fd_, -1)),
+      bytes_(std::move(o.bytes_)),
+      size_(o.size_),
+      machine_(o.machine_),
+      sections_(std::move(o.sections_)),
+      dynsym_entsize_(o.dynsym_entsize_),
+      dynsym_(std::move(o.dynsym_)),
       dynstr_(std::move(o.dynstr_)) {}
 
 ElfFile& ElfFile::operator=(ElfFile&& o) noexcept {
@@ -182,7 +186,8 @@ Status ElfFile::parse() {
   if (eh[EI_CLASS] == ELFCLASS32)
     return corrupt("32-bit ELF file (ELFCLASS32); plugins must be 64-bit ELF shared objects");
   if (eh[EI_CLASS] != ELFCLASS64)
-    return corrupt("unknown ELF class " + std::to_string(eh[EI_CLASS]) + " (expected 2, ELFCLASS64)");
+    return corrupt("unknown ELF class " + std::to_string(eh[EI_CLASS]) +
+                   " (expected 2, ELFCLASS64)");
   if (eh[EI_DATA] == ELFDATA2MSB)
     return corrupt("big-endian ELF file (ELFDATA2MSB); plugins must be little-endian");
   if (eh[EI_DATA] != ELFDATA2LSB)
@@ -203,14 +208,14 @@ Status ElfFile::parse() {
   uint64_t shnum = le16(eh + 60);
   if (e_type != ET_DYN)
     return corrupt("ELF type " + std::to_string(e_type) +
-                   (e_type == ET_EXEC ? " (executable)"
-                    : e_type == ET_REL ? " (relocatable object, not linked)"
-                    : e_type == ET_CORE ? " (core dump)" : "") +
+                   (e_type == ET_EXEC   ? " (executable)"
+                    : e_type == ET_REL  ? " (relocatable object, not linked)"
+                    : e_type == ET_CORE ? " (core dump)"
+                                        : "") +
                    " is not a shared object (ET_DYN = 3)");
   if (e_ehsize < kEhdrSize)
     return corrupt("ELF header size e_ehsize " + std::to_string(e_ehsize) + " is below 64");
-  if (e_shoff == 0)
-    return corrupt("no section header table (e_shoff is 0); cannot find .dynsym");
+  if (e_shoff == 0) return corrupt("no section header table (e_shoff is 0); cannot find .dynsym");
   if (e_shentsize < kShdrSize)
     return corrupt("section header entry size e_shentsize " + std::to_string(e_shentsize) +
                    " is below 64");
@@ -255,8 +260,8 @@ Status ElfFile::parse() {
   if (ds.entsize < kSymSize)
     return corrupt(".dynsym entry size " + std::to_string(ds.entsize) + " is below 24");
   if (ds.size % ds.entsize != 0)
-    return corrupt(".dynsym size " + std::to_string(ds.size) + " is not a multiple of its entry size " +
-                   std::to_string(ds.entsize));
+    return corrupt(".dynsym size " + std::to_string(ds.size) +
+                   " is not a multiple of its entry size " + std::to_string(ds.entsize));
   if (ds.size > kMaxTableBytes)
     return corrupt(".dynsym size " + std::to_string(ds.size) + " bytes exceeds the 64 MiB limit");
   if (ds.link == 0 || ds.link >= shnum)
@@ -269,6 +274,13 @@ Status ElfFile::parse() {
   if (ss.size > kMaxTableBytes)
     return corrupt(".dynstr size " + std::to_string(ss.size) + " bytes exceeds the 64 MiB limit");
 
+  // Range checks before allocating (read_at would catch them, but after).
+  for (const auto& [sec, what] : {std::pair{&ds, ".dynsym"}, std::pair{&ss, ".dynstr"}})
+    if (sec->offset > size_ || sec->size > size_ - sec->offset)
+      return corrupt(std::string(what) + " section (" + std::to_string(sec->size) +
+                     " bytes at offset " + std::to_string(sec->offset) +
+                     ") extends past the end of the file (" + std::to_string(size_) +
+                     " bytes; truncated?)");
   dynsym_entsize_ = ds.entsize;
   dynsym_.resize(static_cast<size_t>(ds.size));
   PROCAM_TRY(read_at(ds.offset, dynsym_.data(), dynsym_.size(), ".dynsym section"));
@@ -319,14 +331,14 @@ Result<std::vector<uint8_t>> ElfFile::read_symbol(const Symbol& sym, size_t n) c
   if (sym.type != STT_OBJECT)
     return corrupt(what + " is " + type_name(sym.type) + ", expected a data object (STT_OBJECT)");
   if (sym.size < n)
-    return corrupt(what + " is " + std::to_string(sym.size) + " bytes (st_size), expected at least " +
-                   std::to_string(n));
+    return corrupt(what + " is " + std::to_string(sym.size) +
+                   " bytes (st_size), expected at least " + std::to_string(n));
   if (sym.section >= SHN_LORESERVE)
     return corrupt(what + " is in special section index " + hex(sym.section) +
                    " (absolute/common), not in a section of the file");
   if (sym.section >= sections_.size())
-    return corrupt(what + " refers to section " + std::to_string(sym.section) + ", but there are only " +
-                   std::to_string(sections_.size()));
+    return corrupt(what + " refers to section " + std::to_string(sym.section) +
+                   ", but there are only " + std::to_string(sections_.size()));
   const Section& sec = sections_[sym.section];
   if (sec.type == SHT_NULL || (sec.flags & SHF_ALLOC) == 0)
     return corrupt(what + " refers to section " + std::to_string(sym.section) +
@@ -339,13 +351,13 @@ Result<std::vector<uint8_t>> ElfFile::read_symbol(const Symbol& sym, size_t n) c
   std::vector<uint8_t> out(n, 0);
   if (sec.type == SHT_NOBITS) return out;  // .bss: zero-initialised
   const uint64_t delta = sym.value - sec.addr;
-  if (sec.offset > UINT64_MAX - delta)
-    return corrupt(what + ": section file offset overflows");
+  if (sec.offset > UINT64_MAX - delta) return corrupt(what + ": section file offset overflows");
   PROCAM_TRY(read_at(sec.offset + delta, out.data(), n, (what + " data").c_str()));
   return out;
 }
 
-Result<std::vector<uint8_t>> read_symbol(const std::string& path, std::string_view symbol, size_t n) {
+Result<std::vector<uint8_t>> read_symbol(const std::string& path, std::string_view symbol,
+                                         size_t n) {
   auto f = ElfFile::open(path);
   if (!f.ok()) return f.status();
   auto sym = f->find_symbol(symbol);

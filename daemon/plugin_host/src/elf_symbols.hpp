@@ -33,11 +33,11 @@ namespace procam::host::elf {
 // One defined entry of .dynsym.
 struct Symbol {
   std::string name;
-  uint64_t value = 0;   // st_value (virtual address)
-  uint64_t size = 0;    // st_size
-  uint16_t section = 0; // st_shndx
-  uint8_t type = 0;     // STT_* (STT_OBJECT, STT_FUNC, ...)
-  uint8_t bind = 0;     // STB_* (STB_GLOBAL, STB_WEAK, ...)
+  uint64_t value = 0;    // st_value (virtual address)
+  uint64_t size = 0;     // st_size
+  uint16_t section = 0;  // st_shndx
+  uint8_t type = 0;      // STT_* (STT_OBJECT, STT_FUNC, ...)
+  uint8_t bind = 0;      // STB_* (STB_GLOBAL, STB_WEAK, ...)
 };
 
 class ElfFile {

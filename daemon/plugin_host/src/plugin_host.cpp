@@ -24,6 +24,7 @@ const PluginInfo* PluginHost::find(std::string_view name) const {
 }
 
 void PluginHost::load_directories(const std::vector<std::string>& dirs) {
+  std::vector<fs::path> scanned;  // a directory listed twice is scanned once
   for (const auto& dir : dirs) {
     try {
       std::error_code ec;
@@ -32,9 +33,14 @@ void PluginHost::load_directories(const std::vector<std::string>& dirs) {
         PROCAM_LOG(plugins, info) << "plugin directory '" << dir << "' does not exist; skipped";
         continue;
       }
+      const fs::path canonical = fs::weakly_canonical(dir, ec);
+      if (!ec) {
+        if (std::find(scanned.begin(), scanned.end(), canonical) != scanned.end()) continue;
+        scanned.push_back(canonical);
+      }
       if (!fs::is_directory(st)) {
-        rejected_.push_back({dir, Error(Code::io_error, "plugin directory '" + dir +
-                                                            "' is not a directory")});
+        rejected_.push_back(
+            {dir, Error(Code::io_error, "plugin directory '" + dir + "' is not a directory")});
         PROCAM_LOG(plugins, warn) << rejected_.back().error.message();
         continue;
       }
@@ -56,8 +62,8 @@ void PluginHost::load_directories(const std::vector<std::string>& dirs) {
       std::sort(files.begin(), files.end());
       for (const auto& f : files) (void)load_file(f);
     } catch (const std::exception& e) {
-      rejected_.push_back({dir, Error(Code::internal, "scanning plugin directory '" + dir +
-                                                          "': " + e.what())});
+      rejected_.push_back(
+          {dir, Error(Code::internal, "scanning plugin directory '" + dir + "': " + e.what())});
     }
   }
 }
@@ -67,7 +73,8 @@ Status PluginHost::load_file(const std::string& path) {
   try {
     st = load_file_impl(path);
   } catch (const std::exception& e) {
-    st = Error(Code::internal, "plugin '" + path + "': unexpected error while loading: " + e.what());
+    st =
+        Error(Code::internal, "plugin '" + path + "': unexpected error while loading: " + e.what());
   }
   if (!st.ok()) {
     rejected_.push_back({path, st});
@@ -82,12 +89,13 @@ Status PluginHost::load_file_impl(const std::string& path) {
   if (!file.ok()) return file.status();
   const std::string name(file->info.name);
   if (const PluginInfo* first = find(name))
-    return Error(Code::failed_precondition,
-                 "plugin '" + path + "': duplicate plugin name '" + name + "', first loaded from '" +
-                     first->file + "'; it was skipped: remove one of the two files");
+    return Error(Code::failed_precondition, "plugin '" + path + "': duplicate plugin name '" +
+                                                name + "', first loaded from '" + first->file +
+                                                "'; it was skipped: remove one of the two files");
 
   // 2. Probe in a child: crashes and hangs stay there.
-  if (options_.probe_in_child) PROCAM_TRY(detail::probe_in_child(path, *file, options_.probe_timeout));
+  if (options_.probe_in_child)
+    PROCAM_TRY(detail::probe_in_child(path, *file, options_.probe_timeout));
 
   // 3. Load here and check again.
   auto checked = detail::load_and_check(path, *file, [](detail::Phase) {});
@@ -132,7 +140,8 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
       if (text.find('\0') != std::string::npos)
         return Error(Code::invalid_argument, std::string(what) + " contains a NUL byte");
       auto j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-      if (j.is_discarded()) return Error(Code::invalid_argument, std::string(what) + " is not valid JSON");
+      if (j.is_discarded())
+        return Error(Code::invalid_argument, std::string(what) + " is not valid JSON");
       if (!j.is_object())
         return Error(Code::invalid_argument,
                      std::string(what) + " must be a JSON object, got " + j.type_name());
@@ -146,17 +155,20 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
     const auto& loaded = loaded_[idx];
     procam_session* s = nullptr;
     procam_error err{};
-    const int rc = loaded->vtable->session_create(method.c_str(), params.c_str(), rig.c_str(), &s, &err);
+    const int rc =
+        loaded->vtable->session_create(method.c_str(), params.c_str(), rig.c_str(), &s, &err);
     if (rc != PROCAM_OK) {
-      if (rc > 0 && s != nullptr) loaded->vtable->session_destroy(s);
-      return Error(Code::plugin_error,
-                   "plugin '" + plugin + "' could not start method '" + method + "' (" +
-                       detail::rc_name(rc) + "): " +
-                       (rc < 0 ? detail::error_message(err) : std::string("not allowed by the ABI")));
+      // *out is not trusted after a failure: never destroyed (a leak at worst).
+      return Error(rc < 0 ? detail::code_for_rc(rc) : Code::plugin_error,
+                   "plugin '" + plugin + "' could not start method '" + method +
+                                           "' (" + detail::rc_name(rc) + "): " +
+                                           (rc < 0 ? detail::error_message(err)
+                                                   : std::string("not allowed by the ABI")));
     }
     if (s == nullptr)
-      return Error(Code::plugin_error, "plugin '" + plugin + "' session_create returned PROCAM_OK "
-                                                             "but no session");
+      return Error(Code::plugin_error, "plugin '" + plugin +
+                                           "' session_create returned PROCAM_OK "
+                                           "but no session");
     return Session(loaded, s, method);
   } catch (const std::exception& e) {
     return Error(Code::internal, "create_session: " + std::string(e.what()));

@@ -94,7 +94,9 @@ void write_all(int fd, const void* data, size_t n) {
 [[noreturn]] void child_main(int fd, const std::string& path, const FileInfo& file) {
   // No core files from plugins that crash on purpose or by bug while probed,
   // and the default action for fatal signals, whatever the daemon installed.
-  struct rlimit no_core {0, 0};
+  struct rlimit no_core {
+    0, 0
+  };
   ::setrlimit(RLIMIT_CORE, &no_core);
   for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGILL, SIGFPE, SIGTRAP, SIGSYS})
     ::signal(sig, SIG_DFL);
@@ -102,10 +104,13 @@ void write_all(int fd, const void* data, size_t n) {
 
   Status st;
   try {
-    auto r = load_and_check(path, file, [fd](Phase p) {
-      uint8_t rec[2] = {'P', static_cast<uint8_t>(p)};
-      write_all(fd, rec, sizeof rec);
-    });
+    auto r = load_and_check(
+        path, file,
+        [fd](Phase p) {
+          uint8_t rec[2] = {'P', static_cast<uint8_t>(p)};
+          write_all(fd, rec, sizeof rec);
+        },
+        /*unload=*/false);
     st = r.status();
   } catch (...) {
     st = Error(Code::internal, quoted(path) + ": unexpected exception while probing");
@@ -165,7 +170,7 @@ Report parse_report(const std::string& buf) {
 }  // namespace
 
 LoadedPlugin::~LoadedPlugin() {
-  if (handle != nullptr) ::dlclose(handle);
+  if (handle != nullptr && unload) ::dlclose(handle);
 }
 
 bool valid_plugin_name(std::string_view s) {
@@ -202,6 +207,15 @@ std::string error_message(const procam_error& err) {
   const size_t n = ::strnlen(err.message, sizeof err.message);
   std::string m(err.message, n);
   return m.empty() ? std::string("(the plugin gave no message)") : m;
+}
+
+Code code_for_rc(int rc) {
+  switch (rc) {
+    case PROCAM_ERR_INVALID_ARGUMENT: return Code::invalid_argument;
+    case PROCAM_ERR_BAD_FRAME: return Code::corrupt_data;
+    case PROCAM_ERR_STATE: return Code::failed_precondition;
+    default: return Code::plugin_error;
+  }
 }
 
 std::string rc_name(int rc) {
@@ -252,7 +266,8 @@ Result<FileInfo> read_plugin_info(const std::string& path) {
                    who + " exports no '" PROCAM_PLUGIN_INFO_SYMBOL
                          "' symbol: it is not a procam decoder plugin (plugins export "
                          "procam_plugin_info and procam_plugin_create, see plugin_abi.h)");
-    return Error(Code::corrupt_data, who + " is not a valid plugin library: " + sym.status().message());
+    return Error(Code::corrupt_data,
+                 who + " is not a valid plugin library: " + sym.status().message());
   }
 
   // Header first (magic, versions), so an older/newer ABI with a different
@@ -260,8 +275,8 @@ Result<FileInfo> read_plugin_info(const std::string& path) {
   constexpr size_t kHeader = 3 * sizeof(uint32_t);
   auto head = f.read_symbol(*sym, kHeader);
   if (!head.ok())
-    return Error(Code::corrupt_data, who + ": cannot read its procam_plugin_info: " +
-                                         head.status().message());
+    return Error(Code::corrupt_data,
+                 who + ": cannot read its procam_plugin_info: " + head.status().message());
   uint32_t magic = 0, abi = 0, size = 0;
   std::memcpy(&magic, head->data(), 4);
   std::memcpy(&abi, head->data() + 4, 4);
@@ -284,30 +299,32 @@ Result<FileInfo> read_plugin_info(const std::string& path) {
                      "this procamd's plugin_abi.h");
   auto full = f.read_symbol(*sym, sizeof(procam_plugin_info));
   if (!full.ok())
-    return Error(Code::corrupt_data, who + ": cannot read its procam_plugin_info: " +
-                                         full.status().message());
+    return Error(Code::corrupt_data,
+                 who + ": cannot read its procam_plugin_info: " + full.status().message());
   FileInfo out;
   std::memcpy(&out.info, full->data(), sizeof out.info);
 
   auto name = field_string(out.info.name, sizeof out.info.name);
   if (!name)
-    return Error(Code::corrupt_data, who + ": procam_plugin_info.name is not NUL-terminated "
-                                           "within its 64 bytes");
+    return Error(Code::corrupt_data, who +
+                                         ": procam_plugin_info.name is not NUL-terminated "
+                                         "within its 64 bytes");
   if (!valid_plugin_name(*name))
-    return Error(Code::corrupt_data,
-                 who + " has invalid plugin name \"" + printable(*name) +
-                     "\": names are 1..63 characters of a-z, 0-9, '_' and '-'");
+    return Error(Code::corrupt_data, who + " has invalid plugin name \"" + printable(*name) +
+                                         "\": names are 1..63 characters of a-z, 0-9, '_' and '-'");
   auto version = field_string(out.info.version, sizeof out.info.version);
   if (!version)
-    return Error(Code::corrupt_data, who + ": procam_plugin_info.version is not NUL-terminated "
-                                           "within its 32 bytes");
+    return Error(Code::corrupt_data, who +
+                                         ": procam_plugin_info.version is not NUL-terminated "
+                                         "within its 32 bytes");
   if (version->empty() || printable(*version, version->size()) != *version)
     return Error(Code::corrupt_data, who + " has invalid version \"" + printable(*version) +
                                          "\": it must be non-empty printable ASCII");
   auto methods = field_string(out.info.methods, sizeof out.info.methods);
   if (!methods)
-    return Error(Code::corrupt_data, who + ": procam_plugin_info.methods is not NUL-terminated "
-                                           "within its 1024 bytes");
+    return Error(Code::corrupt_data, who +
+                                         ": procam_plugin_info.methods is not NUL-terminated "
+                                         "within its 1024 bytes");
   std::set<std::string> seen;
   size_t pos = 0;
   while (pos <= methods->size()) {
@@ -333,8 +350,8 @@ Result<FileInfo> read_plugin_info(const std::string& path) {
                    who + " exports no '" PROCAM_PLUGIN_CREATE_SYMBOL
                          "' function: a plugin must export procam_plugin_create (see "
                          "plugin_abi.h; C++ plugins need extern \"C\" and default visibility)");
-    return Error(Code::corrupt_data, who + " is not a valid plugin library: " +
-                                         create.status().message());
+    return Error(Code::corrupt_data,
+                 who + " is not a valid plugin library: " + create.status().message());
   }
   if (create->type != STT_FUNC && create->type != STT_GNU_IFUNC)
     return Error(Code::corrupt_data,
@@ -344,7 +361,7 @@ Result<FileInfo> read_plugin_info(const std::string& path) {
 }
 
 Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
-                               const std::function<void(Phase)>& on_phase) {
+                               const std::function<void(Phase)>& on_phase, bool unload) {
   const std::string who = quoted(path);
   const std::string name(file.info.name);  // NUL-terminated: checked in step 1
 
@@ -355,34 +372,37 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
   void* handle = ::dlopen(dl_path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) {
     const char* e = ::dlerror();
-    return Error(Code::plugin_error, who + " could not be loaded: " +
-                                         std::string(e ? e : "dlopen failed") +
-                                         ": install the libraries it needs or rebuild it");
+    return Error(Code::plugin_error,
+                 who + " could not be loaded: " + std::string(e ? e : "dlopen failed") +
+                     ": install the libraries it needs or rebuild it");
   }
   auto plugin = std::make_shared<LoadedPlugin>();
   plugin->handle = handle;  // dlclose'd by ~LoadedPlugin on any early return
+  plugin->unload = unload;
   plugin->name = name;
   plugin->file = path;
 
   void* info_sym = ::dlsym(handle, PROCAM_PLUGIN_INFO_SYMBOL);
   void* create_sym = ::dlsym(handle, PROCAM_PLUGIN_CREATE_SYMBOL);
   if (info_sym == nullptr || create_sym == nullptr)
-    return Error(Code::corrupt_data, who + ": after loading, " +
-                                         (info_sym ? PROCAM_PLUGIN_CREATE_SYMBOL
-                                                   : PROCAM_PLUGIN_INFO_SYMBOL) +
-                                         " cannot be resolved although the file defines it");
+    return Error(Code::corrupt_data,
+                 who + ": after loading, " +
+                     (info_sym ? PROCAM_PLUGIN_CREATE_SYMBOL : PROCAM_PLUGIN_INFO_SYMBOL) +
+                     " cannot be resolved although the file defines it");
   Dl_info di_info{}, di_create{};
   if (::dladdr(info_sym, &di_info) == 0 || ::dladdr(create_sym, &di_create) == 0 ||
       di_info.dli_fbase != di_create.dli_fbase)
     return Error(Code::corrupt_data,
-                 who + ": " PROCAM_PLUGIN_INFO_SYMBOL " and " PROCAM_PLUGIN_CREATE_SYMBOL
-                       " resolve to different libraries (" +
+                 who +
+                     ": " PROCAM_PLUGIN_INFO_SYMBOL " and " PROCAM_PLUGIN_CREATE_SYMBOL
+                     " resolve to different libraries (" +
                      std::string(di_info.dli_fname ? di_info.dli_fname : "?") + ", " +
                      std::string(di_create.dli_fname ? di_create.dli_fname : "?") + ")");
   if (std::memcmp(info_sym, &file.info, sizeof file.info) != 0)
     return Error(Code::corrupt_data,
-                 who + ": its procam_plugin_info in memory differs from the file (was the file "
-                       "replaced while loading, or does the plugin write to it?)");
+                 who +
+                     ": its procam_plugin_info in memory differs from the file (was the file "
+                     "replaced while loading, or does the plugin write to it?)");
 
   on_phase(Phase::create);
   auto create = symbol_as<procam_plugin_create_fn>(create_sym);
@@ -418,9 +438,9 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
   need(vt->end_round != nullptr, "end_round");
   need(vt->get_outputs != nullptr, "get_outputs");
   if (!missing.empty())
-    return Error(Code::plugin_error,
-                 who + ": its function table has NULL function pointers (" + missing +
-                     "): every function of procam_plugin_vtable must be set");
+    return Error(Code::plugin_error, who + ": its function table has NULL function pointers (" +
+                                         missing +
+                                         "): every function of procam_plugin_vtable must be set");
 
   on_phase(Phase::describe);
   const char* text = vt->describe();
@@ -430,7 +450,8 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
   const size_t len = ::strnlen(text, kMaxDescribe + 1);
   if (len > kMaxDescribe)
     return Error(Code::plugin_error, who + ": describe() returned more than 16 MiB");
-  auto doc = nlohmann::json::parse(std::string_view(text, len), nullptr, /*allow_exceptions=*/false);
+  auto doc =
+      nlohmann::json::parse(std::string_view(text, len), nullptr, /*allow_exceptions=*/false);
   if (doc.is_discarded())
     return Error(Code::plugin_error, who + ": describe() did not return valid JSON: \"" +
                                          printable(std::string_view(text, len)) + "\"");
@@ -453,9 +474,8 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
     bool listed = false;
     for (const auto& x : file.methods) listed = listed || x == mname;
     if (!listed)
-      return Error(Code::plugin_error,
-                   who + ": describe() has method '" + printable(mname) +
-                       "' that procam_plugin_info.methods does not list");
+      return Error(Code::plugin_error, who + ": describe() has method '" + printable(mname) +
+                                           "' that procam_plugin_info.methods does not list");
     auto d = m.find("description");
     if (d != m.end() && !d->is_string())
       return Error(Code::plugin_error,
@@ -487,8 +507,8 @@ Status probe_in_child(const std::string& path, const FileInfo& file,
   const std::string who = quoted(path);
   int fds[2];
   if (::pipe2(fds, O_CLOEXEC) != 0)
-    return Error(Code::unavailable, who + ": cannot create a pipe to probe it: " +
-                                        std::strerror(errno));
+    return Error(Code::unavailable,
+                 who + ": cannot create a pipe to probe it: " + std::strerror(errno));
   std::fflush(nullptr);  // or buffered output would be written twice
   const pid_t pid = ::fork();
   if (pid < 0) {
@@ -560,7 +580,8 @@ Status probe_in_child(const std::string& path, const FileInfo& file,
   if (timed_out)
     return Error(Code::timeout,
                  who + " did not finish loading within " + std::to_string(timeout.count()) +
-                     " ms (stuck " + where + "); the probe process was killed and the plugin "
+                     " ms (stuck " + where +
+                     "); the probe process was killed and the plugin "
                      "skipped: fix the hang, or raise the probe timeout if it is just slow");
   if (reaped && WIFSIGNALED(wstatus)) {
     const int sig = WTERMSIG(wstatus);
@@ -577,9 +598,9 @@ Status probe_in_child(const std::string& path, const FileInfo& file,
     return rep.result;
   }
   if (reaped && WIFEXITED(wstatus))
-    return Error(Code::plugin_error,
-                 who + " ended the process (exit status " + std::to_string(WEXITSTATUS(wstatus)) +
-                     ") " + where + " instead of returning; it was skipped");
+    return Error(Code::plugin_error, who + " ended the process (exit status " +
+                                         std::to_string(WEXITSTATUS(wstatus)) + ") " + where +
+                                         " instead of returning; it was skipped");
   return Error(Code::internal, who + ": the probe process ended without a report " + where +
                                    " (is SIGCHLD ignored?)");
 }

@@ -28,6 +28,7 @@ struct LoadedPlugin {
   std::string file;
   void* handle = nullptr;
   const procam_plugin_vtable* vtable = nullptr;
+  bool unload = true;  // dlclose on destruction (false in the probe child)
 
   LoadedPlugin() = default;
   LoadedPlugin(const LoadedPlugin&) = delete;
@@ -61,8 +62,10 @@ struct Checked {
 // procam_plugin_create(PROCAM_PLUGIN_ABI_VERSION), check the vtable and the
 // describe() JSON. `on_phase` is called before each step. Runs plugin code:
 // a broken plugin may crash or hang the calling process (hence step 2).
+// `unload` false: never dlclose (the probe child, which _exits: the plugin's
+// static destructors must not run there and blur the report).
 Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
-                               const std::function<void(Phase)>& on_phase);
+                               const std::function<void(Phase)>& on_phase, bool unload = true);
 
 // Step 2: runs load_and_check in a fork()ed child and waits up to `timeout`.
 // Crash (signal) -> plugin_error, hang -> timeout (child killed), failure ->
@@ -79,5 +82,9 @@ std::string printable(std::string_view s, size_t max_len = 80);
 std::string error_message(const procam_error& err);
 // "PROCAM_ERR_BAD_FRAME" etc.; "undocumented return code N" otherwise.
 std::string rc_name(int rc);
+// The Status code for a plugin's error return: the caller's fault
+// (invalid argument, bad frame, call order) keeps its meaning so clients can
+// react; anything else is the plugin's failure (plugin_error).
+Code code_for_rc(int rc);
 
 }  // namespace procam::host::detail

@@ -15,8 +15,8 @@ namespace {
 constexpr uint32_t kMaxFrames = 100000;
 constexpr uint32_t kMaxOutputs = 10000;
 constexpr size_t kMaxLabel = 255;
-constexpr size_t kMaxText = 64 * 1024;         // unit, description, note, point_fields
-constexpr size_t kMaxJson = size_t{1} << 30;   // JSON outputs
+constexpr size_t kMaxText = 64 * 1024;        // unit, description, note, point_fields
+constexpr size_t kMaxJson = size_t{1} << 30;  // JSON outputs
 
 // Copies a plugin string of at most `max` bytes; error text if it is longer
 // (or, as far as we can tell, not NUL-terminated).
@@ -46,9 +46,13 @@ Session::Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_sess
     : plugin_(std::move(plugin)), session_(session), method_(std::move(method)) {}
 
 Session::Session(Session&& o) noexcept
-    : plugin_(std::move(o.plugin_)), session_(std::exchange(o.session_, nullptr)),
-      method_(std::move(o.method_)), in_round_(o.in_round_), finished_(o.finished_),
-      rounds_(o.rounds_), added_(std::move(o.added_)) {}
+    : plugin_(std::move(o.plugin_)),
+      session_(std::exchange(o.session_, nullptr)),
+      method_(std::move(o.method_)),
+      in_round_(o.in_round_),
+      finished_(o.finished_),
+      rounds_(o.rounds_),
+      added_(std::move(o.added_)) {}
 
 Session& Session::operator=(Session&& o) noexcept {
   if (this != &o) {
@@ -76,10 +80,11 @@ const std::string& Session::plugin_name() const {
 
 Status Session::plugin_failure(const char* call, int rc, const procam_error& err) const {
   if (rc < 0)
-    return Error(Code::plugin_error, "plugin '" + plugin_->name + "' " + call + " failed (" +
+    return Error(detail::code_for_rc(rc), "plugin '" + plugin_->name + "' " + call + " failed (" +
                                          detail::rc_name(rc) + "): " + detail::error_message(err));
   return Error(Code::plugin_error, "plugin '" + plugin_->name + "' " + call + " returned " +
-                                       detail::rc_name(rc) + ", which the plugin ABI does not allow");
+                                       detail::rc_name(rc) +
+                                       ", which the plugin ABI does not allow");
 }
 
 Result<std::optional<Plan>> Session::next_plan() {
@@ -102,7 +107,8 @@ Result<std::optional<Plan>> Session::next_plan() {
     }
     if (rc != 1) return plugin_failure("next_plan", rc, err);
 
-    const std::string bad = who + " returned an invalid plan (round " + std::to_string(rounds_ + 1) + "): ";
+    const std::string bad =
+        who + " returned an invalid plan (round " + std::to_string(rounds_ + 1) + "): ";
     if (plan == nullptr) return Error(Code::plugin_error, bad + "next_plan returned 1 but no plan");
     if (plan->frame_count == 0)
       return Error(Code::plugin_error, bad + "0 frames (return 0 from next_plan when done)");
@@ -125,9 +131,8 @@ Result<std::optional<Plan>> Session::next_plan() {
       if (!copy_string(f.label, kMaxLabel, pf.label))
         return Error(Code::plugin_error, at + "label is longer than 255 bytes");
       if (const char* p = label_problem(pf.label))
-        return Error(Code::plugin_error,
-                     at + "label \"" + detail::printable(pf.label) + "\" " + p +
-                         " (labels are used in file names)");
+        return Error(Code::plugin_error, at + "label \"" + detail::printable(pf.label) + "\" " + p +
+                                             " (labels are used in file names)");
       if (const char* p = validate_view(f.pattern))
         return Error(Code::plugin_error, at + "pattern: " + p);
       if (f.pattern.channels != 1)
@@ -135,10 +140,10 @@ Result<std::optional<Plan>> Session::next_plan() {
                                              " channels, projector patterns must have 1");
       const procam_frame_settings& s = f.settings;
       if (s.struct_size != sizeof(procam_frame_settings))
-        return Error(Code::plugin_error,
-                     at + "settings.struct_size is " + std::to_string(s.struct_size) + ", expected " +
-                         std::to_string(sizeof(procam_frame_settings)) +
-                         " (set it to sizeof(procam_frame_settings))");
+        return Error(Code::plugin_error, at + "settings.struct_size is " +
+                                             std::to_string(s.struct_size) + ", expected " +
+                                             std::to_string(sizeof(procam_frame_settings)) +
+                                             " (set it to sizeof(procam_frame_settings))");
       if (s.camera_index < 0)
         return Error(Code::plugin_error, at + "settings.camera_index is negative");
       if (!std::isfinite(s.exposure_us) || !std::isfinite(s.gain_db) ||
@@ -164,13 +169,15 @@ Result<std::optional<Plan>> Session::next_plan() {
 Status Session::add_frame(uint32_t index, const procam_image& frame) {
   if (session_ == nullptr) return Error(Code::failed_precondition, "session was moved from");
   if (!in_round_)
-    return Error(Code::failed_precondition, "add_frame called outside a round (call next_plan first)");
+    return Error(Code::failed_precondition,
+                 "add_frame called outside a round (call next_plan first)");
   if (index >= added_.size())
     return Error(Code::invalid_argument, "frame index " + std::to_string(index) +
                                              " is out of range: the plan has " +
                                              std::to_string(added_.size()) + " frames");
   if (added_[index])
-    return Error(Code::failed_precondition, "frame " + std::to_string(index) + " was already added");
+    return Error(Code::failed_precondition,
+                 "frame " + std::to_string(index) + " was already added");
   if (const char* p = validate_view(frame))
     return Error(Code::invalid_argument, "frame " + std::to_string(index) + ": " + p);
   procam_error err{};
@@ -183,7 +190,8 @@ Status Session::add_frame(uint32_t index, const procam_image& frame) {
 Status Session::end_round() {
   if (session_ == nullptr) return Error(Code::failed_precondition, "session was moved from");
   if (!in_round_)
-    return Error(Code::failed_precondition, "end_round called outside a round (call next_plan first)");
+    return Error(Code::failed_precondition,
+                 "end_round called outside a round (call next_plan first)");
   try {
     std::string missing;
     size_t n_missing = 0;
@@ -221,11 +229,12 @@ Result<std::vector<Output>> Session::outputs() {
     if (rc != PROCAM_OK) return plugin_failure("get_outputs", rc, err);
     const std::string bad = who + " returned invalid outputs: ";
     if (count > kMaxOutputs)
-      return Error(Code::plugin_error, bad + std::to_string(count) + " outputs, more than the limit of " +
+      return Error(Code::plugin_error, bad + std::to_string(count) +
+                                           " outputs, more than the limit of " +
                                            std::to_string(kMaxOutputs));
     if (count > 0 && outs == nullptr)
-      return Error(Code::plugin_error, bad + "count is " + std::to_string(count) +
-                                           " but the array is NULL");
+      return Error(Code::plugin_error,
+                   bad + "count is " + std::to_string(count) + " but the array is NULL");
     std::vector<Output> result;
     result.reserve(count);
     std::set<std::string> names;
@@ -243,8 +252,7 @@ Result<std::vector<Output>> Session::outputs() {
                          "file names)");
       }
       at = bad + "output '" + r.name + "' ";
-      if (!names.insert(r.name).second)
-        return Error(Code::plugin_error, at + "appears twice");
+      if (!names.insert(r.name).second) return Error(Code::plugin_error, at + "appears twice");
       if (o.unit != nullptr && !copy_string(o.unit, kMaxText, r.unit))
         return Error(Code::plugin_error, at + "unit is longer than 64 KiB");
       if (o.description != nullptr && !copy_string(o.description, kMaxText, r.description))
@@ -255,15 +263,14 @@ Result<std::vector<Output>> Session::outputs() {
             return Error(Code::plugin_error, at + "image: " + p);
           r.image = o.image;
           break;
-        case PROCAM_OUTPUT_SCALAR:
-          r.scalar = o.scalar;
-          break;
+        case PROCAM_OUTPUT_SCALAR: r.scalar = o.scalar; break;
         case PROCAM_OUTPUT_POINTS:
           if (o.point_count > 0 && o.points == nullptr)
             return Error(Code::plugin_error, at + "has " + std::to_string(o.point_count) +
                                                  " points but a NULL points array");
           if (o.point_stride < 3 || o.point_stride > 1024)
-            return Error(Code::plugin_error, at + "point_stride is " + std::to_string(o.point_stride) +
+            return Error(Code::plugin_error, at + "point_stride is " +
+                                                 std::to_string(o.point_stride) +
                                                  ", expected 3..1024 floats per point");
           if (o.point_count > (uint64_t{1} << 40) / o.point_stride)
             return Error(Code::plugin_error, at + "point_count " + std::to_string(o.point_count) +
@@ -279,8 +286,8 @@ Result<std::vector<Output>> Session::outputs() {
           if (!copy_string(o.json, kMaxJson, r.json))
             return Error(Code::plugin_error, at + "json is longer than 1 GiB");
           if (!nlohmann::json::accept(r.json))
-            return Error(Code::plugin_error, at + "json does not parse: \"" +
-                                                 detail::printable(r.json) + "\"");
+            return Error(Code::plugin_error,
+                         at + "json does not parse: \"" + detail::printable(r.json) + "\"");
           break;
         default:
           return Error(Code::plugin_error, at + "has unknown kind " + std::to_string(o.kind));

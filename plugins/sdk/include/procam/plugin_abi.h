@@ -4,10 +4,15 @@
  *
  * A plugin is a shared library exporting exactly two symbols:
  *
- *   const procam_plugin_info procam_plugin_info;   (data, no pointers)
- *   const procam_plugin_vtable* procam_plugin_create(uint32_t host_abi);
+ *   "procam_plugin_info"    data of type procam_plugin_info (no pointers)
+ *   "procam_plugin_create"  const procam_plugin_vtable* (uint32_t host_abi)
  *
- * Loading order (host side, daemon/engine/plugin_host.cpp):
+ * The data symbol shares its name with the type, so C/C++ code declares it
+ * with an assembler label, e.g.
+ *   extern const procam_plugin_info procam_info_ __asm__("procam_plugin_info");
+ * The C++ SDK's PROCAM_DEFINE_PLUGIN (procam/plugin_sdk.hpp) does this for you.
+ *
+ * Loading order (host side, daemon/plugin_host/, see its README.md):
  *   1. The host reads `procam_plugin_info` straight from the ELF file, WITHOUT
  *      loading it, and checks `magic`, `abi_version` and `struct_size`. A
  *      mismatch is reported and the file is skipped; no plugin code has run.
@@ -32,6 +37,14 @@
  *     image coordinates in pixels with pixel centres at integers (OpenCV).
  *   - Plugins never touch hardware: they describe frames (plan) and decode
  *     frames the host captured.
+ *   - Names and sizes the host enforces (violations reject the plugin or
+ *     fail the scan with plugin_error):
+ *       method names [a-z0-9_-]{1,63}; describe() is a JSON array with one
+ *       object per method in info.methods, each with a string "name";
+ *       frame labels 1..255 bytes without '/', '\' or control characters;
+ *       settings.struct_size == sizeof(procam_frame_settings);
+ *       output names [a-z0-9_]{1,64} (they become file names), unique;
+ *       a round has >= 1 frame; a session plans at most 1000 rounds.
  *
  * Scan protocol, per session (one scan):
  *   session_create(method, params, rig)

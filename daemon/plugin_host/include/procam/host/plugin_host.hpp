@@ -48,9 +48,9 @@ struct MethodInfo {
 };
 
 struct PluginInfo {
-  std::string name;     // procam_plugin_info.name, matches [a-z0-9_-]{1,63}
-  std::string version;  // procam_plugin_info.version
-  std::string file;     // path it was loaded from
+  std::string name;                 // procam_plugin_info.name, matches [a-z0-9_-]{1,63}
+  std::string version;              // procam_plugin_info.version
+  std::string file;                 // path it was loaded from
   std::vector<MethodInfo> methods;  // in procam_plugin_info.methods order
 };
 
@@ -71,9 +71,9 @@ struct LoadOptions {
 
 // One frame of a round: show `pattern` on the projector, capture with `settings`.
 struct PlannedFrame {
-  std::string label;               // validated: 1..255 bytes, no '/', '\\' or control chars
-  procam_image pattern{};          // 1-channel; view into plugin memory, valid until
-                                   // the next call on the Session
+  std::string label;       // validated: 1..255 bytes, no '/', '\\' or control chars
+  procam_image pattern{};  // 1-channel; view into plugin memory, valid until
+                           // the next call on the Session
   procam_frame_settings settings{};
 };
 
@@ -89,13 +89,13 @@ struct Output {
   std::string unit;
   std::string description;
   procam_output_kind kind = PROCAM_OUTPUT_SCALAR;
-  procam_image image{};            // IMAGE
-  double scalar = 0;               // SCALAR
-  const float* points = nullptr;   // POINTS: point_count rows of point_stride floats
+  procam_image image{};           // IMAGE
+  double scalar = 0;              // SCALAR
+  const float* points = nullptr;  // POINTS: point_count rows of point_stride floats
   uint64_t point_count = 0;
   uint32_t point_stride = 0;
   std::string point_fields;
-  std::string json;                // JSON (validated to parse)
+  std::string json;  // JSON (validated to parse)
 };
 
 // A scan on one plugin method. Move-only RAII over procam_session*; keeps its
@@ -137,10 +137,10 @@ private:
   std::shared_ptr<const detail::LoadedPlugin> plugin_;
   procam_session* session_ = nullptr;
   std::string method_;
-  bool in_round_ = false;   // next_plan gave a plan, end_round not yet called
-  bool finished_ = false;   // next_plan gave nullopt
+  bool in_round_ = false;  // next_plan gave a plan, end_round not yet called
+  bool finished_ = false;  // next_plan gave nullopt
   uint32_t rounds_ = 0;
-  std::vector<bool> added_; // per frame of the current plan
+  std::vector<bool> added_;  // per frame of the current plan
 };
 
 class PluginHost {
@@ -171,8 +171,7 @@ public:
   // or unknown method (lists the plugin's methods); invalid_argument: params
   // or rig is not a JSON object; plugin_error: the plugin refused (its message).
   Result<Session> create_session(const std::string& plugin, const std::string& method,
-                                 const std::string& params_json,
-                                 const std::string& rig_json) const;
+                                 const std::string& params_json, const std::string& rig_json) const;
 
 private:
   Status load_file_impl(const std::string& path);

@@ -1,0 +1,204 @@
+/* SPDX-License-Identifier: MIT
+ * Test fixture: "null", a minimal correct decoder plugin that exercises the
+ * host machinery (like OpenImageIO's null plugin). Method "null" plans one
+ * black 4x3 U8 frame, then outputs "frame_mean" (scalar: mean of the captured
+ * frame) and "depth_mm" (2x2 F32 image 1, 2, 3, NaN).
+ *
+ * The other fixtures #include this file after defining knobs that break one
+ * thing each:
+ *   FX_NAME            plugin name (default "null")
+ *   FX_MAGIC           procam_plugin_info.magic
+ *   FX_ABI_VERSION     procam_plugin_info.abi_version
+ *   FX_INFO_SYMBOL     exported name of the info block
+ *   FX_CREATE_SYMBOL   exported name of the create function
+ *   FX_CREATE_RETURNS_NULL, FX_NULL_FUNCTION, FX_SESSION_FAILS, FX_DESCRIBE_CRASHES
+ *   FX_OUTPUT_NAME     name of the scalar output (default "frame_mean")
+ *   FX_LABEL           label of the planned frame (default "black")
+ */
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "procam/plugin_abi.h"
+
+#ifndef FX_NAME
+#define FX_NAME "null"
+#endif
+#ifndef FX_MAGIC
+#define FX_MAGIC PROCAM_PLUGIN_MAGIC
+#endif
+#ifndef FX_ABI_VERSION
+#define FX_ABI_VERSION PROCAM_PLUGIN_ABI_VERSION
+#endif
+#ifndef FX_INFO_SYMBOL
+#define FX_INFO_SYMBOL PROCAM_PLUGIN_INFO_SYMBOL
+#endif
+#ifndef FX_CREATE_SYMBOL
+#define FX_CREATE_SYMBOL PROCAM_PLUGIN_CREATE_SYMBOL
+#endif
+#ifndef FX_LABEL
+#define FX_LABEL "black"
+#endif
+#ifndef FX_OUTPUT_NAME
+#define FX_OUTPUT_NAME "frame_mean"
+#endif
+
+#define FX_EXPORT __attribute__((visibility("default")))
+
+/* In C the variable cannot be called procam_plugin_info (that is the typedef's
+ * name), so it gets its symbol name through an asm label. */
+FX_EXPORT const procam_plugin_info fx_info __asm__(FX_INFO_SYMBOL) = {
+    FX_MAGIC, FX_ABI_VERSION, sizeof(procam_plugin_info), 0, FX_NAME, "0.0.1", "null"};
+
+static const uint8_t black[4 * 3]; /* zeros */
+
+struct procam_session {
+  int planned;
+  int ended;
+  double mean;
+  float depth[4];
+  procam_pattern_frame frame;
+  procam_plan plan;
+  procam_output outputs[2];
+};
+
+static void set_error(procam_error* err, const char* msg) {
+  if (err) snprintf(err->message, sizeof err->message, "%s", msg);
+}
+
+static const char* fx_describe(void) {
+#ifdef FX_DESCRIBE_CRASHES
+  raise(SIGSEGV);
+#endif
+  return "[{\"name\": \"null\", \"description\": \"one black frame, trivial outputs\", "
+         "\"params\": []}]";
+}
+
+static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
+                             procam_session** out, procam_error* err) {
+  (void)params_json;
+  (void)rig_json;
+#ifdef FX_SESSION_FAILS
+  (void)method;
+  (void)out;
+  set_error(err, "null plugin: this fixture refuses every session");
+  /* ...and "forgets" the terminating NUL: the rest of the buffer is filled. */
+  memset(err->message + strlen(err->message), '!',
+         sizeof err->message - strlen(err->message));
+  return PROCAM_ERR_INVALID_ARGUMENT;
+#else
+  if (strcmp(method, "null") != 0) {
+    set_error(err, "unknown method");
+    return PROCAM_ERR_INVALID_ARGUMENT;
+  }
+  *out = calloc(1, sizeof(procam_session));
+  if (*out == NULL) return PROCAM_ERR_NO_MEMORY;
+  return PROCAM_OK;
+#endif
+}
+
+static void fx_session_destroy(procam_session* s) { free(s); }
+
+static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_error* err) {
+  if (s->planned) {
+    if (!s->ended) {
+      set_error(err, "end_round first");
+      return PROCAM_ERR_STATE;
+    }
+    return 0;
+  }
+  s->planned = 1;
+  s->frame.label = FX_LABEL;
+  s->frame.pattern.width = 4;
+  s->frame.pattern.height = 3;
+  s->frame.pattern.channels = 1;
+  s->frame.pattern.pixel_type = PROCAM_PIXEL_U8;
+  s->frame.pattern.bit_depth = 8;
+  s->frame.pattern.stride_bytes = 4;
+  s->frame.pattern.data = black;
+  s->frame.settings.struct_size = sizeof(procam_frame_settings);
+  s->frame.settings.camera_index = 0;
+  s->frame.settings.exposure_us = 0;
+  s->frame.settings.gain_db = -1;
+  s->frame.settings.projector_focus_mm = 0;
+  s->frame.settings.polarizer_deg = NAN;
+  s->frame.settings.projector_polarizer_deg = NAN;
+  s->plan.frame_count = 1;
+  s->plan.frames = &s->frame;
+  s->plan.note = "the only round";
+  *plan = &s->plan;
+  return 1;
+}
+
+static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f,
+                        procam_error* err) {
+  uint32_t x, y;
+  double sum = 0;
+  if (index != 0 || f == NULL || f->pixel_type != PROCAM_PIXEL_U8 || f->channels != 1) {
+    set_error(err, "expected frame 0, 1-channel U8");
+    return PROCAM_ERR_BAD_FRAME;
+  }
+  for (y = 0; y < f->height; ++y)
+    for (x = 0; x < f->width; ++x) sum += ((const uint8_t*)f->data)[y * f->stride_bytes + x];
+  s->mean = sum / (double)(f->width * f->height);
+  return PROCAM_OK;
+}
+
+static int fx_end_round(procam_session* s, procam_error* err) {
+  (void)err;
+  s->ended = 1;
+  return PROCAM_OK;
+}
+
+/* unused only in null_function.c */
+__attribute__((unused)) static int fx_get_outputs(procam_session* s,
+                                                  const procam_output** outputs,
+                                                  uint32_t* count, procam_error* err) {
+  (void)err;
+  memset(s->outputs, 0, sizeof s->outputs);
+  s->outputs[0].name = FX_OUTPUT_NAME;
+  s->outputs[0].kind = PROCAM_OUTPUT_SCALAR;
+  s->outputs[0].unit = "";
+  s->outputs[0].description = "mean grey value of the captured frame";
+  s->outputs[0].scalar = s->mean;
+  s->depth[0] = 1.0f;
+  s->depth[1] = 2.0f;
+  s->depth[2] = 3.0f;
+  s->depth[3] = NAN;
+  s->outputs[1].name = "depth_mm";
+  s->outputs[1].kind = PROCAM_OUTPUT_IMAGE;
+  s->outputs[1].unit = "mm";
+  s->outputs[1].description = "a constant 2x2 depth map";
+  s->outputs[1].image.width = 2;
+  s->outputs[1].image.height = 2;
+  s->outputs[1].image.channels = 1;
+  s->outputs[1].image.pixel_type = PROCAM_PIXEL_F32;
+  s->outputs[1].image.bit_depth = 32;
+  s->outputs[1].image.stride_bytes = 2 * sizeof(float);
+  s->outputs[1].image.data = s->depth;
+  *outputs = s->outputs;
+  *count = 2;
+  return PROCAM_OK;
+}
+
+static const procam_plugin_vtable fx_vtable = {
+    PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), fx_describe, fx_session_create,
+    fx_session_destroy,        fx_next_plan,                 fx_add_frame, fx_end_round,
+#ifdef FX_NULL_FUNCTION
+    NULL
+#else
+    fx_get_outputs
+#endif
+};
+
+FX_EXPORT const procam_plugin_vtable* fx_create(uint32_t host_abi) __asm__(FX_CREATE_SYMBOL);
+const procam_plugin_vtable* fx_create(uint32_t host_abi) {
+#ifdef FX_CREATE_RETURNS_NULL
+  (void)host_abi;
+  return NULL;
+#else
+  return host_abi == PROCAM_PLUGIN_ABI_VERSION ? &fx_vtable : NULL;
+#endif
+}
