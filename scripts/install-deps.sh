@@ -15,7 +15,7 @@ PACKAGES=(
   libzmq3-dev cppzmq-dev                 # ZeroMQ transport
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
-  python3 python3-zmq                    # protocol conformance test with a spec-only Python client
+  python3 python3-zmq python3-jsonschema # spec-only Python client; schema checks of PROTOCOL.md examples
 )
 
 missing=()

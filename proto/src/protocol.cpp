@@ -481,7 +481,9 @@ Result<Incoming> decode_incoming_impl(std::string_view bytes) {
     auto errv = obj.find("error");
     if (errv == obj.end()) return Error(Code::bad_message, "error reply without an 'error' object");
     auto st = error_from_json(*errv);
-    PROCAM_TRY(st);
+    if (!st)
+      return Error(Code::bad_message,
+                   "error reply whose 'error' is not {\"code\": string, \"message\": string, ...}");
     r.error = std::move(*st);
   }
   r.body = without(obj, {"procam", "id", "type", "ok"});
@@ -561,24 +563,22 @@ nlohmann::json error_to_json(const Status& error) {
   return j;
 }
 
-Result<Status> error_from_json(const nlohmann::json& error) {
+std::optional<Status> error_from_json(const nlohmann::json& error) {
   try {
-    if (!error.is_object()) return Error(Code::bad_message, "'error' must be an object");
+    if (!error.is_object()) return std::nullopt;
     auto c = error.find("code");
     auto m = error.find("message");
-    if (c == error.end() || !c->is_string())
-      return Error(Code::bad_message, "'error' without a string 'code'");
-    if (m == error.end() || !m->is_string())
-      return Error(Code::bad_message, "'error' without a string 'message'");
+    if (c == error.end() || !c->is_string() || m == error.end() || !m->is_string())
+      return std::nullopt;
     std::string hint;
     if (auto h = error.find("hint"); h != error.end() && h->is_string()) hint = h->get<std::string>();
     const auto& name = c->get_ref<const std::string&>();
-    auto code = code_from_name(name);
-    if (code == Code::ok) return Error(Code::bad_message, "'error' with code \"ok\"");
+    const auto code = code_from_name(name);
+    if (code == Code::ok) return std::nullopt;
     if (!code) return Status(Code::internal, "[" + name + "] " + m->get<std::string>(), hint);
     return Status(*code, m->get<std::string>(), hint);
-  } catch (const std::exception& e) {
-    return Error(Code::internal, std::string("reading an error object failed: ") + e.what());
+  } catch (const std::exception&) {
+    return std::nullopt;
   }
 }
 

@@ -120,9 +120,10 @@ std::string encode_event(const std::string& scan_id, uint64_t seq, std::string_v
 // The error object {"code","message","hint"} used in error replies, scan
 // summaries, manifests and list_plugins "rejected" entries.
 nlohmann::json error_to_json(const Status& error);
-// The inverse. Unknown codes (from a newer daemon) become Code::internal with
-// the wire code kept in the message. Fails (bad_message) if not such an object.
-Result<Status> error_from_json(const nlohmann::json& error);
+// The inverse: a failed Status. Unknown codes (from a newer daemon) become
+// Code::internal with the wire code kept in the message. nullopt if `error` is
+// not such an object (no string code/message, or code "ok").
+std::optional<Status> error_from_json(const nlohmann::json& error);
 
 // The Code whose wire name is `name` (code_name inverse); nullopt if none.
 std::optional<Code> code_from_name(std::string_view name);
