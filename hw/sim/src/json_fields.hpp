@@ -8,7 +8,9 @@
 // Never throws (only uses non-throwing nlohmann accessors).
 #pragma once
 
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <initializer_list>
 #include <limits>
 #include <optional>

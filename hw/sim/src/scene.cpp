@@ -103,7 +103,7 @@ Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
   try {
     ParseErrors errors{source.empty() ? std::string("scene") : source, {}};
     FieldReader root(j, "", errors);
-    root.only({"name", "description", "ambient", "objects"});
+    root.only({"name", "description", "comment", "ambient", "objects"});
     Scene scene;
     scene.source = source;
     scene.name = root.string("name", fs::path(source).stem().string());
@@ -153,7 +153,8 @@ Result<Scene> load_scene_file(const std::string& path) {
     // Re-parse with exceptions only to get the position for the message.
     std::string detail;
     try {
-      (void)nlohmann::json::parse(text);
+      const nlohmann::json again = nlohmann::json::parse(text);
+      detail = "parse error";
     } catch (const std::exception& e) {
       detail = e.what();
     }

@@ -39,8 +39,10 @@ private:
 
 }  // namespace procam::log
 
-// LOG(daemon, info) << "listening on " << endpoint;
-#define PROCAM_LOG(category, level)                                           \
-  if (!::procam::log::enabled(#category, ::procam::log::Level::level)) {      \
-  } else                                                                      \
-    ::procam::log::Line(#category, ::procam::log::Level::level)
+// PROCAM_LOG(daemon, info) << "listening on " << endpoint;
+// The message is only formatted when the level is enabled. A one-shot `for`
+// (not `if`) keeps the macro safe inside an unbraced if/else.
+#define PROCAM_LOG(category, level)                                               \
+  for (bool procam_log_on_ = ::procam::log::enabled(#category, ::procam::log::Level::level); \
+       procam_log_on_; procam_log_on_ = false)                                    \
+  ::procam::log::Line(#category, ::procam::log::Level::level)

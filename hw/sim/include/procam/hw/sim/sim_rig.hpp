@@ -1,0 +1,149 @@
+// SPDX-License-Identifier: MIT
+// The simulated rig backend ("sim"): procam::hw Projector / Camera / Rig
+// adapters over the renderer (renderer.hpp) and sensor model (sensor.hpp).
+// Config schema: hw/sim/SCENES.md "Rig config".
+//
+// Behaviour: SimProjector::show copies the pattern into the rig's shared state;
+// wait_presented returns at once (CLOCK_MONOTONIC timestamp, no pacing);
+// SimCamera::capture renders what the projector shows now at the projector's
+// current focus. Noise is deterministic per (rig seed, camera, frame id).
+//
+// Threads: thread-bound like every Rig (one thread at a time uses the rig and
+// its devices; the renderer may use `threads` workers inside a call);
+// info()/describe() results are plain data. Errors are returned, never thrown.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "procam/hw/rig.hpp"
+#include "procam/hw/sim/models.hpp"
+#include "procam/hw/sim/renderer.hpp"
+#include "procam/hw/sim/scene.hpp"
+
+namespace procam::sim {
+
+struct SimCameraConfig {
+  std::string id;                  // "sim0", "sim1", ... unless given
+  CameraCalibration calibration;   // intrinsics + cam_from_proj (true = reported)
+  SensorModel sensor;
+};
+
+struct SimRigConfig {
+  std::string name = "sim";
+  std::string description;
+  std::string scene = "plane";     // default scene: name or path
+  uint64_t seed = 1;               // noise seed
+  int threads = 0;                 // renderer worker threads; 0: hardware threads (≤ 8)
+  ProjectorModel projector;
+  std::vector<SimCameraConfig> cameras;
+};
+
+// Strict parse of a sim rig config; errors name `source` and the field
+// ("rig config: cameras[0].bit_depth: must be in [8, 16], got 4").
+Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config,
+                                          const std::string& source = "rig config");
+
+class SimRig;
+
+class SimProjector final : public hw::Projector {
+public:
+  explicit SimProjector(SimRig& rig) : rig_(rig) {}
+  const hw::ProjectorInfo& info() const override { return info_; }
+  // invalid_argument on a wrong size/type (message names both sizes).
+  Status show(const procam_image& pattern, uint64_t pattern_id) override;
+  // Immediate. failed_precondition if `pattern_id` is not the last shown.
+  Result<hw::Presentation> wait_presented(uint64_t pattern_id, std::chrono::milliseconds timeout) override;
+  // <= 0 or NaN: the configured focus_mm. Takes effect for the next capture.
+  Status set_focus_mm(double focus_mm) override;
+
+private:
+  friend class SimRig;
+  SimRig& rig_;
+  hw::ProjectorInfo info_;
+};
+
+class SimCamera final : public hw::Camera {
+public:
+  SimCamera(SimRig& rig, uint32_t index) : rig_(rig), index_(index) {}
+  const hw::CameraInfo& info() const override { return info_; }
+  // exposure_us (0 < x ≤ 1e7) and gain_db (0 ≤ x ≤ 48) override the configured
+  // defaults; unset values restore them. polarizer_deg is accepted and
+  // recorded but has no effect until polarisation is modelled.
+  Status configure(const hw::CameraSettings& settings) override;
+  // Renders the projector's current pattern; never times out.
+  Result<hw::Frame> capture(std::chrono::milliseconds timeout) override;
+
+  double exposure_us() const { return exposure_us_; }
+  double gain_db() const { return gain_db_; }
+  double polarizer_deg() const { return polarizer_deg_; }
+
+private:
+  friend class SimRig;
+  SimRig& rig_;
+  uint32_t index_;
+  hw::CameraInfo info_;
+  double exposure_us_ = 0, gain_db_ = 0, polarizer_deg_ = 0;
+  uint64_t next_frame_id_ = 1;
+  std::vector<float> radiance_;  // scratch, width*height
+};
+
+class SimRig final : public hw::Rig {
+public:
+  // Loads the default scene and prepares every camera. Scene names resolve in
+  // ctx.scene_dirs, or `<config_dir>/../scenes` when that list is empty.
+  static Result<std::unique_ptr<SimRig>> create(SimRigConfig config, hw::RigContext ctx);
+
+  hw::Projector& projector() override { return projector_; }
+  size_t camera_count() const override { return cameras_.size(); }
+  // index < camera_count() (asserted; clamped in release builds).
+  hw::Camera& camera(size_t index) override;
+  const Intrinsics& projector_intrinsics() const override { return config_.projector.intrinsics; }
+  const std::vector<CameraCalibration>& camera_calibrations() const override { return calibrations_; }
+  // proto/PROTOCOL.md "Rig description" plus "backends"; "state" holds
+  // {"scene", "scene_file", "projector_focus_mm", "seed"}.
+  nlohmann::json describe() const override;
+  // Keys: "scene" (name or path). A call without "scene" (or with null/{})
+  // restores the configured default scene. Unknown key → invalid_argument.
+  Status apply_scan_options(const nlohmann::json& options) override;
+  Result<hw::GroundTruth> ground_truth(size_t index) override;
+
+  // Load and prepare a scene (no-op if the same file is already loaded).
+  Status set_scene(const std::string& name_or_path);
+  const Scene& scene() const { return scene_; }
+  const SimRigConfig& config() const { return config_; }
+  // The renderer of camera `camera_index` (< camera_count()) for the current
+  // scene; replaced by set_scene(), so do not keep the reference across it.
+  Renderer& renderer(size_t camera_index) { return *renderers_[camera_index]; }
+  // Focus the next captures use (the configured default when unset).
+  double current_focus_mm() const;
+
+private:
+  friend class SimProjector;
+  friend class SimCamera;
+  SimRig(SimRigConfig config, hw::RigContext ctx);
+
+  SimRigConfig config_;
+  hw::RigContext ctx_;
+  std::vector<std::string> scene_dirs_;
+  std::vector<CameraCalibration> calibrations_;
+  Scene scene_;
+  std::string scene_key_;  // resolved file + modification time of the loaded scene
+  std::vector<std::unique_ptr<Renderer>> renderers_;
+  SimProjector projector_;
+  std::vector<std::unique_ptr<SimCamera>> cameras_;
+  // Shared projector state.
+  PreparedPattern pattern_;
+  uint64_t pattern_id_ = 0;
+  bool pattern_shown_ = false;
+  double focus_mm_ = 0;  // <= 0: configured default
+};
+
+// create_rig() entry for the "sim" backend (used by hw/registry.cpp).
+Result<std::unique_ptr<hw::Rig>> create_sim_rig(const nlohmann::json& config, const hw::RigContext& ctx);
+
+}  // namespace procam::sim

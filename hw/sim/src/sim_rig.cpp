@@ -1,0 +1,364 @@
+// SPDX-License-Identifier: MIT
+// Sim backend: rig config parsing and the Projector / Camera / Rig adapters.
+#include "procam/hw/sim/sim_rig.hpp"
+
+#include <time.h>
+
+#include <cassert>
+#include <cmath>
+#include <filesystem>
+
+#include "json_fields.hpp"
+#include "parallel.hpp"
+#include "procam/core/log.hpp"
+#include "procam/hw/sim/ground_truth.hpp"
+#include "procam/hw/sim/sensor.hpp"
+
+namespace procam::sim {
+namespace fs = std::filesystem;
+using detail::FieldReader;
+using detail::ParseErrors;
+
+namespace {
+
+int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + static_cast<int64_t>(ts.tv_nsec);
+}
+
+Intrinsics parse_intrinsics(FieldReader& parent, const char* key) {
+  Intrinsics k;
+  const nlohmann::json* j = parent.object(key, true);
+  if (j == nullptr) return k;
+  FieldReader r(*j, parent.field(key), parent.errors());
+  r.only({"width", "height", "fx", "fy", "cx", "cy"});
+  k.width = static_cast<uint32_t>(r.integer("width", std::nullopt, 1, 65536));
+  k.height = static_cast<uint32_t>(r.integer("height", std::nullopt, 1, 65536));
+  k.fx = r.positive("fx", std::nullopt, "focal length, pixels");
+  k.fy = r.positive("fy", std::nullopt, "focal length, pixels");
+  k.cx = r.number("cx", std::nullopt, "principal point, pixels");
+  k.cy = r.number("cy", std::nullopt, "principal point, pixels");
+  return k;
+}
+
+Rigid3 parse_rigid(FieldReader& parent, const char* key) {
+  Rigid3 t;
+  const nlohmann::json* j = parent.object(key, true);
+  if (j == nullptr) return t;
+  FieldReader r(*j, parent.field(key), parent.errors());
+  r.only({"rotation", "euler_deg", "translation_mm"});
+  if (r.has("rotation") && r.has("euler_deg")) {
+    r.fail("rotation", "give either rotation or euler_deg, not both");
+    return t;
+  }
+  if (r.has("rotation")) {
+    t.rotation.m = r.numbers<9>("rotation", std::nullopt, "row-major 3x3");
+    const Mat3 rtr = t.rotation.transposed() * t.rotation;
+    double err = 0;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) err = std::max(err, std::abs(rtr(a, b) - (a == b ? 1.0 : 0.0)));
+    const Mat3& m = t.rotation;
+    const double det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1)) -
+                       m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0)) +
+                       m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
+    if (r.errors().ok() && (err > 1e-6 || det < 0))
+      r.fail("rotation", "must be a proper rotation matrix (orthonormal, det +1)");
+  } else {
+    const Vec3 e = r.vec3("euler_deg", Vec3{0, 0, 0}, "[rx, ry, rz] degrees, R = Rz*Ry*Rx");
+    t.rotation = rotation_from_euler_deg(e.x, e.y, e.z);
+  }
+  t.translation_mm = r.vec3("translation_mm", std::nullopt, "mm");
+  return t;
+}
+
+void check_backend(FieldReader& r) {
+  const std::string b = r.string("backend", std::string("sim"));
+  if (r.errors().ok() && b != "sim")
+    r.fail("backend", "the sim rig needs backend \"sim\", got \"" + b + "\"");
+}
+
+}  // namespace
+
+Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const std::string& source) {
+  try {
+    ParseErrors errors{source, {}};
+    FieldReader root(config, "", errors);
+    root.only({"name", "description", "comment", "scene", "seed", "threads", "projector", "cameras"});
+    SimRigConfig c;
+    c.name = root.string("name", std::string("sim"));
+    c.description = root.string("description", std::string());
+    c.scene = root.string("scene", std::string("plane"));
+    c.seed = root.integer("seed", 1, 0, UINT64_MAX);
+    c.threads = static_cast<int>(root.integer("threads", 0, 0, 64));
+
+    if (const nlohmann::json* pj = root.object("projector", true)) {
+      FieldReader p(*pj, "projector", errors);
+      p.only({"backend", "name", "intrinsics", "refresh_hz", "irradiance_at_1m", "black_level", "gamma",
+              "aperture_mm", "focus_mm"});
+      check_backend(p);
+      ProjectorModel& m = c.projector;
+      m.name = p.string("name", std::string("sim projector"));
+      m.intrinsics = parse_intrinsics(p, "intrinsics");
+      m.refresh_hz = p.positive("refresh_hz", 60.0, "Hz");
+      m.irradiance_at_1m = p.positive("irradiance_at_1m", 1.0, "iu");
+      m.black_level = p.number("black_level", 0.01, "fraction", 0.0, 0.999);
+      m.gamma = p.positive("gamma", 2.2);
+      m.aperture_mm = p.number("aperture_mm", 2.0, "mm", 0.0, 1000.0);
+      m.focus_mm = p.positive("focus_mm", 800.0, "mm");
+    }
+
+    const nlohmann::json* cams = root.get("cameras");
+    if (cams == nullptr) {
+      root.fail("cameras", "missing (required array of camera objects)");
+    } else if (!cams->is_array() || cams->empty()) {
+      root.fail("cameras", "must be a non-empty array of camera objects");
+    } else {
+      for (size_t i = 0; i < cams->size() && errors.ok(); ++i) {
+        FieldReader r((*cams)[i], "cameras[" + std::to_string(i) + "]", errors);
+        r.only({"backend", "id", "intrinsics", "cam_from_proj", "bit_depth", "exposure_us", "gain_db",
+                "sensitivity", "full_well_e", "read_noise_e", "shot_noise"});
+        check_backend(r);
+        SimCameraConfig cam;
+        cam.id = r.string("id", "sim" + std::to_string(i));
+        cam.calibration.intrinsics = parse_intrinsics(r, "intrinsics");
+        cam.calibration.cam_from_proj = parse_rigid(r, "cam_from_proj");
+        SensorModel& s = cam.sensor;
+        s.bit_depth = static_cast<uint32_t>(r.integer("bit_depth", 8, 8, 16));
+        s.exposure_us = r.number("exposure_us", 10000.0, "µs", 1e-3, 1e7);
+        s.gain_db = r.number("gain_db", 0.0, "dB", 0.0, 48.0);
+        s.sensitivity = r.positive("sensitivity", 2.0, "electrons per (ru · µs)");
+        s.full_well_e = r.positive("full_well_e", 10000.0, "electrons");
+        s.read_noise_e = r.number("read_noise_e", 10.0, "electrons RMS", 0.0, 1e6);
+        s.shot_noise = r.boolean("shot_noise", true);
+        c.cameras.push_back(std::move(cam));
+      }
+    }
+    if (!errors.ok()) return errors.first;
+    return c;
+  } catch (const std::exception& e) {
+    return Error(Code::internal, source + ": unexpected error while parsing: " + e.what());
+  }
+}
+
+// ---- SimProjector -------------------------------------------------------------
+
+Status SimProjector::show(const procam_image& pattern, uint64_t pattern_id) {
+  auto prepared = PreparedPattern::from_pattern(pattern, rig_.config_.projector);
+  if (!prepared.ok()) return prepared.status().with_context("sim projector: show");
+  rig_.pattern_ = std::move(prepared).value();
+  rig_.pattern_id_ = pattern_id;
+  rig_.pattern_shown_ = true;
+  return Status::Ok();
+}
+
+Result<hw::Presentation> SimProjector::wait_presented(uint64_t pattern_id, std::chrono::milliseconds) {
+  if (!rig_.pattern_shown_ || pattern_id != rig_.pattern_id_)
+    return Error(Code::failed_precondition,
+                 "sim projector: pattern " + std::to_string(pattern_id) + " was not shown" +
+                     (rig_.pattern_shown_ ? " (last shown: " + std::to_string(rig_.pattern_id_) + ")" : ""),
+                 "call show() with this id first");
+  return hw::Presentation{pattern_id, monotonic_ns()};
+}
+
+Status SimProjector::set_focus_mm(double focus_mm) {
+  if (std::isinf(focus_mm))
+    return Error(Code::invalid_argument, "sim projector: focus_mm must be finite",
+                 "give the focal-plane distance in mm, or <= 0 for the rig default");
+  rig_.focus_mm_ = (std::isnan(focus_mm) || focus_mm <= 0) ? 0.0 : focus_mm;
+  return Status::Ok();
+}
+
+// ---- SimCamera ------------------------------------------------------------------
+
+Status SimCamera::configure(const hw::CameraSettings& settings) {
+  const SensorModel& s = rig_.config_.cameras[index_].sensor;
+  if (settings.exposure_us > 1e7 || std::isnan(settings.exposure_us))
+    return Error(Code::invalid_argument,
+                 "sim camera " + info_.id + ": exposure_us " + std::to_string(settings.exposure_us) +
+                     " out of range", "use 0 < exposure_us <= 1e7 (or <= 0 for the default)");
+  if (settings.gain_db > 48 || std::isnan(settings.gain_db))
+    return Error(Code::invalid_argument,
+                 "sim camera " + info_.id + ": gain_db " + std::to_string(settings.gain_db) + " out of range",
+                 "use 0 <= gain_db <= 48 (or < 0 for the default)");
+  exposure_us_ = settings.exposure_us > 0 ? settings.exposure_us : s.exposure_us;
+  gain_db_ = settings.gain_db >= 0 ? settings.gain_db : s.gain_db;
+  polarizer_deg_ = settings.polarizer_deg;  // recorded only: polarisation is not modelled yet
+  return Status::Ok();
+}
+
+Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds) {
+  Renderer& ren = *rig_.renderers_[index_];
+  ren.set_focus_mm(rig_.current_focus_mm());
+  radiance_.resize(ren.view().pixel_count());
+  Status st = ren.render_radiance(rig_.pattern_, radiance_.data(), true);
+  if (!st.ok()) return st.with_context("sim camera " + info_.id + ": capture");
+  const SensorModel& s = rig_.config_.cameras[index_].sensor;
+  hw::Frame f;
+  f.frame_id = next_frame_id_++;
+  f.image = expose(radiance_.data(), ren.width(), ren.height(), s, exposure_us_, gain_db_,
+                   frame_noise_seed(rig_.config_.seed, index_, f.frame_id), rig_.config_.threads);
+  f.timestamp_ns = monotonic_ns();
+  f.camera_index = index_;
+  return f;
+}
+
+// ---- SimRig -------------------------------------------------------------------
+
+SimRig::SimRig(SimRigConfig config, hw::RigContext ctx)
+    : config_(std::move(config)), ctx_(std::move(ctx)), projector_(*this) {
+  if (config_.threads <= 0) config_.threads = detail::default_threads();
+  scene_dirs_ = ctx_.scene_dirs;
+  if (scene_dirs_.empty())
+    scene_dirs_.push_back((fs::path(ctx_.config_dir.empty() ? "." : ctx_.config_dir) / ".." / "scenes").string());
+  projector_.info_.backend = "sim";
+  projector_.info_.name = config_.projector.name;
+  projector_.info_.width = config_.projector.intrinsics.width;
+  projector_.info_.height = config_.projector.intrinsics.height;
+  projector_.info_.refresh_hz = config_.projector.refresh_hz;
+  for (size_t i = 0; i < config_.cameras.size(); ++i) {
+    const SimCameraConfig& cc = config_.cameras[i];
+    calibrations_.push_back(cc.calibration);
+    auto cam = std::make_unique<SimCamera>(*this, static_cast<uint32_t>(i));
+    cam->info_.backend = "sim";
+    cam->info_.id = cc.id;
+    cam->info_.width = cc.calibration.intrinsics.width;
+    cam->info_.height = cc.calibration.intrinsics.height;
+    cam->info_.bit_depth = cc.sensor.bit_depth;
+    cam->exposure_us_ = cc.sensor.exposure_us;
+    cam->gain_db_ = cc.sensor.gain_db;
+    cam->polarizer_deg_ = std::nan("");
+    cameras_.push_back(std::move(cam));
+  }
+}
+
+Result<std::unique_ptr<SimRig>> SimRig::create(SimRigConfig config, hw::RigContext ctx) {
+  try {
+    if (config.cameras.empty()) return Error(Code::invalid_argument, "sim rig: no cameras configured");
+    std::unique_ptr<SimRig> rig(new SimRig(std::move(config), std::move(ctx)));
+    // The projector starts out showing black (pattern value 0 everywhere).
+    Image black(rig->config_.projector.intrinsics.width, rig->config_.projector.intrinsics.height, PixelType::u8);
+    auto p = PreparedPattern::from_pattern(black.view(), rig->config_.projector);
+    if (!p.ok()) return p.status();
+    rig->pattern_ = std::move(p).value();
+    Status st = rig->set_scene(rig->config_.scene);
+    if (!st.ok()) return st.with_context("sim rig: loading default scene (rig config field \"scene\")");
+    return rig;
+  } catch (const std::exception& e) {
+    return Error(Code::internal, std::string("sim rig: unexpected error: ") + e.what());
+  }
+}
+
+hw::Camera& SimRig::camera(size_t index) {
+  assert(index < cameras_.size());
+  return *cameras_[std::min(index, cameras_.size() - 1)];
+}
+
+double SimRig::current_focus_mm() const {
+  return focus_mm_ > 0 ? focus_mm_ : config_.projector.focus_mm;
+}
+
+Status SimRig::set_scene(const std::string& name_or_path) {
+  try {
+    auto scene = load_scene(name_or_path, scene_dirs_, ctx_.config_dir);
+    if (!scene.ok()) return scene.status();
+    std::string key = scene->source;
+    std::error_code ec;
+    const auto mtime = fs::last_write_time(key, ec);
+    if (!ec) key += "@" + std::to_string(mtime.time_since_epoch().count());
+    if (!scene_key_.empty() && key == scene_key_) return Status::Ok();
+
+    std::vector<std::unique_ptr<Renderer>> renderers;
+    const Rigid3& world_from_proj = calibrations_[0].cam_from_proj;
+    for (size_t i = 0; i < calibrations_.size(); ++i) {
+      auto view = prepare_view(*scene, config_.projector, calibrations_[i], world_from_proj, config_.threads);
+      if (!view.ok()) return view.status().with_context("sim rig: camera " + std::to_string(i));
+      renderers.push_back(std::make_unique<Renderer>(std::move(view).value(), config_.projector, config_.threads));
+    }
+    renderers_ = std::move(renderers);
+    scene_ = std::move(scene).value();
+    scene_key_ = key;
+    PROCAM_LOG(sim, info) << "scene '" << scene_.name << "' loaded from " << scene_.source;
+    return Status::Ok();
+  } catch (const std::exception& e) {
+    return Error(Code::internal, "sim rig: unexpected error loading scene '" + name_or_path + "': " + e.what());
+  }
+}
+
+nlohmann::json SimRig::describe() const {
+  nlohmann::json j;
+  try {
+    const ProjectorModel& p = config_.projector;
+    j["name"] = config_.name;
+    nlohmann::json cam_backends = nlohmann::json::array();
+    nlohmann::json cams = nlohmann::json::array();
+    for (size_t i = 0; i < cameras_.size(); ++i) {
+      const hw::CameraInfo& ci = cameras_[i]->info();
+      cam_backends.push_back(ci.backend);
+      cams.push_back({{"backend", ci.backend},
+                      {"id", ci.id},
+                      {"width", ci.width},
+                      {"height", ci.height},
+                      {"bit_depth", ci.bit_depth},
+                      {"calibration", calibrations_[i]}});
+    }
+    j["backends"] = {{"projector", "sim"}, {"cameras", cam_backends}};
+    j["projector"] = {{"backend", "sim"},
+                      {"name", p.name},
+                      {"width", p.intrinsics.width},
+                      {"height", p.intrinsics.height},
+                      {"refresh_hz", p.refresh_hz},
+                      {"intrinsics", p.intrinsics},
+                      {"focus_mm", p.focus_mm},
+                      {"aperture_mm", p.aperture_mm}};
+    j["cameras"] = cams;
+    // Backend state (proto/PROTOCOL.md "Rig description": `state`).
+    j["state"] = {{"scene", scene_.name},
+                  {"scene_file", scene_.source},
+                  {"projector_focus_mm", current_focus_mm()},
+                  {"seed", config_.seed}};
+  } catch (const std::exception& e) {
+    j = {{"name", config_.name}, {"error", std::string("describe failed: ") + e.what()}};
+  }
+  return j;
+}
+
+Status SimRig::apply_scan_options(const nlohmann::json& options) {
+  try {
+    if (options.is_null()) return set_scene(config_.scene);
+    if (!options.is_object())
+      return Error(Code::invalid_argument,
+                   std::string("rig_options must be a JSON object, got ") + options.type_name(),
+                   "for the sim rig: {\"scene\": \"<name or path>\"}");
+    for (auto it = options.begin(); it != options.end(); ++it) {
+      if (it.key() != "scene")
+        return Error(Code::invalid_argument, "rig_options: unknown key '" + it.key() + "' for the sim rig",
+                     "known keys: scene");
+    }
+    auto it = options.find("scene");
+    if (it == options.end()) return set_scene(config_.scene);
+    if (!it->is_string())
+      return Error(Code::invalid_argument, std::string("rig_options.scene: must be a string, got ") + it->type_name(),
+                   "give a scene name such as \"tilted-box\" or a path to a scene .json file");
+    return set_scene(it->get<std::string>()).with_context("rig_options.scene");
+  } catch (const std::exception& e) {
+    return Error(Code::internal, std::string("sim rig: apply_scan_options: ") + e.what());
+  }
+}
+
+Result<hw::GroundTruth> SimRig::ground_truth(size_t index) {
+  if (index >= renderers_.size())
+    return Error(Code::not_found, "sim rig: no camera " + std::to_string(index) + " (the rig has " +
+                                      std::to_string(renderers_.size()) + ")");
+  return ground_truth_from_view(renderers_[index]->view());
+}
+
+Result<std::unique_ptr<hw::Rig>> create_sim_rig(const nlohmann::json& config, const hw::RigContext& ctx) {
+  auto parsed = parse_sim_rig_config(config, "rig config");
+  if (!parsed.ok()) return parsed.status();
+  auto rig = SimRig::create(std::move(parsed).value(), ctx);
+  if (!rig.ok()) return rig.status();
+  return std::unique_ptr<hw::Rig>(std::move(rig).value());
+}
+
+}  // namespace procam::sim
