@@ -139,7 +139,26 @@ void print_summary(const nlohmann::json& m, const std::string& out_dir) {
   }
 }
 
+// Progress on stderr: a redrawn bar on a terminal; on a pipe or log file, one
+// line per stage change and per quarter of a stage, so logs stay readable.
 void progress_line(const proto::Event& ev) {
+  static const bool tty = ::isatty(2) != 0;
+  static std::string last_key;
+  if (ev.event == "progress" && !tty) {
+    const auto total = ev.body.value("total", 0), done = ev.body.value("done", 0);
+    const int quarter = total > 0 ? done * 4 / total : 0;
+    const std::string key = ev.body.value("stage", "") + std::to_string(ev.body.value("round", 1)) + "/" +
+                            std::to_string(quarter);
+    if (key == last_key) return;
+    last_key = key;
+    std::fprintf(stderr, "  %-8s round %d  %d/%d %s\n", ev.body.value("stage", "").c_str(),
+                 ev.body.value("round", 1), done, total, ev.body.value("message", "").c_str());
+    return;
+  }
+  if (ev.event == "state" && !tty) {
+    std::fprintf(stderr, "  state: %s\n", ev.body.value("state", "").c_str());
+    return;
+  }
   if (ev.event == "progress") {
     const auto total = ev.body.value("total", 0), done = ev.body.value("done", 0);
     const std::string stage = ev.body.value("stage", "");
@@ -291,9 +310,7 @@ int cmd_decode(const Args& a) {
                       {"timing_ms", {{"decode", outcome->decode_ms},
                                      {"total", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count()}}},
                       {"outputs", written->outputs}, {"previews", written->previews}, {"error", nullptr}};
-  nlohmann::json files = engine::list_files(out);
-  files.push_back({{"name", "manifest.json"}, {"size_bytes", nullptr}});
-  m["files"] = files;
+  m["files"] = engine::list_files(out);
   if (auto s = engine::write_file_atomic((fs::path(out) / "manifest.json").string(), m.dump(2)); !s) return report(s);
   if (a.json) std::cout << m.dump(2) << "\n";
   else print_summary(m, out);

@@ -10,6 +10,7 @@
 
 #include "procam/core/log.hpp"
 #include "procam/proto/protocol.hpp"
+#include <zmq_addon.hpp>
 
 namespace procam::daemon {
 
@@ -163,25 +164,28 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
 
   std::visit(overloaded{
       [&](const proto::Hello& h) {
-        bool speaks = false;
-        for (int v : h.versions) speaks |= v == proto::kVersion;
-        if (!speaks)
-          return err(Error(Code::unsupported_version, "this daemon speaks protocol version 1 only",
-                           "upgrade the client"));
-        ok({{"version", proto::kVersion}, {"daemon", "procamd 0.1.0"}, {"rig", service_.rig_name()},
+        auto v = proto::negotiate_version(h);
+        if (!v) return err(v.status());
+        ok({{"version", *v}, {"daemon", "procamd 0.1.0"}, {"rig", service_.rig_name()},
             {"capabilities", {"events", "fetch"}}});
       },
       [&](const proto::ListPlugins&) {
         nlohmann::json plugins = nlohmann::json::array(), rejected = nlohmann::json::array();
         for (const auto& p : plugins_.plugins()) {
           nlohmann::json methods = nlohmann::json::array();
-          for (const auto& m : p.methods) methods.push_back(m.describe);
+          for (const auto& m : p.methods) {
+            // Normalise to the protocol's method object whatever the plugin wrote.
+            nlohmann::json d = m.describe.is_object() ? m.describe : nlohmann::json::object();
+            d["name"] = m.name;
+            if (!d.contains("description") || !d["description"].is_string()) d["description"] = m.description;
+            if (!d.contains("patterns")) d["patterns"] = nullptr;
+            if (!d.contains("params") || !d["params"].is_array()) d["params"] = nlohmann::json::array();
+            methods.push_back(std::move(d));
+          }
           plugins.push_back({{"name", p.name}, {"version", p.version}, {"file", p.file}, {"methods", methods}});
         }
         for (const auto& r : plugins_.rejected())
-          rejected.push_back({{"file", r.file},
-                              {"error", {{"code", code_name(r.error.code())}, {"message", r.error.message()},
-                                         {"hint", r.error.hint()}}}});
+          rejected.push_back({{"file", r.file}, {"error", proto::error_to_json(r.error)}});
         ok({{"plugins", plugins}, {"rejected", rejected}});
       },
       [&](const proto::DescribeRig&) { ok({{"rig", service_.rig_description()}}); },

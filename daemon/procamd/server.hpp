@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 #include <zmq.hpp>
+#include <zmq_addon.hpp>
 
 #include "procam/core/status.hpp"
 #include "procam/engine/service.hpp"

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <zmq.hpp>
+#include <zmq_addon.hpp>
 
 #include "daemon_process.hpp"
 #include "procam/core/image_io.hpp"
@@ -105,9 +106,9 @@ TEST_F(DaemonTest, GrayScanOfTiltedBoxMatchesGroundTruthAndResultsDownload) {
   for (const char* f : {"depth_mm.exr", "depth_mm.preview.png", "proj_col_px.exr", "proj_col_px.png",
                         "valid.png", "points.ply", "manifest.json"})
     EXPECT_TRUE(fs::exists(out.path / f)) << f;
-  for (const auto& f : m["files"])
-    if (f["size_bytes"].is_number())
-      EXPECT_EQ(fs::file_size(out.path / f["name"].get<std::string>()), f["size_bytes"].get<uintmax_t>()) << f.dump();
+  for (const auto& f : m["files"]) {
+    EXPECT_EQ(fs::file_size(out.path / f["name"].get<std::string>()), f["size_bytes"].get<uintmax_t>()) << f.dump();
+  }
   // The downloaded depth map is the daemon's: finite where valid, NaN elsewhere.
   auto depth = read_image((out.path / "depth_mm.exr").string());
   ASSERT_TRUE(depth.ok());
@@ -276,6 +277,33 @@ TEST(DaemonLifecycle, RestartServesEarlierScansAndStopsCleanly) {
   ASSERT_TRUE(i.ok()) << i.status().to_string();
   EXPECT_EQ((*i)["scan"]["state"], "failed");
   EXPECT_NE((*i)["scan"]["error"]["message"].get<std::string>().find("interrupted"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace procam::testing
+
+namespace procam::testing {
+namespace {
+
+// Acceptance of issue 2: a client written only from proto/PROTOCOL.md (no
+// procam code) lists plugins and runs a scan against the real daemon.
+TEST(SpecOnlyClient, PythonClientListsPluginsAndRunsAScan) {
+  ASSERT_TRUE(fs::exists("/usr/bin/python3")) << "scripts/install-deps.sh installs python3 + python3-zmq";
+  Daemon d;
+  ASSERT_TRUE(d.wait_ready()) << d.log();
+  const std::string client = source("proto/examples/spec_client.py");
+  std::string text;
+  int rc = run_command({"/usr/bin/python3", client, "--endpoint", d.endpoint, "list"}, &text);
+  ASSERT_EQ(rc, 0) << text;
+  EXPECT_NE(text.find("structured-light"), std::string::npos) << text;
+  TempDir out;
+  rc = run_command({"/usr/bin/python3", client, "--endpoint", d.endpoint, "scan", "--plugin", "structured-light",
+                    "--method", "gray", "--rig-option", "scene=plane", "--out", out.path.string()},
+                   &text);
+  ASSERT_EQ(rc, 0) << text;
+  EXPECT_TRUE(fs::exists(out.path / "manifest.json")) << text;
+  EXPECT_TRUE(fs::exists(out.path / "depth_mm.exr")) << text;
+  EXPECT_TRUE(fs::exists(out.path / "points.ply")) << text;
 }
 
 }  // namespace

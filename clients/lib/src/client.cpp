@@ -9,6 +9,7 @@
 #include <fstream>
 #include <thread>
 #include <zmq.hpp>
+#include <zmq_addon.hpp>
 
 namespace procam::client {
 namespace fs = std::filesystem;
@@ -57,7 +58,7 @@ Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::stri
     auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
     if (left.count() <= 0)
       return Error(Code::unavailable, "no reply from procamd at " + endpoint_ + " within " +
-                                          std::to_string(timeout_.count() / 1000.0).substr(0, 4) + " s",
+                                          std::to_string(timeout_.count()) + " ms",
                    "is procamd running? start it with `procamd --config configs/procamd.json`");
     zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
     try {
@@ -187,6 +188,18 @@ Status Client::fetch_file(const std::string& scan_id, const std::string& file, c
   return Status::Ok();
 }
 
+namespace {
+Status write_text_file(const std::string& path, const std::string& text) {
+  std::ofstream out(path + ".part", std::ios::binary | std::ios::trunc);
+  out << text;
+  out.close();
+  std::error_code ec;
+  if (out) fs::rename(path + ".part", path, ec);
+  if (!out || ec) return Error(Code::io_error, "cannot write '" + path + "'");
+  return Status::Ok();
+}
+}  // namespace
+
 Result<nlohmann::json> Client::fetch_all(const std::string& scan_id, const std::string& dir) {
   auto res = call(proto::ResultQuery{scan_id});
   if (!res) return res.status();
@@ -194,6 +207,7 @@ Result<nlohmann::json> Client::fetch_all(const std::string& scan_id, const std::
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) return Error(Code::io_error, "cannot create '" + dir + "': " + ec.message());
+  PROCAM_TRY(write_text_file((fs::path(dir) / "manifest.json").string(), manifest.dump(2)));
   for (const auto& f : manifest.value("files", nlohmann::json::array())) {
     const std::string name = f.value("name", "");
     if (!proto::is_safe_file_name(name)) continue;  // never write outside `dir`

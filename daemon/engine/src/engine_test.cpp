@@ -48,7 +48,7 @@ TEST_F(TempDir, PlyIsBinaryLittleEndianAndSkipsNonFinitePoints) {
 
 TEST(Preview, TurboEndsAndNanAreDistinct) {
   uint8_t lo[3], hi[3], mid[3];
-  turbo(0, lo);
+  turbo(0.15, lo);
   turbo(1, hi);
   turbo(0.5, mid);
   // Turbo starts dark blue-violet, ends dark red, passes through green.
@@ -118,7 +118,7 @@ TEST(Evaluate, CountsWithinOneColumnGrossErrorsAndDepth) {
   Image col(10, 10, PixelType::f32), depth(10, 10, PixelType::f32);
   for (uint32_t y = 0; y < 10; ++y)
     for (uint32_t x = 0; x < 10; ++x) {
-      col.at<float>(x, y) = std::round(t.proj_col.at<float>(x, y));  // exact decode
+      col.at<float>(x, y) = t.lit.at<uint8_t>(x, y) ? std::round(t.proj_col.at<float>(x, y)) : NAN;  // exact decode
       depth.at<float>(x, y) = 801.0f;                                // 1 mm off
     }
   col.at<float>(0, 0) = NAN;       // one lit pixel not decoded
@@ -129,7 +129,7 @@ TEST(Evaluate, CountsWithinOneColumnGrossErrorsAndDepth) {
   EXPECT_NEAR(j["decoded_fraction"].get<double>(), 89.0 / 90.0, 1e-12);
   EXPECT_NEAR(j["within_1col_fraction"].get<double>(), 88.0 / 90.0, 1e-12);
   EXPECT_NEAR(j["gross_error_fraction"].get<double>(), 1.0 / 89.0, 1e-12);
-  EXPECT_NEAR(j["spurious_fraction"].get<double>(), 1.0 / 90.0, 1e-12);
+  EXPECT_NEAR(j["spurious_fraction"].get<double>(), 1.0 / 90.0, 1e-12);  // 89 lit + 1 unlit decoded
   EXPECT_NEAR(j["depth_rms_mm"].get<double>(), 1.0, 1e-6);
   EXPECT_NEAR(j["depth_median_abs_mm"].get<double>(), 1.0, 1e-6);
   EXPECT_LE(j["col_rms_px"].get<double>(), 0.5);

@@ -12,6 +12,7 @@
 #include "procam/engine/evaluate.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
+#include "procam/proto/protocol.hpp"
 
 namespace procam::engine {
 namespace fs = std::filesystem;
@@ -43,7 +44,7 @@ std::string new_scan_id() {
 
 nlohmann::json error_json(const Status& s) {
   if (s.ok()) return nullptr;
-  return {{"code", code_name(s.code())}, {"message", s.message()}, {"hint", s.hint()}};
+  return proto::error_to_json(s);
 }
 
 }  // namespace
@@ -64,6 +65,7 @@ ScanService::ScanService(std::unique_ptr<hw::Rig> rig, const host::PluginHost& p
                          ServiceConfig cfg, EventSink sink)
     : rig_(std::move(rig)), plugins_(plugins), cfg_(std::move(cfg)), sink_(std::move(sink)) {
   rig_description_ = rig_->describe();
+  rig_name_ = rig_description_.value("name", "");
   plugin_rig_json_ = plugin_rig_json(*rig_, cfg_.threads);
 }
 
@@ -125,12 +127,16 @@ void ScanService::load_existing() {
     } else {
       rec->state = "failed";
       rec->error = Error(Code::cancelled, "interrupted: the daemon stopped before this scan finished");
-      rec->manifest = {{"procam", 1}, {"scan_id", id}, {"state", "failed"}, {"error", error_json(rec->error)},
-                       {"outputs", nlohmann::json::array()}, {"files", list_files(ent.path().string())}};
+      rec->manifest = base_manifest(*rec);
+      rec->manifest["state"] = "failed";
+      rec->manifest["error"] = error_json(rec->error);
+      rec->manifest["files"] = list_files(ent.path().string());
     }
     scans_[id] = rec;
   }
-  if (!scans_.empty()) PROCAM_LOG(engine, info) << "found " << scans_.size() << " earlier scans in " << cfg_.results_dir;
+  if (!scans_.empty()) {
+    PROCAM_LOG(engine, info) << "found " << scans_.size() << " earlier scans in " << cfg_.results_dir;
+  }
 }
 
 Result<nlohmann::json> ScanService::submit(const ScanRequest& req) {
@@ -198,9 +204,7 @@ void ScanService::run_one(Record& rec) {
   const std::string dir = (fs::path(cfg_.results_dir) / rec.id).string();
   std::error_code ec;
   fs::create_directories(dir, ec);
-  nlohmann::json manifest = {
-      {"procam", 1}, {"scan_id", rec.id}, {"plugin", rec.req.plugin}, {"method", rec.req.method},
-      {"params", rec.req.params}, {"label", rec.req.label}, {"created_utc", rec.created_utc}};
+  nlohmann::json manifest = base_manifest(rec);
   if (ec) {
     finish(rec, Error(Code::io_error, "cannot create scan folder '" + dir + "': " + ec.message()), manifest);
     return;
@@ -280,20 +284,14 @@ void ScanService::run_one(Record& rec) {
 
 void ScanService::finish(Record& rec, const Status& status, nlohmann::json manifest) {
   const std::string dir = (fs::path(cfg_.results_dir) / rec.id).string();
-  if (manifest.is_null())
-    manifest = {{"procam", 1}, {"scan_id", rec.id}, {"plugin", rec.req.plugin},
-                {"method", rec.req.method}, {"params", rec.req.params}, {"label", rec.req.label},
-                {"created_utc", rec.created_utc}};
+  if (manifest.is_null()) manifest = base_manifest(rec);
   const std::string state = status.ok() ? "done" : "failed";
   manifest["state"] = state;
   manifest["finished_utc"] = utc_now();
   manifest["error"] = error_json(status);
-  if (!manifest.contains("outputs")) manifest["outputs"] = nlohmann::json::array();
   std::error_code ec;
   fs::create_directories(dir, ec);
-  nlohmann::json files = list_files(dir);
-  files.push_back({{"name", "manifest.json"}, {"size_bytes", nullptr}});
-  manifest["files"] = files;
+  manifest["files"] = list_files(dir);  // manifest.json itself is the `result` reply
   Status ws = write_file_atomic((fs::path(dir) / "manifest.json").string(), manifest.dump(2));
   if (!ws) PROCAM_LOG(engine, error) << "scan " << rec.id << ": " << ws.to_string();
   rec.session.reset();  // release plugin memory (patterns, outputs)
@@ -305,11 +303,35 @@ void ScanService::finish(Record& rec, const Status& status, nlohmann::json manif
     rec.manifest = std::move(manifest);
     (status.ok() ? done_ : failed_)++;
   }
-  if (status.ok()) PROCAM_LOG(engine, info) << "scan " << rec.id << " done";
-  else PROCAM_LOG(engine, warn) << "scan " << rec.id << " failed: " << status.to_string();
+  if (status.ok()) {
+    PROCAM_LOG(engine, info) << "scan " << rec.id << " done";
+  } else {
+    PROCAM_LOG(engine, warn) << "scan " << rec.id << " failed: " << status.to_string();
+  }
   nlohmann::json ev = {{"state", state}};
   if (!status.ok()) ev["error"] = error_json(status);
   emit(rec, "state", ev);
+}
+
+// Every field proto/PROTOCOL.md requires, with "nothing yet" values; the
+// scan fills them in as it goes.
+nlohmann::json ScanService::base_manifest(const Record& rec) const {
+  return {{"procam", 1},
+          {"scan_id", rec.id},
+          {"state", rec.state},
+          {"plugin", rec.req.plugin},
+          {"method", rec.req.method},
+          {"params", rec.req.params},
+          {"label", rec.req.label},
+          {"rig", {{"name", rig_name_}, {"state", nlohmann::json::object()}}},
+          {"created_utc", rec.created_utc.empty() ? nlohmann::json(nullptr) : nlohmann::json(rec.created_utc)},
+          {"finished_utc", nullptr},
+          {"plan", {{"rounds", nlohmann::json::array()}, {"patterns", 0}}},
+          {"timing_ms", {{"capture", 0}, {"decode", 0}, {"write", 0}, {"total", 0}}},
+          {"outputs", nlohmann::json::array()},
+          {"previews", nlohmann::json::array()},
+          {"files", nlohmann::json::array()},
+          {"error", nullptr}};
 }
 
 nlohmann::json ScanService::summary_locked(const Record& r) const {
@@ -320,8 +342,10 @@ nlohmann::json ScanService::summary_locked(const Record& r) const {
           {"label", r.req.label},
           {"created_utc", r.created_utc},
           {"finished_utc", r.finished_utc.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.finished_utc)},
-          {"progress", {{"stage", r.progress.stage}, {"round", r.progress.round},
-                        {"done", r.progress.done}, {"total", r.progress.total}}},
+          {"progress", r.progress.stage.empty()
+                           ? nlohmann::json(nullptr)
+                           : nlohmann::json{{"stage", r.progress.stage}, {"round", r.progress.round},
+                                            {"done", r.progress.done}, {"total", r.progress.total}}},
           {"error", error_json(r.error)}};
 }
 

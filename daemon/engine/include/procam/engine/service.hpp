@@ -84,6 +84,7 @@ private:
   void finish(Record& rec, const Status& status, nlohmann::json manifest);
   void emit(Record& rec, const std::string& event, nlohmann::json fields);
   nlohmann::json summary_locked(const Record& rec) const;
+  nlohmann::json base_manifest(const Record& rec) const;
   void load_existing();
 
   std::unique_ptr<hw::Rig> rig_;
@@ -97,6 +98,7 @@ private:
   std::deque<std::shared_ptr<Record>> queue_;
   std::shared_ptr<Record> running_;
   nlohmann::json rig_description_;
+  std::string rig_name_;             // immutable after construction
   nlohmann::json plugin_rig_json_;  // calibration for plugins; immutable after construction
   size_t done_ = 0, failed_ = 0;
   bool stopping_ = false;
