@@ -3,6 +3,7 @@
 #include "gray_code.hpp"
 
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace procam::sl {

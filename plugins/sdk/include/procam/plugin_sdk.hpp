@@ -72,7 +72,7 @@ class Session {
   virtual ~Session() = default;
 
   // Describe the next round in `plan` (empty on entry) and set has_round =
-  // true, or leave has_round = false when no round is left. Called once at
+  // true, or leave has_round (false on entry) when no round is left. Called once at
   // the start and once after every end_round.
   virtual Error next_plan(Plan& plan, bool& has_round) = 0;
 
@@ -193,7 +193,7 @@ struct Abi {
     // Built once (thread-safe static init); on failure a valid empty array.
     static const std::string text = []() noexcept -> std::string {
       try {
-        return Traits::describe();
+        return Traits::procam_sdk_describe_();
       } catch (...) {
         try {
           return "[]";
@@ -233,7 +233,7 @@ struct Abi {
         if (args.rig.is_discarded()) return invalid_argument("rig_json is not valid JSON");
       }
       std::unique_ptr<Session> impl;
-      if (Error e = Traits::create(args, impl); !e.ok()) return e;
+      if (Error e = Traits::procam_sdk_create_(args, impl); !e.ok()) return e;
       if (!impl) return internal_error("session_create: factory returned no session");
       auto box = std::make_unique<SessionBox>();
       box->impl = std::move(impl);
@@ -408,11 +408,8 @@ struct Abi {
   namespace {                                                                               \
   struct procam_sdk_plugin_traits_ {                                                        \
     static constexpr const char* methods = METHODS_CSV;                                     \
-    static std::string describe() { return DESCRIBE_FN(); }                                 \
-    static ::procam::sdk::Error create(const ::procam::sdk::CreateArgs& a,                  \
-                                       std::unique_ptr<::procam::sdk::Session>& s) {        \
-      return FACTORY_FN(a, s);                                                              \
-    }                                                                                       \
+    static constexpr ::procam::sdk::DescribeFn procam_sdk_describe_ = DESCRIBE_FN;          \
+    static constexpr ::procam::sdk::FactoryFn procam_sdk_create_ = FACTORY_FN;              \
   };                                                                                        \
   }                                                                                         \
   extern "C" __attribute__((visibility("default"))) const ::procam_plugin_vtable*           \

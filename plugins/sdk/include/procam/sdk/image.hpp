@@ -124,19 +124,32 @@ inline float pixel_value(const procam_image& img, uint32_t x, uint32_t y, uint32
 // The fast path for per-pixel loops; same preconditions as pixel_value().
 inline void read_row(const procam_image& img, uint32_t y, float* dst, uint32_t c = 0) noexcept {
   const uint8_t* row = row_bytes(img, y);
+  const size_t n = img.width;
   const size_t step = img.channels;
   switch (img.pixel_type) {
     case PROCAM_PIXEL_U8:
-      for (size_t x = 0; x < img.width; ++x) dst[x] = static_cast<float>(row[x * step + c]);
+      if (step == 1) {  // contiguous: a loop the compiler vectorizes
+        for (size_t x = 0; x < n; ++x) dst[x] = static_cast<float>(row[x]);
+      } else {
+        for (size_t x = 0; x < n; ++x) dst[x] = static_cast<float>(row[x * step + c]);
+      }
       break;
     case PROCAM_PIXEL_U16: {
       const auto* p = static_cast<const uint16_t*>(static_cast<const void*>(row));
-      for (size_t x = 0; x < img.width; ++x) dst[x] = static_cast<float>(p[x * step + c]);
+      if (step == 1) {
+        for (size_t x = 0; x < n; ++x) dst[x] = static_cast<float>(p[x]);
+      } else {
+        for (size_t x = 0; x < n; ++x) dst[x] = static_cast<float>(p[x * step + c]);
+      }
       break;
     }
     default: {
       const auto* p = static_cast<const float*>(static_cast<const void*>(row));
-      for (size_t x = 0; x < img.width; ++x) dst[x] = p[x * step + c];
+      if (step == 1) {
+        std::memcpy(dst, p, n * sizeof(float));
+      } else {
+        for (size_t x = 0; x < n; ++x) dst[x] = p[x * step + c];
+      }
       break;
     }
   }

@@ -130,7 +130,9 @@ inline Error parse_params(const nlohmann::json& in, const std::vector<ParamSpec>
   nlohmann::json values = nlohmann::json::object();
   for (const ParamSpec& s : specs) values[s.name] = s.default_value;
   if (in.is_object()) {
-    for (const auto& [key, v] : in.items()) {
+    for (auto it = in.begin(); it != in.end(); ++it) {
+      const std::string& key = it.key();  // (no structured binding: captured below)
+      const nlohmann::json& v = it.value();
       const ParamSpec* spec = nullptr;
       for (const ParamSpec& s : specs)
         if (s.name == key) spec = &s;

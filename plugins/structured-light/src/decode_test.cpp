@@ -1,0 +1,389 @@
+// SPDX-License-Identifier: MIT
+// Synthetic decode tests, independent of any renderer: camera pixel (x, y)
+// sees projector column col(x, y) = floor(1.3 x + 0.25 y + 7) (a known map),
+// with a shadow rectangle and a region beyond the projector's last column
+// that receive no projector light. Frames are black + contrast * pattern + noise,
+// quantized to 8, 12 and 16 bits (and F32). The truth is col(x, y) itself.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <random>
+#include <vector>
+
+#include "binarize.hpp"
+#include "gray_code.hpp"
+#include "plan_layout.hpp"
+#include "round_decoder.hpp"
+
+namespace procam::sl {
+namespace {
+
+constexpr uint32_t kCamW = 640, kCamH = 96, kProjW = 800;
+
+// True projector column per camera pixel; -1 = no projector light (shadow).
+std::vector<int32_t> truth_columns() {
+  std::vector<int32_t> col(size_t{kCamW} * kCamH);
+  for (uint32_t y = 0; y < kCamH; ++y)
+    for (uint32_t x = 0; x < kCamW; ++x) {
+      auto c = static_cast<int32_t>(std::floor(1.3 * x + 0.25 * y + 7.0));
+      if (c >= static_cast<int32_t>(kProjW)) c = -1;              // beyond the projector
+      if (x >= 100 && x < 150 && y >= 20 && y < 40) c = -1;       // cast shadow
+      col[size_t{y} * kCamW + x] = c;
+    }
+  return col;
+}
+
+struct Sensor {
+  procam_pixel_type type;
+  uint32_t bits;      // significant bits (32 for F32)
+  double black;       // black level + ambient, in input units
+  double contrast;    // white - black of a lit pixel, in input units
+  double noise;       // uniform noise amplitude (+-), in input units
+  double full_scale() const { return type == PROCAM_PIXEL_F32 ? 1.0 : std::ldexp(1.0, static_cast<int>(bits)) - 1; }
+};
+
+struct TestFrame {
+  std::vector<uint8_t> u8;
+  std::vector<uint16_t> u16;
+  std::vector<float> f32;
+  procam_image img{};
+  // Writes value v (input units) at pixel i, quantized for integer types.
+  void set(size_t i, double v, const Sensor& s) {
+    if (s.type == PROCAM_PIXEL_F32) {
+      f32[i] = static_cast<float>(v);
+      return;
+    }
+    const double q = std::clamp(std::round(v), 0.0, s.full_scale());
+    if (s.type == PROCAM_PIXEL_U8)
+      u8[i] = static_cast<uint8_t>(q);
+    else
+      u16[i] = static_cast<uint16_t>(q);
+  }
+  double get(size_t i) const {
+    if (!f32.empty()) return static_cast<double>(f32[i]);
+    if (!u16.empty()) return u16[i];
+    return u8[i];
+  }
+};
+
+TestFrame blank_frame(const Sensor& s, uint32_t w = kCamW, uint32_t h = kCamH) {
+  TestFrame f;
+  const size_t n = size_t{w} * h;
+  f.img.width = w;
+  f.img.height = h;
+  f.img.channels = 1;
+  f.img.pixel_type = s.type;
+  f.img.bit_depth = s.bits;
+  switch (s.type) {
+    case PROCAM_PIXEL_U8: f.u8.assign(n, 0); f.img.data = f.u8.data(); f.img.stride_bytes = w; break;
+    case PROCAM_PIXEL_U16: f.u16.assign(n, 0); f.img.data = f.u16.data(); f.img.stride_bytes = size_t{w} * 2; break;
+    default: f.f32.assign(n, 0.f); f.img.data = f.f32.data(); f.img.stride_bytes = size_t{w} * 4; break;
+  }
+  return f;
+}
+
+// One frame per layout entry: black + contrast * lit + noise.
+std::vector<TestFrame> render(const Layout& layout, const StripeCode& cols,
+                              const std::vector<int32_t>& col, const Sensor& s, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> noise(-s.noise, s.noise);
+  std::vector<TestFrame> frames;
+  for (const FrameRole& role : layout.frames) {
+    TestFrame f = blank_frame(s);
+    for (size_t i = 0; i < col.size(); ++i) {
+      bool lit = false;
+      if (col[i] >= 0) {
+        const auto c = static_cast<uint32_t>(col[i]);
+        switch (role.kind) {
+          case FrameKind::white: lit = true; break;
+          case FrameKind::black: lit = false; break;
+          case FrameKind::plane: lit = cols.bit(role.plane, c); break;
+          case FrameKind::inverse: lit = !cols.bit(role.plane, c); break;
+        }
+      }
+      f.set(i, s.black + (lit ? s.contrast : 0.0) + noise(rng), s);
+    }
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+RoundResult decode(const Layout& layout, const StripeCode& cols, std::vector<TestFrame>& frames,
+                   const std::vector<uint32_t>& order, uint32_t threads = 1,
+                   double min_contrast = 0.03, double min_bit_margin = 0.1) {
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, threads);
+  for (uint32_t i : order) {
+    sdk::Error e = dec.add_frame(i, frames[i].img);
+    EXPECT_TRUE(e.ok()) << e.message;
+  }
+  EXPECT_TRUE(dec.complete());
+  return dec.finish(min_contrast, min_bit_margin);
+}
+
+std::vector<uint32_t> in_order(size_t n) {
+  std::vector<uint32_t> o(n);
+  std::iota(o.begin(), o.end(), 0u);
+  return o;
+}
+
+// Decoded columns exact on lit pixels, invalid (NaN) on shadow pixels.
+void expect_exact(const RoundResult& r, const std::vector<int32_t>& col, const Sensor& s) {
+  size_t checked_lit = 0, checked_shadow = 0;
+  const double min_conf = 1.0 - 2.0 * 2.0 * s.noise / s.contrast;  // worst-case noise on both sides
+  for (size_t i = 0; i < col.size(); ++i) {
+    if (col[i] >= 0) {
+      ASSERT_EQ(r.cols.valid[i], 255) << "pixel " << i << " col " << col[i];
+      ASSERT_EQ(r.cols.coord[i], static_cast<float>(col[i])) << "pixel " << i;
+      ASSERT_GE(static_cast<double>(r.cols.confidence[i]), min_conf - 1e-6);
+      ASSERT_LE(r.cols.confidence[i], 1.0f);
+      ++checked_lit;
+    } else {
+      ASSERT_EQ(r.cols.valid[i], 0) << "shadow pixel " << i;
+      ASSERT_TRUE(std::isnan(r.cols.coord[i]));
+      ++checked_shadow;
+    }
+  }
+  EXPECT_GT(checked_lit, col.size() / 2);
+  EXPECT_GT(checked_shadow, 1000u);
+}
+
+struct Case {
+  const char* name;
+  Sensor sensor;
+};
+const Case kCases[] = {
+    {"u8_8bit", {PROCAM_PIXEL_U8, 8, 10, 200, 3}},
+    {"u16_12bit", {PROCAM_PIXEL_U16, 12, 100, 3000, 40}},
+    {"u16_16bit", {PROCAM_PIXEL_U16, 16, 1000, 50000, 500}},
+    {"f32", {PROCAM_PIXEL_F32, 32, 0.02, 0.7, 0.01}},
+};
+
+TEST(SyntheticDecode, ExactColumnsInverseAndWhite) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  for (bool inverse : {true, false}) {
+    const Layout layout = make_layout(cols, nullptr, inverse);
+    for (const Case& c : kCases) {
+      SCOPED_TRACE(std::string(c.name) + (inverse ? " inverse" : " white"));
+      std::vector<TestFrame> frames = render(layout, cols, col, c.sensor, 7);
+      const RoundResult r = decode(layout, cols, frames, in_order(frames.size()));
+      EXPECT_DOUBLE_EQ(r.full_scale, c.sensor.full_scale());
+      expect_exact(r, col, c.sensor);
+    }
+  }
+}
+
+TEST(SyntheticDecode, AnyFrameOrderAndThreadCountGiveTheSameMaps) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  for (bool inverse : {true, false}) {
+    const Layout layout = make_layout(cols, nullptr, inverse);
+    std::vector<TestFrame> frames = render(layout, cols, col, kCases[1].sensor, 11);
+    const RoundResult ref = decode(layout, cols, frames, in_order(frames.size()));
+    std::vector<uint32_t> reversed = in_order(frames.size());
+    std::reverse(reversed.begin(), reversed.end());
+    std::vector<uint32_t> shuffled = in_order(frames.size());
+    std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937(3));
+    for (const auto& order : {reversed, shuffled}) {
+      for (uint32_t threads : {1u, 3u}) {
+        const RoundResult r = decode(layout, cols, frames, order, threads);
+        ASSERT_EQ(r.cols.valid, ref.cols.valid);
+        ASSERT_EQ(r.cols.confidence, ref.cols.confidence);
+        for (size_t i = 0; i < col.size(); ++i)
+          ASSERT_TRUE(r.cols.coord[i] == ref.cols.coord[i] ||
+                      (std::isnan(r.cols.coord[i]) && std::isnan(ref.cols.coord[i])));
+      }
+    }
+  }
+}
+
+// Overwrites pixel i of a plane frame and its inverse so that the bit keeps
+// its true value but its margin |L - L̄| becomes `margin_frac` of the contrast.
+void set_margin(std::vector<TestFrame>& frames, const Layout& layout, const StripeCode& cols,
+                size_t plane_frame, size_t i, int32_t c, const Sensor& s, double margin_frac) {
+  const FrameRole& role = layout.frames[plane_frame];
+  const double sign = cols.bit(role.plane, static_cast<uint32_t>(c)) ? 1.0 : -1.0;
+  const double mid = s.black + s.contrast / 2;
+  frames[0].set(i, s.black + s.contrast, s);  // noise-free white and black here
+  frames[1].set(i, s.black, s);
+  frames[plane_frame].set(i, mid + sign * margin_frac * s.contrast / 2, s);
+  frames[static_cast<size_t>(role.partner)].set(i, mid - sign * margin_frac * s.contrast / 2, s);
+}
+
+TEST(SyntheticDecode, NearTieIsInvalidNotGuessed) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[1].sensor;  // 12 bit: fine steps
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 5);
+  const size_t tie = 10 * kCamW + 300, thin = 10 * kCamW + 301, ok_px = 10 * kCamW + 302;
+  set_margin(frames, layout, cols, 6, tie, col[tie], s, 0.0);      // L == L̄
+  set_margin(frames, layout, cols, 8, thin, col[thin], s, 0.05);   // below 0.1
+  set_margin(frames, layout, cols, 8, ok_px, col[ok_px], s, 0.2);  // above 0.1
+  const RoundResult r = decode(layout, cols, frames, in_order(frames.size()));
+  EXPECT_EQ(r.cols.valid[tie], 0);
+  EXPECT_TRUE(std::isnan(r.cols.coord[tie]));
+  EXPECT_NEAR(r.cols.confidence[tie], 0.0f, 1e-6f);
+  EXPECT_EQ(r.cols.valid[thin], 0);
+  EXPECT_NEAR(r.cols.confidence[thin], 0.05f, 0.002f);
+  EXPECT_EQ(r.cols.valid[ok_px], 255);
+  EXPECT_EQ(r.cols.coord[ok_px], static_cast<float>(col[ok_px]));
+  EXPECT_NEAR(r.cols.confidence[ok_px], 0.2f, 0.002f);
+  // With the threshold lowered below 0.05 the thin pixel decodes exactly.
+  const RoundResult loose = decode(layout, cols, frames, in_order(frames.size()), 1, 0.03, 0.01);
+  EXPECT_EQ(loose.cols.valid[thin], 255);
+  EXPECT_EQ(loose.cols.coord[thin], static_cast<float>(col[thin]));
+  EXPECT_EQ(loose.cols.valid[tie], 0) << "an exact tie is never valid";
+}
+
+TEST(SyntheticDecode, SaturatedPlaneIsInvalid) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  {  // 8 bit: plane and inverse both clipped at 255
+    const Sensor s = kCases[0].sensor;
+    std::vector<TestFrame> frames = render(layout, cols, col, s, 9);
+    const size_t i = 50 * kCamW + 200;
+    frames[0].set(i, 255, s);
+    frames[4].set(i, 255, s);
+    frames[5].set(i, 255, s);
+    const RoundResult r = decode(layout, cols, frames, in_order(frames.size()), 1, 0.03, 0.0);
+    EXPECT_EQ(r.cols.valid[i], 0);
+    EXPECT_TRUE(std::isnan(r.cols.coord[i]));
+  }
+  {  // F32: both above full scale (1.0) but different: only the saturation rule catches it
+    const Sensor s = kCases[3].sensor;
+    std::vector<TestFrame> frames = render(layout, cols, col, s, 9);
+    const size_t bad = 50 * kCamW + 200, good = 50 * kCamW + 201;
+    for (size_t i : {bad, good}) {
+      frames[0].set(i, 1.5, s);
+      frames[1].set(i, 0.0, s);
+      const bool b = cols.bit(layout.frames[4].plane, static_cast<uint32_t>(col[i]));
+      frames[4].set(i, b ? 1.4 : (i == bad ? 1.1 : 0.1), s);
+      frames[5].set(i, b ? (i == bad ? 1.1 : 0.1) : 1.4, s);
+    }
+    const RoundResult r = decode(layout, cols, frames, in_order(frames.size()));
+    EXPECT_EQ(r.cols.valid[bad], 0);
+    EXPECT_EQ(r.cols.valid[good], 255);
+    EXPECT_EQ(r.cols.coord[good], static_cast<float>(col[good]));
+  }
+}
+
+void expect_no_inf(const RoundResult& r) {
+  for (size_t i = 0; i < r.cols.coord.size(); ++i) {
+    ASSERT_FALSE(std::isinf(r.cols.coord[i]));
+    ASSERT_TRUE(std::isfinite(r.cols.confidence[i]));
+    ASSERT_GE(r.cols.confidence[i], 0.0f);
+    ASSERT_LE(r.cols.confidence[i], 1.0f);
+    ASSERT_TRUE(std::isfinite(r.intensity[i]));
+    ASSERT_TRUE(r.cols.valid[i] == 0 || r.cols.valid[i] == 255);
+  }
+}
+
+TEST(SyntheticDecode, AllBlackFramesAreAllInvalid) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> none(size_t{kCamW} * kCamH, -1);  // projector off / no light
+  for (bool inverse : {true, false}) {
+    const Layout layout = make_layout(cols, nullptr, inverse);
+    for (const Case& c : kCases) {
+      SCOPED_TRACE(c.name);
+      std::vector<TestFrame> frames = render(layout, cols, none, c.sensor, 13);
+      const RoundResult r = decode(layout, cols, frames, in_order(frames.size()));
+      EXPECT_EQ(std::count(r.cols.valid.begin(), r.cols.valid.end(), 255), 0);
+      for (float v : r.cols.coord) ASSERT_TRUE(std::isnan(v));
+      expect_no_inf(r);
+    }
+  }
+  {  // exactly zero everywhere: contrast 0, margin 0
+    const Layout layout = make_layout(cols, nullptr, true);
+    const Sensor zero{PROCAM_PIXEL_U8, 8, 0, 0, 0};
+    std::vector<TestFrame> frames = render(layout, cols, none, zero, 1);
+    const RoundResult r = decode(layout, cols, frames, in_order(frames.size()), 1, 0.0, 0.0);
+    EXPECT_EQ(std::count(r.cols.valid.begin(), r.cols.valid.end(), 255), 0);
+    expect_no_inf(r);
+  }
+}
+
+TEST(SyntheticDecode, NonFiniteInputIsInvalid) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[3].sensor;
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 21);
+  const size_t a = 30 * kCamW + 210, b = 30 * kCamW + 211, c = 30 * kCamW + 212;
+  frames[7].f32[a] = std::numeric_limits<float>::quiet_NaN();
+  frames[0].f32[b] = std::numeric_limits<float>::infinity();
+  frames[3].f32[c] = -std::numeric_limits<float>::infinity();
+  const RoundResult r = decode(layout, cols, frames, in_order(frames.size()));
+  for (size_t i : {a, b, c}) {
+    EXPECT_EQ(r.cols.valid[i], 0) << i;
+    EXPECT_TRUE(std::isnan(r.cols.coord[i]));
+  }
+  EXPECT_EQ(r.cols.valid[c + 1], 255);
+  expect_no_inf(r);
+}
+
+TEST(SyntheticDecode, LowContrastIsShadow) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor dim{PROCAM_PIXEL_U16, 12, 100, 0.02 * 4095, 0};  // contrast 2% of full scale
+  std::vector<TestFrame> frames = render(layout, cols, col, dim, 1);
+  const RoundResult strict = decode(layout, cols, frames, in_order(frames.size()));
+  EXPECT_EQ(std::count(strict.cols.valid.begin(), strict.cols.valid.end(), 255), 0);
+  const RoundResult loose = decode(layout, cols, frames, in_order(frames.size()), 1, 0.01);
+  expect_exact(loose, col, Sensor{PROCAM_PIXEL_U16, 12, 100, 0.02 * 4095, 0.5});
+}
+
+TEST(SyntheticDecode, WhiteModeHandlesBlackLevelWhereFootnoteFormFails) {
+  // Strong ambient: black 150 DN, contrast 80 DN (white 230) at 8 bit.
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, false);
+  const Sensor s{PROCAM_PIXEL_U8, 8, 150, 80, 2};
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 17);
+  expect_exact(decode(layout, cols, frames, in_order(frames.size())), col, s);
+  // The footnote's L̄ = white - L ignores the black level: an unlit pixel
+  // (L = 150) gets L̄ = 80 < L and binarizes as lit.
+  const float L = 150, W = 230, B = 150;
+  const float naive = W - L;
+  float synth = 0;
+  synthesize_inverse(&L, &W, &B, 1, &synth);
+  EXPECT_GT(L, naive);        // footnote form: wrong bit (lit)
+  EXPECT_FLOAT_EQ(synth, W);  // generalized: L̄ = W + B - L = W for an unlit pixel
+  EXPECT_LT(L, synth);        // correct bit (unlit)
+}
+
+TEST(SyntheticDecode, RejectsWrongFramesWithoutChangingState) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  std::vector<TestFrame> frames = render(layout, cols, col, kCases[0].sensor, 2);
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1);
+  TestFrame small = blank_frame(kCases[0].sensor, 100, 100);
+  sdk::Error e = dec.add_frame(0, small.img);
+  EXPECT_EQ(e.code, PROCAM_ERR_BAD_FRAME);
+  EXPECT_NE(e.message.find("expected 640x96"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("got 100x100"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("frame 0 (white)"), std::string::npos) << e.message;
+  TestFrame rgb = blank_frame(kCases[0].sensor);
+  rgb.img.channels = 3;
+  rgb.u8.assign(size_t{kCamW} * kCamH * 3, 0);
+  rgb.img.data = rgb.u8.data();
+  rgb.img.stride_bytes = size_t{kCamW} * 3;
+  EXPECT_EQ(dec.add_frame(0, rgb.img).code, PROCAM_ERR_BAD_FRAME);
+  ASSERT_TRUE(dec.add_frame(0, frames[0].img).ok());
+  TestFrame other = blank_frame(kCases[1].sensor);  // U16/12 after U8/8
+  e = dec.add_frame(1, other.img);
+  EXPECT_EQ(e.code, PROCAM_ERR_BAD_FRAME);
+  EXPECT_NE(e.message.find("U16/12-bit"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("U8/8-bit"), std::string::npos) << e.message;
+  for (uint32_t i = 1; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  expect_exact(dec.finish(0.03, 0.1), col, kCases[0].sensor);
+}
+
+}  // namespace
+}  // namespace procam::sl

@@ -1,0 +1,29 @@
+// SPDX-License-Identifier: MIT
+// ABI glue of the structured-light plugin: exported info, describe(), and the
+// factory that dispatches a method name to its session. To add a method:
+// write its session (like gray_session.cpp), add its name to kMethods, a
+// describe entry and a branch in create().
+#include <memory>
+#include <string>
+
+#include "gray_session.hpp"
+#include "procam/plugin_sdk.hpp"
+
+namespace {
+
+std::string describe() {
+  nlohmann::json methods = nlohmann::json::array();
+  methods.push_back(procam::sl::describe_gray());
+  return methods.dump();
+}
+
+procam::sdk::Error create(const procam::sdk::CreateArgs& args,
+                          std::unique_ptr<procam::sdk::Session>& out) {
+  if (args.method == "gray") return procam::sl::create_gray_session(args, out);
+  // The SDK only passes names listed in the METHODS_CSV below.
+  return procam::sdk::internal_error("method '" + args.method + "' is listed but not built");
+}
+
+}  // namespace
+
+PROCAM_DEFINE_PLUGIN("structured-light", "0.1.0", "gray", describe, create);
