@@ -114,7 +114,11 @@ void print_summary(const nlohmann::json& m, const std::string& out_dir) {
     if (o.value("name", "") == "report" && o["value"].is_object()) {
       const auto& r = o["value"];
       if (r.contains("model")) std::printf("  model         %s\n", r["model"].get<std::string>().c_str());
-      if (r.contains("why")) std::printf("  why           %s\n", r["why"].get<std::string>().c_str());
+      if (r.contains("why")) {  // first sentence; the manifest has the rest
+        std::string why = r["why"].get<std::string>();
+        if (auto dot = why.find(". "); dot != std::string::npos) why = why.substr(0, dot + 1);
+        std::printf("  why           %s\n", why.c_str());
+      }
     }
   const auto& t = m.value("timing_ms", nlohmann::json::object());
   std::printf("  decode time   %s (capture %s, write %s)\n", fmt_num(t, "decode", "ms", 1).c_str(),
