@@ -1,0 +1,71 @@
+// SPDX-License-Identifier: MIT
+// `procam decode`: offline decoding of saved frames, no daemon.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <thread>
+
+#include "cli.hpp"
+#include "procam/engine/results.hpp"
+#include "procam/engine/rig_json.hpp"
+#include "procam/engine/scan_runner.hpp"
+#include "procam/engine/service.hpp"
+#include "procam/host/plugin_host.hpp"
+
+#ifndef PROCAM_DEFAULT_PLUGIN_DIRS
+#define PROCAM_DEFAULT_PLUGIN_DIRS ""
+#endif
+#ifndef PROCAM_DEFAULT_RIG
+#define PROCAM_DEFAULT_RIG ""
+#endif
+
+namespace procam::cli {
+namespace fs = std::filesystem;
+
+int cmd_decode(const Args& a) {
+  for (const char* k : {"plugin", "method", "frames", "out"})
+    if (!a.has(k)) return usage_error(std::string("decode needs --") + k);
+  auto params = kv_object(a.list("param"), "--param");
+  if (!params) return report(params.status());
+  const std::string rig_path = a.has("rig") ? a.get("rig") : PROCAM_DEFAULT_RIG;
+  auto rig_cfg = engine::read_json_file(rig_path);
+  if (!rig_cfg) return report(rig_cfg.status().with_context("--rig"));
+  auto rig_json = engine::plugin_rig_json_from_config(*rig_cfg, std::max(1u, std::thread::hardware_concurrency()));
+  if (!rig_json) return report(rig_json.status());
+  std::vector<std::string> dirs = a.list("plugins");
+  if (const char* env = std::getenv("PROCAM_PLUGIN_PATH"))
+    for (auto& p : split_colon(env)) dirs.push_back(p);
+  if (dirs.empty()) dirs = split_colon(PROCAM_DEFAULT_PLUGIN_DIRS);
+  host::PluginHost host;
+  host.load_directories(dirs);
+  auto session = host.create_session(a.get("plugin"), a.get("method"), params->dump(), rig_json->dump());
+  if (!session) return report(session.status());
+  auto t0 = std::chrono::steady_clock::now();
+  auto outcome = engine::run_offline(*session, a.get("frames"), [](const engine::Progress& p) {
+    std::fprintf(stderr, "\r  decode round %d %zu/%zu %-24.24s", p.round, p.done, p.total, p.message.c_str());
+  });
+  std::fprintf(stderr, "\n");
+  if (!outcome) return report(outcome.status());
+  auto outs = session->outputs();
+  if (!outs) return report(outs.status());
+  const std::string out = a.get("out");
+  auto written = engine::write_outputs(out, *outs);
+  if (!written) return report(written.status());
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const auto& r : outcome->rounds) rounds.push_back({{"note", r.note}, {"frames", r.frames}});
+  nlohmann::json m = {{"procam", 1}, {"scan_id", "offline"}, {"state", "done"}, {"plugin", a.get("plugin")},
+                      {"method", a.get("method")}, {"params", *params}, {"frames_dir", a.get("frames")},
+                      {"created_utc", engine::utc_now()}, {"finished_utc", engine::utc_now()},
+                      {"plan", {{"rounds", rounds}, {"patterns", outcome->patterns}}},
+                      {"timing_ms", {{"decode", outcome->decode_ms},
+                                     {"total", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count()}}},
+                      {"outputs", written->outputs}, {"previews", written->previews}, {"error", nullptr}};
+  m["files"] = engine::list_files(out);
+  if (auto s = engine::write_file_atomic((fs::path(out) / "manifest.json").string(), m.dump(2)); !s) return report(s);
+  if (a.json) std::cout << m.dump(2) << "\n";
+  else print_summary(m, out);
+  return 0;
+}
+
+}  // namespace procam::cli

@@ -1,0 +1,101 @@
+// SPDX-License-Identifier: MIT
+// CLI commands that talk to procamd: plugins, rig, status, scan, result.
+#include <cstdio>
+#include <iostream>
+
+#include "cli.hpp"
+
+namespace procam::cli {
+
+int cmd_plugins(const Args& a) {
+  client::Client c = a.connect();
+  auto r = c.call(proto::ListPlugins{});
+  if (!r) return report(r.status());
+  if (a.json) { std::cout << r->dump(2) << "\n"; return 0; }
+  for (const auto& p : (*r)["plugins"]) {
+    std::printf("%s %s  (%s)\n", p.value("name", "").c_str(), p.value("version", "").c_str(), p.value("file", "").c_str());
+    for (const auto& m : p["methods"]) {
+      std::printf("  %-12s %s\n", m.value("name", "").c_str(), m.value("description", "").c_str());
+      for (const auto& prm : m.value("params", nlohmann::json::array()))
+        std::printf("      --param %s=<%s>  default %s  %s\n", prm.value("name", "").c_str(),
+                    prm.value("type", "").c_str(), prm.contains("default") ? prm["default"].dump().c_str() : "-",
+                    prm.value("description", "").c_str());
+    }
+  }
+  for (const auto& rj : (*r)["rejected"])
+    std::printf("rejected %s: %s\n", rj.value("file", "").c_str(), rj["error"].value("message", "").c_str());
+  return 0;
+}
+
+int cmd_rig(const Args& a) {
+  client::Client c = a.connect();
+  auto r = c.call(proto::DescribeRig{});
+  if (!r) return report(r.status());
+  const auto& rig = (*r)["rig"];
+  if (a.json) { std::cout << rig.dump(2) << "\n"; return 0; }
+  std::printf("rig %s\n", rig.value("name", "").c_str());
+  const auto& p = rig.value("projector", nlohmann::json::object());
+  std::printf("  projector  %s %s %dx%d\n", p.value("backend", "").c_str(), p.value("name", "").c_str(),
+              p.value("width", 0), p.value("height", 0));
+  int i = 0;
+  for (const auto& cam : rig.value("cameras", nlohmann::json::array())) {
+    std::printf("  camera %d   %s %s %dx%d %d-bit\n", i++, cam.value("backend", "").c_str(),
+                cam.value("id", "").c_str(), cam.value("width", 0), cam.value("height", 0), cam.value("bit_depth", 0));
+    if (cam.contains("calibration")) std::printf("             calibration %s\n", cam["calibration"].dump().c_str());
+  }
+  if (rig.contains("state")) std::printf("  state      %s\n", rig["state"].dump().c_str());
+  return 0;
+}
+
+int cmd_status(const Args& a) {
+  client::Client c = a.connect();
+  proto::StatusQuery q;
+  if (a.has("scan")) q.scan_id = a.get("scan");
+  auto r = c.call(q);
+  if (!r) return report(r.status());
+  if (a.json || q.scan_id) { std::cout << r->dump(2) << "\n"; return 0; }
+  const auto& d = (*r)["daemon"];
+  std::printf("%s  up %.0f s  %s  rig %s  plugins %d\n", d.value("version", "").c_str(), d.value("uptime_s", 0.0),
+              d.value("state", "").c_str(), d.value("rig", "").c_str(), d.value("plugins", 0));
+  const auto& s = d["scans"];
+  std::printf("scans: %d done, %d failed, %d queued\n", s.value("done", 0), s.value("failed", 0), s.value("queued", 0));
+  if (d.contains("current")) std::printf("current: %s\n", d["current"].dump().c_str());
+  return 0;
+}
+
+int cmd_scan(const Args& a) {
+  client::Client c = a.connect();
+  if (!a.has("plugin") || !a.has("method")) return usage_error("scan needs --plugin and --method");
+  if (!a.has("out")) return usage_error("scan needs --out DIR for the results");
+  auto params = kv_object(a.list("param"), "--param");
+  if (!params) return report(params.status());
+  auto ropts = kv_object(a.list("rig-option"), "--rig-option");
+  if (!ropts) return report(ropts.status());
+  proto::Scan s;
+  s.plugin = a.get("plugin");
+  s.method = a.get("method");
+  s.params = *params;
+  s.rig_options = *ropts;
+  s.label = a.has("label") ? a.get("label") : "";
+  std::fprintf(stderr, "scanning with %s/%s on %s\n", s.plugin.c_str(), s.method.c_str(), c.endpoint().c_str());
+  auto fin = c.scan(s, progress_line);
+  if (!fin) return report(fin.status());
+  const std::string id = fin->value("scan_id", "");
+  auto m = c.fetch_all(id, a.get("out"));
+  if (!m) return report(m.status().with_context("downloading results"));
+  if (a.json) std::cout << m->dump(2) << "\n";
+  else print_summary(*m, a.get("out"));
+  return m->value("state", "") == "done" ? 0 : 1;
+}
+
+int cmd_result(const Args& a) {
+  client::Client c = a.connect();
+  if (!a.has("scan") || !a.has("out")) return usage_error("result needs --scan ID and --out DIR");
+  auto m = c.fetch_all(a.get("scan"), a.get("out"));
+  if (!m) return report(m.status());
+  if (a.json) std::cout << m->dump(2) << "\n";
+  else print_summary(*m, a.get("out"));
+  return 0;
+}
+
+}  // namespace procam::cli
