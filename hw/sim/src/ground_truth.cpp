@@ -2,6 +2,7 @@
 // Ground-truth maps from a prepared view, and their files.
 #include "procam/hw/sim/ground_truth.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -53,6 +54,26 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
     if (!st.ok()) return st.with_context("writing ground truth '" + path + "'");
   }
   return Status::Ok();
+}
+
+Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern& pattern,
+                                       const ProjectorModel& projector) {
+  const uint32_t w = renderer.width(), h = renderer.height();
+  ComponentTruth t{Image(w, h, PixelType::f32), Image(w, h, PixelType::f32), Image(w, h, PixelType::f32)};
+  Status st = renderer.render_radiance_parts(pattern, t.direct.ptr<float>(), false, Renderer::Parts::direct_only);
+  if (st.ok()) st = renderer.render_radiance_parts(pattern, t.global.ptr<float>(), false, Renderer::Parts::global_only);
+  if (!st.ok()) return st;
+  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
+  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
+  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  if (!pw.ok()) return pw.status();
+  std::vector<float> d(size_t{w} * h), g(d.size());
+  st = renderer.render_radiance_parts(*pw, d.data(), false, Renderer::Parts::direct_only);
+  if (st.ok()) st = renderer.render_radiance_parts(*pw, g.data(), false, Renderer::Parts::global_only);
+  if (!st.ok()) return st;
+  float* r = t.global_direct_ratio_white.ptr<float>();
+  for (size_t i = 0; i < d.size(); ++i) r[i] = d[i] > 0.f ? g[i] / d[i] : std::numeric_limits<float>::quiet_NaN();
+  return t;
 }
 
 }  // namespace procam::sim

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Analytic ray intersections with planes, oriented boxes (slab test) and spheres.
+// Analytic ray intersections with planes, oriented boxes (slab test), spheres,
+// finite cylinders (lateral surface + optional caps) and hemispherical bowls.
 #include "procam/hw/sim/raycast.hpp"
 
 #include <algorithm>
@@ -81,6 +82,71 @@ bool hit_box(const Box& b, const Mat3& box_from_world, const Vec3& o, const Vec3
   return true;
 }
 
+// Smallest accepted root of a t² + 2 b t + c0 = 0 in (t_min, t_best); `accept`
+// filters roots by the point they give.
+template <typename Accept>
+bool quadratic_hit(double a, double b, double c0, double t_min, double t_best, double& t, Accept accept) {
+  const double disc = b * b - a * c0;
+  if (disc < 0 || a == 0) return false;
+  const double sq = std::sqrt(disc);
+  const double q = -(b + std::copysign(sq, b));
+  double t0 = q / a, t1 = q != 0 ? c0 / q : t0;
+  if (t0 > t1) std::swap(t0, t1);
+  for (double r : {t0, t1}) {
+    if (r > t_min && r < t_best && accept(r)) {
+      t = r;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool hit_cylinder(const Cylinder& c, const Vec3& o, const Vec3& d, double t_min, double t_best, double& t,
+                  Vec3& n) {
+  // Lateral surface: |(o + t d − c)⊥|² = r², ⊥ = component orthogonal to the axis.
+  const Vec3 oc = o - c.center_mm;
+  const Vec3 op = oc - c.axis * dot(oc, c.axis), dp = d - c.axis * dot(d, c.axis);
+  const double half = 0.5 * c.height_mm;
+  bool found = false;
+  double tl = 0;
+  if (quadratic_hit(dot(dp, dp), dot(op, dp), dot(op, op) - c.radius_mm * c.radius_mm, t_min, t_best, tl,
+                    [&](double r) { return std::abs(dot(oc + d * r, c.axis)) <= half; })) {
+    t = tl;
+    t_best = tl;
+    const Vec3 rel = oc + d * tl;
+    n = normalized(rel - c.axis * dot(rel, c.axis));
+    found = true;
+  }
+  if (c.caps) {
+    const double da = dot(d, c.axis);
+    if (std::abs(da) > 1e-15) {
+      for (double s : {-1.0, 1.0}) {
+        const double tc = (s * half - dot(oc, c.axis)) / da;
+        if (!(tc > t_min && tc < t_best)) continue;
+        const Vec3 rel = oc + d * tc;
+        const Vec3 radial = rel - c.axis * dot(rel, c.axis);
+        if (dot(radial, radial) > c.radius_mm * c.radius_mm) continue;
+        t = tc;
+        t_best = tc;
+        n = c.axis * s;
+        found = true;
+      }
+    }
+  }
+  return found;
+}
+
+bool hit_bowl(const Bowl& b, const Vec3& o, const Vec3& d, double t_min, double t_best, double& t, Vec3& n) {
+  const Vec3 oc = o - b.center_mm;
+  double tb = 0;
+  if (!quadratic_hit(dot(d, d), dot(oc, d), dot(oc, oc) - b.radius_mm * b.radius_mm, t_min, t_best, tb,
+                     [&](double r) { return dot(oc + d * r, b.opening) <= 0; }))
+    return false;
+  t = tb;
+  n = normalized(oc + d * tb);
+  return true;
+}
+
 }  // namespace
 
 bool SceneTracer::first_hit(const Vec3& origin, const Vec3& dir, double t_min, Hit& hit) const {
@@ -95,6 +161,8 @@ bool SceneTracer::first_hit(const Vec3& origin, const Vec3& dir, double t_min, H
     if (const Plane* p = std::get_if<Plane>(&e.shape)) h = hit_plane(*p, origin, dir, t_min, t_best, t, n);
     else if (const Sphere* s = std::get_if<Sphere>(&e.shape)) h = hit_sphere(*s, origin, dir, t_min, t_best, t, n);
     else if (const Box* b = std::get_if<Box>(&e.shape)) h = hit_box(*b, e.box_from_world, origin, dir, t_min, t_best, t, n);
+    else if (const Cylinder* c = std::get_if<Cylinder>(&e.shape)) h = hit_cylinder(*c, origin, dir, t_min, t_best, t, n);
+    else if (const Bowl* w = std::get_if<Bowl>(&e.shape)) h = hit_bowl(*w, origin, dir, t_min, t_best, t, n);
     if (h) {
       t_best = t;
       best = static_cast<int32_t>(i);

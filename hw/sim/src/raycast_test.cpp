@@ -27,7 +27,12 @@ ProjectorModel test_projector() {
   p.aperture_mm = 0;
   return p;
 }
-Object make(std::variant<Plane, Box, Sphere> shape) { return Object{"", std::move(shape), Material{0.5}}; }
+Object make(Shape shape) {
+  Object o;
+  o.shape = std::move(shape);
+  o.material.albedo = 0.5;
+  return o;
+}
 
 TEST(Raycast, FrontoParallelPlaneDepthEverywhere) {
   Scene scene;

@@ -13,8 +13,9 @@ nlohmann::json rig_json() { return sim::test::read_json(sim::test::configs_dir()
 RigContext context() { return {sim::test::configs_dir() + "/rigs", {sim::test::configs_dir() + "/scenes"}}; }
 
 TEST(Registry, ListsSim) {
+  // The sim backend comes first; hardware backends (issue 5) follow it.
   const auto b = available_backends();
-  ASSERT_EQ(b.size(), 1u);
+  ASSERT_GE(b.size(), 1u);
   EXPECT_EQ(b[0], "sim");
 }
 
@@ -26,7 +27,7 @@ TEST(Registry, UnknownBackendNamedWithAvailableList) {
   EXPECT_EQ(r.status().code(), Code::invalid_argument);
   EXPECT_NE(r.status().message().find("projector.backend: unknown backend 'holodeck'"), std::string::npos)
       << r.status().message();
-  EXPECT_EQ(r.status().hint(), "available backends: sim");
+  EXPECT_EQ(r.status().hint().rfind("available backends: sim", 0), 0u) << r.status().hint();
 
   j = rig_json();
   j["cameras"][0]["backend"] = "aravis-x";

@@ -70,7 +70,9 @@ void fill_view_rows(const SceneTracer& tracer, const ProjectorModel& projector,
       if (tracer.first_hit(proj_centre_world, ray, 1e-12, first) && first.t < 1.0 - kShadowRelEps)
         continue;
       v.lit[i] = 1;
-      v.direct_gain[i] = static_cast<float>(albedo / M_PI * intensity * cos_p / (dist * dist));
+      const double irr = intensity * cos_p / (dist * dist);
+      v.irradiance_gain[i] = static_cast<float>(irr);
+      v.direct_gain[i] = static_cast<float>(tracer.material(hit.object).direct_albedo() / M_PI * irr);
       const auto ix = static_cast<int64_t>(std::floor(xp + 0.5));
       const auto iy = static_cast<int64_t>(std::floor(yp + 0.5));
       v.nearest[i] = static_cast<int32_t>((iy + 1) * stride + (ix + 1));
@@ -128,6 +130,7 @@ Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& proj
   v.proj_z_mm.assign(n, kNaN);
   v.lit.assign(n, 0);
   v.direct_gain.assign(n, 0.f);
+  v.irradiance_gain.assign(n, 0.f);
   v.ambient.assign(n, 0.f);
   v.nearest.assign(n, -1);
   v.bilinear.assign(n, -1);
@@ -320,8 +323,11 @@ void PreparedPattern::build_levels(size_t count, int threads) {
 
 // ---- Direct component -------------------------------------------------------
 
-void DirectComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
-                            float* radiance) const {
+namespace {
+// out[i] += gain[i] · (blurred emitted light at pixel i's projector point),
+// for pixels [row_begin, row_end) that are lit.
+void add_sampled(const FrameContext& frame, const std::vector<float>& gain, uint32_t row_begin,
+                 uint32_t row_end, float* out) {
   const PreparedView& v = frame.view;
   const DefocusMap& d = frame.defocus;
   const size_t stride = frame.pattern.stride();
@@ -342,8 +348,14 @@ void DirectComponent::apply(const FrameContext& frame, uint32_t row_begin, uint3
     const float w = d.weight[i];
     const float a = k == 0 ? l0[v.nearest[i]] : bilinear(levels[k], i);
     const float value = w > 0.f ? a + w * (bilinear(levels[k + 1], i) - a) : a;
-    radiance[i] += v.direct_gain[i] * value;
+    out[i] += gain[i] * value;
   }
+}
+}  // namespace
+
+void DirectComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
+                            float* radiance) const {
+  add_sampled(frame, frame.view.direct_gain, row_begin, row_end, radiance);
 }
 
 // ---- Renderer ---------------------------------------------------------------
@@ -365,19 +377,41 @@ void Renderer::add_component(std::unique_ptr<TransportComponent> component) {
 }
 
 Status Renderer::render_radiance(PreparedPattern& pattern, float* radiance, bool include_ambient) const {
+  return render_radiance_parts(pattern, radiance, include_ambient, Parts::all);
+}
+
+Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance, bool include_ambient,
+                                       Parts parts) const {
   if (pattern.empty() || pattern.width() != view_.proj_width || pattern.height() != view_.proj_height)
     return Error(Code::invalid_argument,
                  "prepared pattern is " + std::to_string(pattern.width()) + "x" + std::to_string(pattern.height()) +
                      ", the projector is " + std::to_string(view_.proj_width) + "x" + std::to_string(view_.proj_height));
   if (radiance == nullptr) return Error(Code::invalid_argument, "render_radiance: null output buffer");
   pattern.build_levels(defocus_.levels_needed, threads_);
-  const FrameContext frame{view_, defocus_, pattern};
+  auto wanted = [parts](const TransportComponent& c) {
+    return parts == Parts::all || (parts == Parts::global_only) == c.is_global();
+  };
+  bool need_irr = false;
+  for (const auto& c : components_) need_irr = need_irr || (wanted(*c) && c->needs_irradiance());
+  FrameContext frame{view_, defocus_, pattern, nullptr};
+  if (need_irr) {
+    irradiance_.resize(view_.pixel_count());
+    detail::parallel_rows(view_.height, threads_, [&](uint32_t b, uint32_t e) {
+      std::fill(irradiance_.begin() + static_cast<ptrdiff_t>(size_t{b} * view_.width),
+                irradiance_.begin() + static_cast<ptrdiff_t>(size_t{e} * view_.width), 0.f);
+      add_sampled(frame, view_.irradiance_gain, b, e, irradiance_.data());
+    });
+    frame.irradiance = irradiance_.data();
+  }
+  for (const auto& c : components_)
+    if (wanted(*c)) c->begin_frame(frame, threads_);
   detail::parallel_rows(view_.height, threads_, [&](uint32_t b, uint32_t e) {
     const size_t i0 = size_t{b} * view_.width, i1 = size_t{e} * view_.width;
     if (include_ambient) std::copy(view_.ambient.begin() + static_cast<ptrdiff_t>(i0),
                                    view_.ambient.begin() + static_cast<ptrdiff_t>(i1), radiance + i0);
     else std::fill(radiance + i0, radiance + i1, 0.f);
-    for (const auto& c : components_) c->apply(frame, b, e, radiance);
+    for (const auto& c : components_)
+      if (wanted(*c)) c->apply(frame, b, e, radiance);
   });
   return Status::Ok();
 }

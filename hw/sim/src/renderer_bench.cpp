@@ -42,6 +42,8 @@ void BM_RenderDirect(benchmark::State& state) {
   auto rig = bench_rig(static_cast<int>(state.range(0)));
   if (!rig) { state.SkipWithError("rig creation failed"); return; }
   Renderer& r = rig->renderer(0);
+  r.clear_components();  // the rig also installs global components (global_bench.cpp)
+  r.add_component(std::make_unique<DirectComponent>());
   const Image pat = stripes(r.view().proj_width, r.view().proj_height);
   PreparedPattern p = *PreparedPattern::from_pattern(pat.view(), rig->config().projector);
   p.build_levels(r.defocus().levels_needed);

@@ -22,8 +22,24 @@ Material parse_material(FieldReader& obj) {
   const nlohmann::json* mj = obj.object("material", false);
   if (mj == nullptr) return m;
   FieldReader r(*mj, obj.field("material"), obj.errors());
-  r.only({"albedo"});
+  r.only({"albedo", "specular", "roughness_rad", "mean_free_path_mm", "scattering_albedo", "ior",
+          "transmittance"});
   m.albedo = r.number("albedo", 0.5, "diffuse reflectance 0..1", 0.0, 1.0);
+  m.specular = r.number("specular", 0.0, "glossy reflectance 0..1", 0.0, 1.0);
+  m.roughness_rad = r.number("roughness_rad", 0.1, "glossy lobe sigma, radians", 0.001, 1.0);
+  m.mean_free_path_mm = r.number("mean_free_path_mm", 0.0, "mm, 0 = opaque", 0.0, 100.0);
+  m.scattering_albedo = r.number("scattering_albedo", 0.99, "0..1", 0.0, 0.999999);
+  m.ior = r.number("ior", 1.5, "refractive index", 1.0, 4.0);
+  m.transmittance = r.number("transmittance", 0.0, "0..1", 0.0, 1.0);
+  if (!r.errors().ok()) return m;
+  if (m.albedo + m.specular > 1.0 + 1e-12)
+    r.fail("specular", "albedo + specular must be <= 1 (energy conservation), got " + std::to_string(m.albedo + m.specular));
+  else if (m.albedo + m.transmittance > 1.0 + 1e-12)
+    r.fail("transmittance", "albedo + transmittance must be <= 1 (energy conservation), got " +
+                                std::to_string(m.albedo + m.transmittance));
+  else if (m.translucent() && m.sheet())
+    r.fail("transmittance", "a translucent body (mean_free_path_mm > 0) cannot also be a thin sheet",
+           "use mean_free_path_mm for thick translucent bodies, transmittance for thin sheets");
   return m;
 }
 
@@ -84,6 +100,26 @@ Sphere parse_sphere(FieldReader& r) {
   return s;
 }
 
+Cylinder parse_cylinder(FieldReader& r) {
+  r.only({"type", "name", "material", "center_mm", "axis", "radius_mm", "height_mm", "caps"});
+  Cylinder c;
+  c.center_mm = r.vec3("center_mm", std::nullopt, "centre of the axis segment, mm");
+  c.axis = unit_vec(r, "axis", Vec3{0, 1, 0});
+  c.radius_mm = r.positive("radius_mm", std::nullopt, "mm");
+  c.height_mm = r.positive("height_mm", std::nullopt, "mm");
+  c.caps = r.boolean("caps", true);
+  return c;
+}
+
+Bowl parse_bowl(FieldReader& r) {
+  r.only({"type", "name", "material", "center_mm", "radius_mm", "opening"});
+  Bowl b;
+  b.center_mm = r.vec3("center_mm", std::nullopt, "centre of the sphere, mm");
+  b.radius_mm = r.positive("radius_mm", std::nullopt, "mm");
+  b.opening = unit_vec(r, "opening", Vec3{0, 0, -1});
+  return b;
+}
+
 std::string read_file(const std::string& path, Status& st) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
@@ -128,8 +164,12 @@ Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
           o.shape = parse_box(r);
         } else if (type == "sphere") {
           o.shape = parse_sphere(r);
+        } else if (type == "cylinder") {
+          o.shape = parse_cylinder(r);
+        } else if (type == "bowl") {
+          o.shape = parse_bowl(r);
         } else {
-          r.fail("type", "unknown object type '" + type + "'", "use one of: plane, box, sphere");
+          r.fail("type", "unknown object type '" + type + "'", "use one of: plane, box, sphere, cylinder, bowl");
           break;
         }
         o.material = parse_material(r);

@@ -11,6 +11,7 @@
 #include "json_fields.hpp"
 #include "parallel.hpp"
 #include "procam/core/log.hpp"
+#include "procam/hw/sim/global.hpp"
 #include "procam/hw/sim/ground_truth.hpp"
 #include "procam/hw/sim/sensor.hpp"
 
@@ -80,6 +81,41 @@ void check_backend(FieldReader& r) {
 
 }  // namespace
 
+FaultConfig parse_faults(FieldReader& parent, bool camera) {
+  FaultConfig f;
+  const nlohmann::json* j = parent.object("faults", false);
+  if (j == nullptr) return f;
+  FieldReader r(*j, parent.field("faults"), parent.errors());
+  if (camera) r.only({"drop_every", "late_every", "late_ms", "timeout_every", "seed"});
+  else r.only({"drop_every", "late_every", "late_ms", "seed"});
+  f.drop_every = r.integer("drop_every", 0, 0, UINT64_MAX);
+  f.late_every = r.integer("late_every", 0, 0, UINT64_MAX);
+  f.late_ms = r.number("late_ms", 0.0, "ms", 0.0, 1e6);
+  if (camera) f.timeout_every = r.integer("timeout_every", 0, 0, UINT64_MAX);
+  f.seed = r.integer("seed", 0, 0, UINT64_MAX);
+  if (r.errors().ok() && f.late_every > 0 && !(f.late_ms > 0))
+    r.fail("late_ms", "must be > 0 when late_every is set");
+  return f;
+}
+
+// Whether event number `k` (1-based) faults for period `every` (see FaultConfig).
+bool fault_fires(uint64_t every, uint64_t seed, uint64_t k, uint64_t& rng_state) {
+  if (every == 0) return false;
+  if (seed == 0) return k % every == 0;
+  if (rng_state == 0) rng_state = seed * 0x9E3779B97F4A7C15ull + 1;
+  // xorshift64*
+  rng_state ^= rng_state >> 12;
+  rng_state ^= rng_state << 25;
+  rng_state ^= rng_state >> 27;
+  return (rng_state * 0x2545F4914F6CDD1Dull) % every == 0;
+}
+
+nlohmann::json counters_json(const FaultCounters& c, bool camera) {
+  nlohmann::json j = {{camera ? "captures" : "shows", c.events}, {"dropped", c.dropped}, {"late", c.late}};
+  if (camera) j["timeouts"] = c.timeouts;
+  return j;
+}
+
 Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const std::string& source) {
   try {
     ParseErrors errors{source, {}};
@@ -95,7 +131,7 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
     if (const nlohmann::json* pj = root.object("projector", true)) {
       FieldReader p(*pj, "projector", errors);
       p.only({"backend", "name", "intrinsics", "refresh_hz", "irradiance_at_1m", "black_level", "gamma",
-              "aperture_mm", "focus_mm"});
+              "aperture_mm", "focus_mm", "faults"});
       check_backend(p);
       ProjectorModel& m = c.projector;
       m.name = p.string("name", std::string("sim projector"));
@@ -106,6 +142,7 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
       m.gamma = p.positive("gamma", 2.2);
       m.aperture_mm = p.number("aperture_mm", 2.0, "mm", 0.0, 1000.0);
       m.focus_mm = p.positive("focus_mm", 800.0, "mm");
+      c.projector_faults = parse_faults(p, false);
     }
 
     const nlohmann::json* cams = root.get("cameras");
@@ -117,7 +154,7 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
       for (size_t i = 0; i < cams->size() && errors.ok(); ++i) {
         FieldReader r((*cams)[i], "cameras[" + std::to_string(i) + "]", errors);
         r.only({"backend", "id", "intrinsics", "cam_from_proj", "bit_depth", "exposure_us", "gain_db",
-                "sensitivity", "full_well_e", "read_noise_e", "shot_noise"});
+                "sensitivity", "full_well_e", "read_noise_e", "shot_noise", "faults"});
         check_backend(r);
         SimCameraConfig cam;
         cam.id = r.string("id", "sim" + std::to_string(i));
@@ -131,6 +168,7 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
         s.full_well_e = r.positive("full_well_e", 10000.0, "electrons");
         s.read_noise_e = r.number("read_noise_e", 10.0, "electrons RMS", 0.0, 1e6);
         s.shot_noise = r.boolean("shot_noise", true);
+        cam.faults = parse_faults(r, true);
         c.cameras.push_back(std::move(cam));
       }
     }
@@ -146,9 +184,22 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
 Status SimProjector::show(const procam_image& pattern, uint64_t pattern_id) {
   auto prepared = PreparedPattern::from_pattern(pattern, rig_.config_.projector);
   if (!prepared.ok()) return prepared.status().with_context("sim projector: show");
+  const FaultConfig& fc = rig_.config_.projector_faults;
+  const uint64_t k = ++rig_.projector_faults_.events;
+  if (fault_fires(fc.drop_every, fc.seed, k, rig_.projector_fault_rng_)) {
+    // Dropped by the display: the screen keeps the previous pattern.
+    ++rig_.projector_faults_.dropped;
+    rig_.pattern_id_ = pattern_id;
+    rig_.pattern_shown_ = true;
+    rig_.pattern_dropped_ = true;
+    return Status::Ok();
+  }
   rig_.pattern_ = std::move(prepared).value();
   rig_.pattern_id_ = pattern_id;
   rig_.pattern_shown_ = true;
+  rig_.pattern_dropped_ = false;
+  rig_.pattern_late_ = fault_fires(fc.late_every, fc.seed, k, rig_.projector_fault_rng_);
+  if (rig_.pattern_late_) ++rig_.projector_faults_.late;
   return Status::Ok();
 }
 
@@ -158,7 +209,12 @@ Result<hw::Presentation> SimProjector::wait_presented(uint64_t pattern_id, std::
                  "sim projector: pattern " + std::to_string(pattern_id) + " was not shown" +
                      (rig_.pattern_shown_ ? " (last shown: " + std::to_string(rig_.pattern_id_) + ")" : ""),
                  "call show() with this id first");
-  return hw::Presentation{pattern_id, monotonic_ns()};
+  if (rig_.pattern_dropped_)
+    return Error(Code::timeout, "sim projector: pattern " + std::to_string(pattern_id) +
+                                    " was dropped by the display (fault injection: projector.faults.drop_every)",
+                 "show the pattern again");
+  const auto late_ns = rig_.pattern_late_ ? static_cast<int64_t>(rig_.config_.projector_faults.late_ms * 1e6) : 0;
+  return hw::Presentation{pattern_id, monotonic_ns() + late_ns};
 }
 
 Status SimProjector::set_focus_mm(double focus_mm) {
@@ -187,7 +243,20 @@ Status SimCamera::configure(const hw::CameraSettings& settings) {
   return Status::Ok();
 }
 
-Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds) {
+Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds timeout) {
+  const FaultConfig& fc = rig_.config_.cameras[index_].faults;
+  const uint64_t k = ++faults_.events;
+  if (fault_fires(fc.timeout_every, fc.seed, k, fault_rng_)) {
+    ++faults_.timeouts;
+    return Error(Code::timeout, "sim camera " + info_.id + ": no frame within " + std::to_string(timeout.count()) +
+                                    " ms (fault injection: faults.timeout_every)");
+  }
+  if (fault_fires(fc.drop_every, fc.seed, k, fault_rng_)) {
+    ++faults_.dropped;
+    ++next_frame_id_;  // that frame was lost: the delivered one carries the next id
+  }
+  const bool late = fault_fires(fc.late_every, fc.seed, k, fault_rng_);
+  if (late) ++faults_.late;
   Renderer& ren = *rig_.renderers_[index_];
   ren.set_focus_mm(rig_.current_focus_mm());
   radiance_.resize(ren.view().pixel_count());
@@ -198,7 +267,7 @@ Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds) {
   f.frame_id = next_frame_id_++;
   f.image = expose(radiance_.data(), ren.width(), ren.height(), s, exposure_us_, gain_db_,
                    frame_noise_seed(rig_.config_.seed, index_, f.frame_id), rig_.config_.threads);
-  f.timestamp_ns = monotonic_ns();
+  f.timestamp_ns = monotonic_ns() + (late ? static_cast<int64_t>(fc.late_ms * 1e6) : 0);
   f.camera_index = index_;
   return f;
 }
@@ -271,9 +340,10 @@ Status SimRig::set_scene(const std::string& name_or_path) {
     std::vector<std::unique_ptr<Renderer>> renderers;
     const Rigid3& world_from_proj = calibrations_[0].cam_from_proj;
     for (size_t i = 0; i < calibrations_.size(); ++i) {
-      auto view = prepare_view(*scene, config_.projector, calibrations_[i], world_from_proj, config_.threads);
-      if (!view.ok()) return view.status().with_context("sim rig: camera " + std::to_string(i));
-      renderers.push_back(std::make_unique<Renderer>(std::move(view).value(), config_.projector, config_.threads));
+      auto ren = make_scene_renderer(*scene, config_.projector, calibrations_[i], world_from_proj, GlobalOptions{},
+                                     config_.threads);
+      if (!ren.ok()) return ren.status().with_context("sim rig: camera " + std::to_string(i));
+      renderers.push_back(std::move(ren).value());
     }
     renderers_ = std::move(renderers);
     scene_ = std::move(scene).value();
@@ -317,6 +387,13 @@ nlohmann::json SimRig::describe() const {
                   {"scene_file", scene_.source},
                   {"projector_focus_mm", current_focus_mm()},
                   {"seed", config_.seed}};
+    bool any_faults = config_.projector_faults.any();
+    for (const auto& cc : config_.cameras) any_faults = any_faults || cc.faults.any();
+    if (any_faults) {
+      nlohmann::json cams_f = nlohmann::json::array();
+      for (const auto& c : cameras_) cams_f.push_back(counters_json(c->fault_counters(), true));
+      j["state"]["faults"] = {{"projector", counters_json(projector_faults_, false)}, {"cameras", cams_f}};
+    }
   } catch (const std::exception& e) {
     j = {{"name", config_.name}, {"error", std::string("describe failed: ") + e.what()}};
   }

@@ -23,6 +23,20 @@ hw::GroundTruth ground_truth_from_view(const PreparedView& view);
 // undefined) and lit.png (8-bit 0/255), creating the folder. `attributes` are
 // stored as EXR string attributes (e.g. {"scene": "plane"}). io_error naming
 // the file on failure.
+// Direct / global split of one pattern (sim only; thesis §2.5): F32 ru images
+// without ambient, direct + global = the full radiance minus ambient, and the
+// per-pixel global/direct ratio under full illumination (pattern value 1
+// everywhere; NaN where there is no direct light).
+struct ComponentTruth {
+  Image direct;
+  Image global;
+  Image global_direct_ratio_white;
+};
+// Renders `pattern` twice (direct only, global only) and the white pattern
+// twice. invalid_argument as Renderer::render_radiance.
+Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern& pattern,
+                                       const ProjectorModel& projector);
+
 Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folder,
                           const std::map<std::string, std::string>& attributes = {});
 

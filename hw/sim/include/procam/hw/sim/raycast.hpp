@@ -36,7 +36,7 @@ public:
 
 private:
   struct Entry {
-    std::variant<Plane, Box, Sphere> shape;
+    Shape shape;
     Material material;
     Mat3 box_from_world;  // boxes only
   };

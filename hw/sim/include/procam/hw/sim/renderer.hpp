@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: MIT
 // Pattern renderer of the simulated rig, linear in the projected light:
 //   radiance = T · emitted(pattern) + ambient
-// where T is a sum of light-transport components (TransportComponent; only the
-// direct component exists now: inter-reflection, sub-surface, ... are added
-// as further components without changing callers).
+// where T is a sum of light-transport components (TransportComponent): the
+// direct component here, the global ones (inter-reflection, glossy, sub-surface,
+// thin sheets) in global.hpp, added without changing callers.
 //
 // Pipeline: prepare_view() once per scene + rig + camera (ray casting,
 // shadows, Lambertian gains) → PreparedView; per focus setting
@@ -63,7 +63,9 @@ struct PreparedView {
   std::vector<float> proj_y;      // continuous projector row
   std::vector<float> proj_z_mm;   // depth of the point along the projector axis; NaN if none
   std::vector<uint8_t> lit;       // 1: inside the projector image, facing it, unoccluded
-  std::vector<float> direct_gain; // ru per unit emitted: albedo/π · I · cosθ_p / d_p²; 0 if not lit
+  std::vector<float> direct_gain; // ru per unit emitted: direct_albedo/π · I · cosθ_p / d_p²; 0 if not lit
+                                  // (direct_albedo = albedo for opaque surfaces, Material::direct_albedo())
+  std::vector<float> irradiance_gain; // iu per unit emitted: I · cosθ_p / d_p² (Eq. 2.1's incident light); 0 if not lit
   std::vector<float> ambient;     // ru: albedo/π · scene ambient; 0 if no surface
 
   // Sampling into a projector image stored with a 1-pixel zero border
@@ -134,6 +136,10 @@ struct FrameContext {
   const PreparedView& view;
   const DefocusMap& defocus;
   const PreparedPattern& pattern;  // levels up to defocus.levels_needed are built
+  // Projector irradiance per camera pixel (iu): irradiance_gain · blurred
+  // emitted light, for the whole image; nullptr unless a component asked for
+  // it (TransportComponent::needs_irradiance()).
+  const float* irradiance = nullptr;
 };
 
 // One light-transport path from projector to camera. Implementations must be
@@ -143,6 +149,14 @@ class TransportComponent {
 public:
   virtual ~TransportComponent() = default;
   virtual std::string name() const = 0;
+  // Global components (everything but the direct path) form the global-only
+  // image of the ground truth.
+  virtual bool is_global() const { return true; }
+  // Whether begin_frame/apply read FrameContext::irradiance.
+  virtual bool needs_irradiance() const { return false; }
+  // Once per frame, before any apply(), on the rendering thread: whole-image
+  // work (e.g. patch irradiance, blurs). May use `threads` workers.
+  virtual void begin_frame(const FrameContext& frame, int threads) { (void)frame; (void)threads; }
   // Add this component's radiance (ru) for camera rows [row_begin, row_end) to
   // `radiance` (the whole camera image, row-major).
   virtual void apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
@@ -153,6 +167,7 @@ public:
 class DirectComponent final : public TransportComponent {
 public:
   std::string name() const override { return "direct"; }
+  bool is_global() const override { return false; }
   void apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
              float* radiance) const override;
 };
@@ -184,12 +199,19 @@ public:
   // pattern is not projector-sized.
   Status render_radiance(PreparedPattern& pattern, float* radiance, bool include_ambient = true) const;
 
+  // Which components render_radiance_parts() sums.
+  enum class Parts { all, direct_only, global_only };
+  // As render_radiance, restricted to the direct component (is_global() false)
+  // or to the global ones; the ground truth's direct-only / global-only images.
+  Status render_radiance_parts(PreparedPattern& pattern, float* radiance, bool include_ambient, Parts parts) const;
+
 private:
   PreparedView view_;
   ProjectorModel projector_;
   DefocusMap defocus_;
   std::vector<std::unique_ptr<TransportComponent>> components_;
   int threads_ = 1;
+  mutable std::vector<float> irradiance_;  // per-frame scratch (thread-bound renderer)
 };
 
 }  // namespace procam::sim

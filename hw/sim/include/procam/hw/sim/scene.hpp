@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Simulated scenes: planes, boxes and spheres with materials, loaded from JSON
+// Simulated scenes: planes, boxes, spheres, cylinders and bowls with materials, loaded from JSON
 // (schema in hw/sim/SCENES.md).
 //
 // Frame: the world frame is the frame of camera 0 (x right, y down, z forward),
@@ -11,6 +11,8 @@
 // "configs/scenes/x.json: objects[2].radius_mm: must be > 0".
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <variant>
@@ -23,10 +25,34 @@
 
 namespace procam::sim {
 
-// Surface reflectance. Only Lambertian for now; later issues add parameters
-// (sub-surface, specular, ...) as further fields with defaults.
+// Surface reflectance from physical parameters (SCENES.md "material", docs/sim.md).
+// Defaults give the original opaque Lambertian surface, so old scenes load
+// unchanged. Invariants checked by the parser: albedo + specular <= 1,
+// albedo + transmittance <= 1, and a translucent body (mean_free_path_mm > 0)
+// cannot also be a thin sheet (transmittance > 0).
 struct Material {
-  double albedo = 0.5;  // diffuse reflectance, 0..1
+  double albedo = 0.5;              // total diffuse reflectance, 0..1 (surface + sub-surface)
+  double specular = 0;              // glossy (metal) reflectance, 0..1
+  double roughness_rad = 0.1;       // glossy lobe: Gaussian σ of the reflected direction, radians
+  double mean_free_path_mm = 0;     // transport mean free path ℓ (translucent body); 0: opaque
+  double scattering_albedo = 0.99;  // single-scattering albedo α' of the body, 0..1 (translucent only)
+  double ior = 1.5;                 // refractive index of the body (translucent only)
+  double transmittance = 0;         // thin sheet: fraction of irradiance passed diffusely to the back, 0..1
+
+  bool translucent() const { return mean_free_path_mm > 0; }
+  bool glossy() const { return specular > 0; }
+  bool sheet() const { return transmittance > 0; }
+  // Fresnel reflectance at normal incidence, ((n − 1)/(n + 1))²: the part of
+  // the albedo reflected at the surface of a translucent body.
+  double surface_reflectance() const { return ((ior - 1) / (ior + 1)) * ((ior - 1) / (ior + 1)); }
+  // Albedo of light reflected at the point it arrived (the direct component):
+  // all of it for opaque surfaces, the Fresnel part for translucent bodies.
+  double direct_albedo() const { return translucent() ? std::min(albedo, surface_reflectance()) : albedo; }
+  // Diffusion length ℓ_d = ℓ / √(3 (1 − α')) (1/σ_tr of the dipole model,
+  // Jensen et al. 2001), mm: the width of the sub-surface profile.
+  double diffusion_length_mm() const {
+    return mean_free_path_mm / std::sqrt(3.0 * std::max(1e-6, 1.0 - scattering_albedo));
+  }
 };
 
 // Infinite plane, or a w×h rectangle centred on point_mm when finite.
@@ -51,9 +77,31 @@ struct Sphere {
   double radius_mm = 100;
 };
 
+// Finite cylinder: the lateral surface of radius radius_mm around the axis
+// through center_mm, from −height/2 to +height/2 along `axis`; with `caps` the
+// two end discs too. Two-sided, so its inside can be seen (a concave shell).
+struct Cylinder {
+  Vec3 center_mm;
+  Vec3 axis{0, 1, 0};  // unit
+  double radius_mm = 50;
+  double height_mm = 100;
+  bool caps = true;
+};
+
+// Hemispherical shell (bowl, lamp shade): the points of the sphere
+// (center_mm, radius_mm) with (p − c)·opening ≤ 0, i.e. the half away from the
+// opening direction. Two-sided: inside and outside are both surfaces.
+struct Bowl {
+  Vec3 center_mm;
+  double radius_mm = 100;
+  Vec3 opening{0, 0, -1};  // unit, from the centre out through the rim's disc
+};
+
+using Shape = std::variant<Plane, Box, Sphere, Cylinder, Bowl>;
+
 struct Object {
   std::string name;  // optional label from the file ("" if none)
-  std::variant<Plane, Box, Sphere> shape;
+  Shape shape;
   Material material;
 };
 

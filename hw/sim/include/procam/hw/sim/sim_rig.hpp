@@ -27,10 +27,31 @@
 
 namespace procam::sim {
 
+// Fault injection for synchronisation work (docs/sim.md "Fault injection"):
+// rig config "faults" object on the projector or a camera. Event k (1-based
+// count of show()/capture() calls) faults when k % every == 0, or, with
+// seed != 0, with probability 1/every from a generator seeded by `seed`.
+// 0 disables a fault.
+struct FaultConfig {
+  uint64_t drop_every = 0;     // projector: the shown pattern never reaches the screen, wait_presented times out;
+                               // camera: a frame is lost, the next one comes with the following frame id
+  uint64_t late_every = 0;     // presentation / exposure reported late_ms later than it happened
+  double late_ms = 0;          // ms
+  uint64_t timeout_every = 0;  // camera only: capture() fails with Code::timeout
+  uint64_t seed = 0;           // 0: deterministic every-N; else random with probability 1/N
+  bool any() const { return drop_every || late_every || timeout_every; }
+};
+
+// Counters of injected faults (describe()["state"]["faults"]).
+struct FaultCounters {
+  uint64_t events = 0, dropped = 0, late = 0, timeouts = 0;
+};
+
 struct SimCameraConfig {
   std::string id;                  // "sim0", "sim1", ... unless given
   CameraCalibration calibration;   // intrinsics + cam_from_proj (true = reported)
   SensorModel sensor;
+  FaultConfig faults;
 };
 
 struct SimRigConfig {
@@ -40,6 +61,7 @@ struct SimRigConfig {
   uint64_t seed = 1;               // noise seed
   int threads = 0;                 // renderer worker threads; 0: hardware threads (≤ 8)
   ProjectorModel projector;
+  FaultConfig projector_faults;
   std::vector<SimCameraConfig> cameras;
 };
 
@@ -75,8 +97,10 @@ public:
   // defaults; unset values restore them. polarizer_deg is accepted and
   // recorded but has no effect until polarisation is modelled.
   Status configure(const hw::CameraSettings& settings) override;
-  // Renders the projector's current pattern; never times out.
+  // Renders the projector's current pattern; times out only through fault
+  // injection (SimCameraConfig::faults).
   Result<hw::Frame> capture(std::chrono::milliseconds timeout) override;
+  const FaultCounters& fault_counters() const { return faults_; }
 
   double exposure_us() const { return exposure_us_; }
   double gain_db() const { return gain_db_; }
@@ -90,6 +114,8 @@ private:
   double exposure_us_ = 0, gain_db_ = 0, polarizer_deg_ = 0;
   uint64_t next_frame_id_ = 1;
   std::vector<float> radiance_;  // scratch, width*height
+  FaultCounters faults_;
+  uint64_t fault_rng_ = 0;
 };
 
 class SimRig final : public hw::Rig {
@@ -105,7 +131,8 @@ public:
   const Intrinsics& projector_intrinsics() const override { return config_.projector.intrinsics; }
   const std::vector<CameraCalibration>& camera_calibrations() const override { return calibrations_; }
   // proto/PROTOCOL.md "Rig description" plus "backends"; "state" holds
-  // {"scene", "scene_file", "projector_focus_mm", "seed"}.
+  // {"scene", "scene_file", "projector_focus_mm", "seed"} and, when any fault
+  // injection is configured, "faults": {"projector": counters, "cameras": [counters]}.
   nlohmann::json describe() const override;
   // Keys: "scene" (name or path). A call without "scene" (or with null/{})
   // restores the configured default scene. Unknown key → invalid_argument.
@@ -140,7 +167,14 @@ private:
   PreparedPattern pattern_;
   uint64_t pattern_id_ = 0;
   bool pattern_shown_ = false;
+  bool pattern_dropped_ = false;  // fault injection: the last show() never reached the screen
+  bool pattern_late_ = false;     // fault injection: its presentation is reported late
   double focus_mm_ = 0;  // <= 0: configured default
+  FaultCounters projector_faults_;
+  uint64_t projector_fault_rng_ = 0;
+
+public:
+  const FaultCounters& projector_fault_counters() const { return projector_faults_; }
 };
 
 // create_rig() entry for the "sim" backend (used by hw/registry.cpp).
