@@ -57,6 +57,14 @@ struct BitAccumulator {
 void fold_plane(const float* L, const float* L_bar, size_t n, uint32_t position, float saturation,
                 uint16_t* word, float* min_margin, uint8_t* flags);
 
+// Fast path of fold_plane for 8-bit frames with the synthetic inverse:
+// L̄ = S - L with S = W + B (per pixel, integer), so L - L̄ = 2L - S exactly —
+// the same word, margin and flags as fold_plane on the float values, without
+// converting the frame. `saturation` is the integer full scale.
+void fold_plane_u8_synthetic(const uint8_t* L, const uint16_t* sum, size_t n, uint32_t position,
+                             int32_t saturation, uint16_t* word, float* min_margin,
+                             uint8_t* flags);
+
 // L̄ = W + B - L for n pixels (synthetic inverse, see above).
 void synthesize_inverse(const float* L, const float* white, const float* black, size_t n,
                         float* L_bar);

@@ -11,6 +11,7 @@
 #include "gray_code.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
+#include "subpixel.hpp"
 #include "triangulate.hpp"
 
 namespace procam::sl {
@@ -92,6 +93,14 @@ class GraySession final : public sdk::Session {
     size_t valid = 0;
     for (uint8_t v : result_.cols.valid) valid += v != 0 ? 1u : 0u;
     const double n = static_cast<double>(result_.cols.valid.size());
+    std::vector<float> subpx(result_.cols.coord.size());
+    sdk::parallel_rows(h, rig_.threads, [&](uint32_t y0, uint32_t y1) {
+      refine_columns(result_.cols.coord.data(), w, y0, y1, SubpixelOptions{}, subpx.data());
+    });
+    out.add_image("proj_col_subpx", "px",
+                  "sub-pixel refined column (line fit through stripe steps along the row, "
+                  "subpixel.hpp); NaN: invalid",
+                  w, h, std::move(subpx));
     out.add_image("proj_col_px", "px", "decoded projector column per camera pixel (NaN: invalid)",
                   w, h, std::move(result_.cols.coord));
     if (cfg_.rows)
@@ -186,7 +195,7 @@ nlohmann::json describe_gray() {
       {"patterns", "2 + 2*bits (binarize=inverse) or 2 + bits (binarize=white), bits = "
                    "ceil(log2 projector width); rows add 2*row_bits or row_bits"},
       {"rounds", 1},
-      {"outputs", {"proj_col_px", "proj_row_px", "valid", "confidence", "depth_mm", "points",
+      {"outputs", {"proj_col_px", "proj_col_subpx", "proj_row_px", "valid", "confidence", "depth_mm", "points",
                    "valid_fraction", "decode_ms", "pattern_count", "report"}},
       {"params", sdk::describe_params(gray_param_specs())},
   };

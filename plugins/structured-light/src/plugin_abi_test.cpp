@@ -94,8 +94,8 @@ TEST(PluginAbi, InfoReadableFromFileBeforeLoading) {
   EXPECT_EQ(info.abi_version, PROCAM_PLUGIN_ABI_VERSION);
   EXPECT_EQ(info.struct_size, sizeof(procam_plugin_info));
   EXPECT_STREQ(info.name, "structured-light");
-  EXPECT_STREQ(info.version, "0.1.0");
-  EXPECT_STREQ(info.methods, "gray");
+  EXPECT_STREQ(info.version, "0.2.0");
+  EXPECT_STREQ(info.methods, "gray,xor02,xor04,minsw,ensemble,auto,phase-shift,modulated-phase-shift");
   ASSERT_NE(plugin().handle, nullptr) << dlerror();
   ASSERT_NE(plugin().info, nullptr);
   EXPECT_EQ(std::memcmp(plugin().info, &info, sizeof info), 0) << "file bytes == loaded bytes";
@@ -115,8 +115,13 @@ TEST(PluginAbi, VtableComplete) {
 TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   const nlohmann::json d = nlohmann::json::parse(plugin().vt->describe());
   ASSERT_TRUE(d.is_array());
-  ASSERT_EQ(d.size(), 1u);
-  EXPECT_EQ(d[0]["name"], "gray");
+  ASSERT_EQ(d.size(), 8u);
+  const char* names[] = {"gray", "xor02", "xor04", "minsw", "ensemble", "auto", "phase-shift",
+                         "modulated-phase-shift"};
+  for (size_t i = 0; i < 8; ++i) {
+    EXPECT_EQ(d[i]["name"], names[i]);
+    EXPECT_TRUE(d[i]["params"].is_array()) << names[i];
+  }
   EXPECT_TRUE(d[0]["description"].is_string());
   EXPECT_TRUE(d[0]["patterns"].is_string());
   std::map<std::string, nlohmann::json> params;
@@ -347,7 +352,8 @@ std::string create_error(const char* method, const char* params, int expected_co
 
 TEST(PluginAbi, CreateErrors) {
   EXPECT_EQ(create_error("grey", "{}", PROCAM_ERR_INVALID_ARGUMENT),
-            "unknown method 'grey'; this plugin offers: gray");
+            "unknown method 'grey'; this plugin offers: gray,xor02,xor04,minsw,ensemble,auto,phase-shift,"
+            "modulated-phase-shift");
   EXPECT_EQ(create_error("gray", R"({"bits":3})", PROCAM_ERR_INVALID_ARGUMENT),
             "unknown parameter 'bits' for method 'gray' (known: rows, binarize, min_contrast, "
             "min_bit_margin)");

@@ -1,0 +1,235 @@
+// SPDX-License-Identifier: MIT
+// Speed of the ensemble decode and of Gray column+row decoding vs OpenCV
+// contrib (issue 4 "Speed"). Camera 1920x1200 8-bit; projector 1024x768, so
+// the ensemble is exactly the thesis's 41 frames (4 codes x 10 planes + white).
+//   BM_EnsembleDecode/threads: all add_frame work + per-code decode + vote.
+//   BM_EnsembleAfterLastFrame/threads: the streaming latency — the last
+//     frame's add_frame + finish + vote, with the other 40 frames already in.
+//   BM_GrayColRowDecode/threads vs BM_OpenCvGetProjPixel: Gray code columns
+//     and rows with inverses on the *same frames* (OpenCV's own generated
+//     patterns, checked equal to ours); OpenCV's getProjPixel is called for
+//     every pixel. Counter "mismatch" counts pixels whose correspondences
+//     differ (valid/invalid or value).
+// Run: build-*/plugins/structured-light/procam_sl_ensemble_bench
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <vector>
+
+#include "codes.hpp"
+#include "gray_code.hpp"
+#include "multi_round.hpp"
+#include "plan_layout.hpp"
+#include "round_decoder.hpp"
+#include "vote.hpp"
+
+#ifdef PROCAM_SL_HAVE_OPENCV_SL
+#include <opencv2/structured_light.hpp>
+#endif
+
+namespace procam::sl {
+namespace {
+
+constexpr uint32_t kCamW = 1920, kCamH = 1200, kProjW = 1024, kProjH = 768;
+
+uint32_t cam_col(uint32_t x, uint32_t y) { return (x * 9 / 10 + y / 20 + 10) * kProjW / kCamW; }
+uint32_t cam_row(uint32_t x, uint32_t y) { return (y * 9 / 10 + x / 40 + 10) * kProjH / kCamH; }
+
+procam_image view_of(const std::vector<uint8_t>& px) {
+  procam_image img{};
+  img.width = kCamW;
+  img.height = kCamH;
+  img.channels = 1;
+  img.pixel_type = PROCAM_PIXEL_U8;
+  img.bit_depth = 8;
+  img.stride_bytes = kCamW;
+  img.data = px.data();
+  return img;
+}
+
+// Camera frame of a projector pattern (U8 projector image): 220 lit, 15 dark.
+std::vector<uint8_t> capture(const uint8_t* pattern) {
+  std::vector<uint8_t> px(size_t{kCamW} * kCamH);
+  for (uint32_t y = 0; y < kCamH; ++y)
+    for (uint32_t x = 0; x < kCamW; ++x)
+      px[size_t{y} * kCamW + x] = pattern[size_t{cam_row(x, y)} * kProjW + cam_col(x, y)] ? 220 : 15;
+  return px;
+}
+
+struct EnsembleData {
+  std::vector<ProjectedCode> codes;
+  MultiLayout layout;
+  std::vector<std::vector<uint8_t>> pixels;
+  std::vector<procam_image> views;
+  EnsembleData() {
+    for (const char* id : kCodeIds) codes.push_back(make_projected_code(id, kProjW));
+    layout = make_multi_layout(codes, false, false);
+    sdk::Plan plan;
+    render_multi_plan(layout, codes, kProjW, kProjH, nullptr, plan);
+    for (uint32_t i = 0; i < plan.size(); ++i) pixels.push_back(capture(plan.pattern_u8(i).data()));
+    for (const auto& p : pixels) views.push_back(view_of(p));
+    if (views.size() != 41) std::abort();
+  }
+};
+EnsembleData& ens() {
+  static EnsembleData d;
+  return d;
+}
+
+void vote_all(const MultiResult& r, uint32_t threads, std::vector<float>& coord, std::vector<uint8_t>& valid,
+              std::vector<float>& conf, std::vector<uint8_t>& cls) {
+  const float* maps[kEnsembleCodes] = {r.codes[0].coord.data(), r.codes[1].coord.data(), r.codes[2].coord.data(),
+                                       r.codes[3].coord.data()};
+  sdk::parallel_rows(kCamH, threads, [&](uint32_t y0, uint32_t y1) {
+    vote_pixels(maps, r.lit.data(), size_t{y0} * kCamW, size_t{y1} * kCamW, 1.0f, coord.data(), valid.data(),
+                conf.data(), cls.data());
+  });
+}
+
+void BM_EnsembleDecode(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  EnsembleData& d = ens();
+  const size_t n = size_t{kCamW} * kCamH;
+  std::vector<float> coord(n), conf(n);
+  std::vector<uint8_t> valid(n), cls(n);
+  for (auto _ : state) {
+    MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads);
+    for (uint32_t i = 0; i < d.views.size(); ++i)
+      if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
+    vote_all(dec.finish(0.03, 0.1), threads, coord, valid, conf, cls);
+    benchmark::DoNotOptimize(coord.data());
+  }
+}
+BENCHMARK(BM_EnsembleDecode)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_EnsembleAfterLastFrame(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  EnsembleData& d = ens();
+  const size_t n = size_t{kCamW} * kCamH;
+  std::vector<float> coord(n), conf(n);
+  std::vector<uint8_t> valid(n), cls(n);
+  for (auto _ : state) {
+    state.PauseTiming();
+    MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads);
+    const auto last = static_cast<uint32_t>(d.views.size() - 1);
+    for (uint32_t i = 0; i < last; ++i)
+      if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
+    state.ResumeTiming();
+    if (!dec.add_frame(last, d.views[last]).ok()) std::abort();
+    vote_all(dec.finish(0.03, 0.1), threads, coord, valid, conf, cls);
+    benchmark::DoNotOptimize(coord.data());
+  }
+}
+BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Stages: per-pixel decode of the 4 codes (finish) and the vote, all frames in.
+void BM_EnsembleStages(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  const bool vote_only = state.range(1) != 0;
+  EnsembleData& d = ens();
+  const size_t n = size_t{kCamW} * kCamH;
+  std::vector<float> coord(n), conf(n);
+  std::vector<uint8_t> valid(n), cls(n);
+  MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads);
+  for (uint32_t i = 0; i < d.views.size(); ++i)
+    if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
+  const MultiResult once = dec.finish(0.03, 0.1);  // a copy for the vote
+  for (auto _ : state) {
+    if (vote_only) {
+      vote_all(once, threads, coord, valid, conf, cls);
+    } else {
+      benchmark::DoNotOptimize(dec.finish(0.03, 0.1));
+    }
+  }
+}
+BENCHMARK(BM_EnsembleStages)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "vote_only"})
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+
+struct GrayData {
+  StripeCode cols = make_gray_code(kProjW), rows = make_gray_code(kProjH);
+  Layout layout = make_layout(cols, &rows, true);
+  std::vector<std::vector<uint8_t>> pixels;  // our layout order
+  std::vector<procam_image> views;
+  GrayData() {
+    sdk::Plan plan;
+    render_plan(layout, cols, &rows, kProjW, kProjH, plan);
+    for (uint32_t i = 0; i < plan.size(); ++i) pixels.push_back(capture(plan.pattern_u8(i).data()));
+    for (const auto& p : pixels) views.push_back(view_of(p));
+  }
+};
+GrayData& gray() {
+  static GrayData d;
+  return d;
+}
+
+RoundResult gray_decode(uint32_t threads) {
+  GrayData& d = gray();
+  BinaryRoundDecoder dec(d.layout, d.cols, &d.rows, kCamW, kCamH, threads);
+  for (uint32_t i = 0; i < d.views.size(); ++i)
+    if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
+  return dec.finish(0.03, 0.1);
+}
+
+void BM_GrayColRowDecode(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(gray_decode(threads));
+}
+BENCHMARK(BM_GrayColRowDecode)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+#ifdef PROCAM_SL_HAVE_OPENCV_SL
+void BM_OpenCvGetProjPixel(benchmark::State& state) {
+  GrayData& d = gray();
+  cv::structured_light::GrayCodePattern::Params p;
+  p.width = kProjW;
+  p.height = kProjH;
+  auto gcp = cv::structured_light::GrayCodePattern::create(p);
+  std::vector<cv::Mat> patterns;
+  gcp->generate(patterns);
+  // OpenCV order: col bits (pattern, inverse) MSB first, then row bits — the
+  // same as our layout without white/black. Check the patterns are identical.
+  if (patterns.size() + 2 != d.layout.frames.size()) std::abort();
+  sdk::Plan plan;
+  render_plan(d.layout, d.cols, &d.rows, kProjW, kProjH, plan);
+  size_t pattern_diff = 0;
+  for (size_t i = 0; i < patterns.size(); ++i) {
+    const auto ours = plan.pattern_u8(static_cast<uint32_t>(i + 2));
+    for (uint32_t y = 0; y < kProjH; ++y)
+      for (uint32_t x = 0; x < kProjW; ++x)
+        pattern_diff += (patterns[i].at<uint8_t>(static_cast<int>(y), static_cast<int>(x)) != 0) !=
+                        (ours[size_t{y} * kProjW + x] != 0);
+  }
+  std::vector<cv::Mat> frames;  // the same camera frames we decode
+  for (size_t i = 2; i < d.pixels.size(); ++i)
+    frames.emplace_back(static_cast<int>(kCamH), static_cast<int>(kCamW), CV_8U, d.pixels[i].data());
+  cv::Mat col(static_cast<int>(kCamH), static_cast<int>(kCamW), CV_32F), row = col.clone();
+  for (auto _ : state) {
+    for (int y = 0; y < static_cast<int>(kCamH); ++y)
+      for (int x = 0; x < static_cast<int>(kCamW); ++x) {
+        cv::Point pp;
+        const bool error = gcp->getProjPixel(frames, x, y, pp);
+        col.at<float>(y, x) = error ? -1.0f : static_cast<float>(pp.x);
+        row.at<float>(y, x) = error ? -1.0f : static_cast<float>(pp.y);
+      }
+    benchmark::DoNotOptimize(col.data);
+  }
+  const RoundResult ours = gray_decode(2);
+  size_t mismatch = 0;
+  for (uint32_t y = 0; y < kCamH; ++y)
+    for (uint32_t x = 0; x < kCamW; ++x) {
+      const size_t i = size_t{y} * kCamW + x;
+      const float oc = ours.cols.valid[i] ? ours.cols.coord[i] : -1.0f;
+      const float orow = ours.rows.valid[i] ? ours.rows.coord[i] : -1.0f;
+      mismatch += oc != col.at<float>(static_cast<int>(y), static_cast<int>(x)) ||
+                  orow != row.at<float>(static_cast<int>(y), static_cast<int>(x));
+    }
+  state.counters["pattern_diff"] = static_cast<double>(pattern_diff);
+  state.counters["mismatch"] = static_cast<double>(mismatch);
+}
+BENCHMARK(BM_OpenCvGetProjPixel)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+#endif
+
+}  // namespace
+}  // namespace procam::sl
+
+BENCHMARK_MAIN();
