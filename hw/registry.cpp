@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "procam/hw/compose/composite_rig.hpp"
 #include "procam/hw/rig.hpp"
 #include "procam/hw/sim/sim_rig.hpp"
 
@@ -33,8 +34,15 @@ struct Backend {
 
 // Compiled-in backends. One rig is built by one backend: the projector and all
 // cameras must name the same backend (mixing is not supported yet).
+// Device-level backends (issue 5) are built by the composite rig
+// (hw/compose), which combines one projector backend with camera backends; a
+// rig whose devices are all "sim" stays the pure sim rig.
 constexpr Backend kBackends[] = {
     {"sim", &procam::sim::create_sim_rig},
+    {"aravis", &procam::compose::create_composite_rig},
+    {"glfw", &procam::compose::create_composite_rig},
+    {"screencam", &procam::compose::create_composite_rig},
+    {"libcamera", &procam::compose::create_composite_rig},
 };
 
 std::string backend_list() {
@@ -91,16 +99,23 @@ Result<std::unique_ptr<Rig>> create_rig(const nlohmann::json& config, const RigC
     if (cams == config.end() || !cams->is_array() || cams->empty())
       return Error(Code::invalid_argument, "rig config: cameras: must be a non-empty array",
                    "add \"cameras\": [{\"backend\": \"" + *projector_backend + "\", ...}]");
+    bool composite = false;
     for (size_t i = 0; i < cams->size(); ++i) {
       const std::string field = "cameras[" + std::to_string(i) + "]";
       auto cb = backend_of((*cams)[i], field);
       if (!cb.ok()) return cb.status();
+      // Device-level backends may be mixed with any projector the composite rig knows.
+      if (procam::compose::is_camera_backend(*cb) && procam::compose::is_projector_backend(*projector_backend)) {
+        composite = true;
+        continue;
+      }
       if (*cb != *projector_backend)
         return Error(Code::invalid_argument,
                      "rig config: " + field + ".backend: '" + *cb + "' differs from the projector's '" +
                          *projector_backend + "'",
                      "mixing backends in one rig is not supported yet; use one backend for all devices");
     }
+    if (composite) return procam::compose::create_composite_rig(config, ctx);
     return find_backend(*projector_backend)->create(config, ctx);
   } catch (const std::exception& e) {
     return Error(Code::internal, std::string("create_rig: unexpected error: ") + e.what());

@@ -9,6 +9,7 @@
 
 #include "procam/core/image_io.hpp"
 #include "procam/core/log.hpp"
+#include "procam/engine/sync.hpp"
 
 namespace procam::engine {
 namespace fs = std::filesystem;
@@ -24,9 +25,9 @@ std::string frame_context(int round, size_t i, const std::string& label) {
   return "round " + std::to_string(round) + ", frame " + std::to_string(i) + " '" + label + "'";
 }
 
-// Capture one planned frame: show, wait until on screen, configure, capture.
-Result<hw::Frame> capture_one(hw::Rig& rig, const host::PlannedFrame& f, uint64_t pattern_id,
-                              const CaptureOptions& opts, size_t& retried) {
+// Capture one planned frame: per-frame settings, then the sync engine shows
+// the pattern, waits until it is on screen and captures/verifies/retries.
+Result<hw::Frame> capture_one(hw::Rig& rig, SyncEngine& sync, const host::PlannedFrame& f, uint64_t pattern_id) {
   const auto& s = f.settings;
   if (s.camera_index < 0 || static_cast<size_t>(s.camera_index) >= rig.camera_count())
     return Error(Code::invalid_argument,
@@ -44,30 +45,7 @@ Result<hw::Frame> capture_one(hw::Rig& rig, const host::PlannedFrame& f, uint64_
   cs.gain_db = s.gain_db;
   cs.polarizer_deg = s.polarizer_deg;
   PROCAM_TRY(cam.configure(cs));
-  Status last;
-  for (int attempt = 0; attempt <= opts.retries; ++attempt) {
-    if (attempt > 0) ++retried;
-    PROCAM_TRY(rig.projector().show(f.pattern, pattern_id));
-    auto shown = rig.projector().wait_presented(pattern_id, opts.frame_timeout);
-    if (!shown) {
-      last = shown.status();
-      continue;
-    }
-    auto frame = cam.capture(opts.frame_timeout);
-    if (!frame) {
-      last = frame.status();
-      if (last.code() == Code::timeout || last.code() == Code::corrupt_data) continue;
-      return last;
-    }
-    const auto& info = cam.info();
-    if (frame->image.width() != info.width || frame->image.height() != info.height ||
-        frame->image.empty()) {
-      last = Error(Code::corrupt_data, "camera delivered a frame of the wrong size");
-      continue;
-    }
-    return frame;
-  }
-  return last.with_context("after " + std::to_string(opts.retries + 1) + " attempts");
+  return sync.capture(f.pattern, pattern_id, static_cast<size_t>(s.camera_index), f.label);
 }
 
 }  // namespace
@@ -76,6 +54,12 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
                              const ProgressFn& progress, const std::atomic<bool>& cancel) {
   ScanOutcome out;
   uint64_t pattern_id = 0;
+  auto settings = parse_sync_settings(rig.sync_settings(),
+                                      rig.camera_count() ? rig.camera(0).trigger_mode() : hw::TriggerMode::software);
+  if (!settings) return settings.status();
+  if (!rig.sync_settings().contains("retries")) settings->retries = opts.retries;
+  if (!rig.sync_settings().contains("frame_timeout_ms")) settings->frame_timeout = opts.frame_timeout;
+  SyncEngine sync(rig, *settings);
   for (int round = 1;; ++round) {
     auto plan = session.next_plan();
     if (!plan) return plan.status().with_context("planning round " + std::to_string(round));
@@ -90,7 +74,9 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
     for (size_t i = 0; i < p.frames.size(); ++i) {
       if (cancel.load()) return Error(Code::cancelled, "scan cancelled");
       const auto& f = p.frames[i];
-      auto frame = capture_one(rig, f, ++pattern_id, opts, out.frames_retried);
+      auto frame = capture_one(rig, sync, f, ++pattern_id);
+      out.frames_retried = sync.report().retried;
+      out.sync = sync.report().to_json();
       if (!frame) return frame.status().with_context(frame_context(round, i, f.label));
       auto ta = Clock::now();
       Status s = session.add_frame(static_cast<uint32_t>(i), frame->image.view());
@@ -106,6 +92,8 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
     if (!s) return s.with_context("decoding round " + std::to_string(round));
     if (progress) progress({"decode", round, 1, 1, ""});
   }
+  out.frames_retried = sync.report().retried;
+  out.sync = sync.report().to_json();
   return out;
 }
 

@@ -9,10 +9,22 @@
 #include <cstdint>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "procam/core/image.hpp"
 #include "procam/core/status.hpp"
 
 namespace procam::hw {
+
+// How a camera's exposures are started (issue 5; used by the daemon's sync engine).
+//   software: capture() triggers one exposure now (the default; sim, software-triggered GenICam)
+//   hardware: an external line (e.g. the projector's sync output) triggers; capture() waits for it
+//   free_run: the camera streams at its own rate; capture() returns the next frame that
+//             started after the call (frames are matched to patterns by timestamp)
+enum class TriggerMode { software, hardware, free_run };
+inline const char* to_string(TriggerMode m) {
+  return m == TriggerMode::hardware ? "hardware" : m == TriggerMode::free_run ? "free_run" : "software";
+}
 
 struct CameraInfo {
   std::string backend;      // "sim", "aravis", "libcamera", ...
@@ -43,6 +55,13 @@ public:
   // Trigger (or wait for) the next exposure of what the projector shows now
   // and return it; fails with timeout, unavailable or corrupt_data.
   virtual Result<Frame> capture(std::chrono::milliseconds timeout) = 0;
+
+  // --- additive (issue 5); defaults keep older backends compiling ---
+  // How exposures are started (see TriggerMode).
+  virtual TriggerMode trigger_mode() const { return TriggerMode::software; }
+  // Backend state and stream statistics as plain JSON (e.g. {"frames": n,
+  // "missing_packets": n, "lost_frames": n, "reconnects": n}); {} if none.
+  virtual nlohmann::json stats() const { return nlohmann::json::object(); }
 };
 
 }  // namespace procam::hw

@@ -20,6 +20,10 @@ struct ProjectorInfo {
   std::string name;        // model or monitor name
   uint32_t width = 0, height = 0;
   double refresh_hz = 60;  // pattern rate the backend can sustain
+  // --- additive (issue 5): where a display-based projector sits on its X
+  // screen (lets a loopback screen camera grab exactly what it shows).
+  std::string display;     // X display ("" for non-X backends)
+  int32_t screen_x = 0, screen_y = 0;
 };
 
 struct Presentation {

@@ -54,6 +54,16 @@ public:
   // Ground truth for camera `index` of the current scene; not_found/unavailable
   // on hardware rigs.
   virtual Result<GroundTruth> ground_truth(size_t index) = 0;
+
+  // --- additive (issue 5); defaults keep older backends compiling ---
+  // Synchronization settings for the daemon's sync engine: the rig config's
+  // "sync" object ({"mode", "display_latency_ms", "camera_latency_ms",
+  // "retries", ...}) merged with values stored by set_sync_state(); {} when
+  // the rig has none (the engine then uses software-trigger defaults).
+  virtual nlohmann::json sync_settings() const { return nlohmann::json::object(); }
+  // Store measured synchronization values (e.g. calibrated latencies); they
+  // override the config in sync_settings() and show in describe()["state"].
+  virtual void set_sync_state(const nlohmann::json& state) { (void)state; }
 };
 
 struct RigContext {

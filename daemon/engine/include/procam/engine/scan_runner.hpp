@@ -30,7 +30,8 @@ using ProgressFn = std::function<void(const Progress&)>;
 
 struct CaptureOptions {
   std::chrono::milliseconds frame_timeout{2000};
-  int retries = 2;     // re-captures of one frame after a timeout/corrupt frame
+  int retries = 2;     // re-captures of one frame after a dropped/late/corrupt/mismatched frame
+                       // (the rig config's sync.retries overrides it)
 };
 
 struct RoundSummary {
@@ -43,6 +44,9 @@ struct ScanOutcome {
   size_t patterns = 0;
   double capture_ms = 0, decode_ms = 0;
   size_t frames_retried = 0;
+  // Synchronization report (engine/sync.hpp SyncReport::to_json()): mode,
+  // latencies used, frames retried, dropped/late/corrupt/mismatched counts.
+  nlohmann::json sync = nlohmann::json::object();
 };
 
 // Drives `session` against `rig` until the plugin has no more rounds.

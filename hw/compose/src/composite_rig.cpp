@@ -1,0 +1,326 @@
+// SPDX-License-Identifier: MIT
+// Composite rig: per-device backends, and the sim → Aravis Fake feed bridge.
+#include "procam/hw/compose/composite_rig.hpp"
+
+#include <cstring>
+#include <mutex>
+#include <set>
+#include <vector>
+
+#include "procam/hw/aravis/aravis_camera.hpp"
+#include "procam/hw/glfw/glfw_projector.hpp"
+#include "procam/hw/libcamera/libcamera_camera.hpp"
+#include "procam/hw/screencam/screen_camera.hpp"
+#include "procam/hw/sim/sim_rig.hpp"
+
+namespace procam::compose {
+namespace {
+
+// Serialises the sim projector (worker thread) against the Aravis stream
+// thread that renders the sim camera's view in the Fake device's fill callback.
+class LockedProjector final : public hw::Projector {
+public:
+  LockedProjector(hw::Projector& inner, std::mutex& mu) : inner_(inner), mu_(mu) {}
+  const hw::ProjectorInfo& info() const override { return inner_.info(); }
+  Status show(const procam_image& pattern, uint64_t pattern_id) override {
+    std::lock_guard lock(mu_);
+    return inner_.show(pattern, pattern_id);
+  }
+  Result<hw::Presentation> wait_presented(uint64_t pattern_id, std::chrono::milliseconds timeout) override {
+    std::lock_guard lock(mu_);
+    return inner_.wait_presented(pattern_id, timeout);
+  }
+  Status set_focus_mm(double focus_mm) override {
+    std::lock_guard lock(mu_);
+    return inner_.set_focus_mm(focus_mm);
+  }
+
+private:
+  hw::Projector& inner_;
+  std::mutex& mu_;
+};
+
+class CompositeRig final : public hw::Rig {
+public:
+  hw::Projector& projector() override { return *projector_; }
+  size_t camera_count() const override { return cameras_.size(); }
+  hw::Camera& camera(size_t index) override { return *cameras_[index < cameras_.size() ? index : 0]; }
+  const Intrinsics& projector_intrinsics() const override { return projector_intrinsics_; }
+  const std::vector<CameraCalibration>& camera_calibrations() const override { return calibrations_; }
+
+  nlohmann::json describe() const override {
+    nlohmann::json j;
+    try {
+      j["name"] = name_;
+      if (!description_.empty()) j["description"] = description_;
+      nlohmann::json cam_backends = nlohmann::json::array(), cams = nlohmann::json::array();
+      for (size_t i = 0; i < cameras_.size(); ++i) {
+        const auto& ci = cameras_[i]->info();
+        cam_backends.push_back(ci.backend);
+        nlohmann::json c = {{"backend", ci.backend}, {"id", ci.id},           {"width", ci.width},
+                            {"height", ci.height},   {"bit_depth", ci.bit_depth},
+                            {"calibration", calibrations_[i]},
+                            {"trigger", hw::to_string(cameras_[i]->trigger_mode())},
+                            {"stats", cameras_[i]->stats()}};
+        if (!feeds_[i].empty()) c["fed_by"] = feeds_[i];
+        cams.push_back(std::move(c));
+      }
+      const auto& pi = projector_->info();
+      j["backends"] = {{"projector", pi.backend}, {"cameras", cam_backends}};
+      j["projector"] = {{"backend", pi.backend}, {"name", pi.name},          {"width", pi.width},
+                        {"height", pi.height},   {"refresh_hz", pi.refresh_hz},
+                        {"intrinsics", projector_intrinsics_}};
+      j["cameras"] = cams;
+      nlohmann::json state = nlohmann::json::object();
+      if (sim_) {
+        std::lock_guard lock(mu_);
+        auto sd = sim_->describe();
+        if (sd.contains("state")) state = sd["state"];
+        if (sd.contains("projector")) j["projector"]["sim"] = sd["projector"];
+      }
+      state["sync"] = sync_settings();
+      j["state"] = state;
+    } catch (const std::exception& e) {
+      j = {{"name", name_}, {"error", std::string("describe failed: ") + e.what()}};
+    }
+    return j;
+  }
+
+  Status apply_scan_options(const nlohmann::json& options) override {
+    if (sim_) {
+      std::lock_guard lock(mu_);
+      return sim_->apply_scan_options(options);
+    }
+    if (options.is_null() || (options.is_object() && options.empty())) return Status::Ok();
+    if (!options.is_object())
+      return Error(Code::invalid_argument, std::string("rig_options must be a JSON object, got ") + options.type_name());
+    return Error(Code::invalid_argument, "rig_options: unknown key '" + options.begin().key() + "' for rig '" + name_ + "'",
+                 "this hardware rig takes no rig_options");
+  }
+
+  Result<hw::GroundTruth> ground_truth(size_t index) override {
+    if (sim_ && index < feeds_.size() && !feeds_[index].empty()) {
+      std::lock_guard lock(mu_);
+      return sim_->ground_truth(sim_index_[index]);
+    }
+    return Error(Code::unavailable, "rig '" + name_ + "' has no ground truth for camera " + std::to_string(index),
+                 "ground truth exists only for cameras fed by the simulated rig");
+  }
+
+  nlohmann::json sync_settings() const override {
+    nlohmann::json s = sync_config_.is_object() ? sync_config_ : nlohmann::json::object();
+    for (auto it = sync_state_.begin(); it != sync_state_.end(); ++it) s[it.key()] = it.value();
+    return s;
+  }
+  void set_sync_state(const nlohmann::json& state) override {
+    if (state.is_object())
+      for (auto it = state.begin(); it != state.end(); ++it) sync_state_[it.key()] = it.value();
+  }
+
+  std::string name_, description_;
+  nlohmann::json sync_config_ = nlohmann::json::object();
+  nlohmann::json sync_state_ = nlohmann::json::object();
+  mutable std::mutex mu_;               // sim state vs Aravis stream threads
+  std::unique_ptr<sim::SimRig> sim_;    // when the projector is "sim"
+  std::unique_ptr<hw::Projector> projector_;
+  Intrinsics projector_intrinsics_;
+  std::vector<std::unique_ptr<hw::Camera>> cameras_;
+  std::vector<CameraCalibration> calibrations_;
+  std::vector<std::string> feeds_;      // "" or "sim" per camera
+  std::vector<size_t> sim_index_;       // index of the feeding sim camera
+};
+
+Result<CameraCalibration> parse_calibration(const nlohmann::json& cam, const std::string& field) {
+  CameraCalibration c;
+  try {
+    if (!cam.contains("intrinsics") || !cam.contains("cam_from_proj"))
+      return Error(Code::invalid_argument, "rig config: " + field + ": needs \"intrinsics\" and \"cam_from_proj\"",
+                   "give the camera's calibration (see configs/rigs/sim.json for the format)");
+    cam.at("intrinsics").get_to(c.intrinsics);
+    cam.at("cam_from_proj").get_to(c.cam_from_proj);
+  } catch (const std::exception& e) {
+    return Error(Code::invalid_argument, "rig config: " + field + " calibration: " + e.what());
+  }
+  return c;
+}
+
+// Copies a rendered sim frame into an Aravis Fake buffer.
+Status copy_sim_frame(const hw::Frame& f, uint32_t w, uint32_t h, uint32_t bpp, uint8_t* dst) {
+  const Image& im = f.image;
+  if (im.width() != w || im.height() != h)
+    return Error(Code::invalid_argument, "sim feed renders " + std::to_string(im.width()) + "x" +
+                                             std::to_string(im.height()) + " but the Aravis ROI is " +
+                                             std::to_string(w) + "x" + std::to_string(h));
+  if (bpp == 1 && im.type() == PixelType::u8) {
+    std::memcpy(dst, im.data(), size_t{w} * h);
+  } else if (bpp == 2 && im.type() == PixelType::u16) {
+    std::memcpy(dst, im.data(), size_t{w} * h * 2);
+  } else if (bpp == 2 && im.type() == PixelType::u8) {
+    auto* out = reinterpret_cast<uint16_t*>(dst);
+    for (size_t i = 0; i < size_t{w} * h; ++i) out[i] = static_cast<uint16_t>(im.data()[i] << 8);
+  } else {
+    return Error(Code::invalid_argument, "sim feed: cannot convert the sim frame to the Aravis pixel format",
+                 "use pixel_format Mono16 for a sim bit_depth > 8");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+bool is_projector_backend(const std::string& name) { return name == "sim" || name == "glfw"; }
+bool is_camera_backend(const std::string& name) { return name == "aravis" || name == "screencam" || name == "libcamera"; }
+
+Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& config, const hw::RigContext& ctx) {
+  auto rig = std::make_unique<CompositeRig>();
+  try {
+    rig->name_ = config.value("name", std::string("hardware"));
+    rig->description_ = config.value("description", std::string());
+    if (config.contains("sync")) {
+      if (!config["sync"].is_object())
+        return Error(Code::invalid_argument, "rig config: sync: must be an object");
+      rig->sync_config_ = config["sync"];
+    }
+    const nlohmann::json& pj = config.at("projector");
+    const std::string pbackend = pj.value("backend", "");
+    const nlohmann::json& cams = config.at("cameras");
+
+    // --- projector (and the sim rig behind it)
+    if (pbackend == "sim") {
+      nlohmann::json sc = nlohmann::json::object();
+      for (const char* k : {"name", "description", "comment", "scene", "seed", "threads"})
+        if (config.contains(k)) sc[k] = config[k];
+      sc["projector"] = pj;
+      sc["cameras"] = nlohmann::json::array();
+      for (size_t i = 0; i < cams.size(); ++i) {
+        const auto& c = cams[i];
+        if (!c.contains("feed")) continue;
+        nlohmann::json feed = c["feed"];
+        const std::string field = "cameras[" + std::to_string(i) + "].feed";
+        if (!feed.is_object() || feed.value("backend", "") != "sim")
+          return Error(Code::invalid_argument, "rig config: " + field + ": must be {\"backend\": \"sim\", ...sim sensor fields}");
+        if (c.contains("intrinsics")) feed["intrinsics"] = c["intrinsics"];
+        if (c.contains("cam_from_proj")) feed["cam_from_proj"] = c["cam_from_proj"];
+        feed["id"] = "feed" + std::to_string(i);
+        sc["cameras"].push_back(feed);
+      }
+      if (sc["cameras"].empty())
+        return Error(Code::invalid_argument, "rig config: projector.backend 'sim' needs a camera fed by the sim",
+                     "add \"feed\": {\"backend\": \"sim\"} to a camera, or use a real projector backend");
+      auto parsed = sim::parse_sim_rig_config(sc, "rig config (sim feed)");
+      if (!parsed) return parsed.status();
+      auto sim = sim::SimRig::create(std::move(*parsed), ctx);
+      if (!sim) return sim.status();
+      rig->sim_ = std::move(*sim);
+      rig->projector_ = std::make_unique<LockedProjector>(rig->sim_->projector(), rig->mu_);
+      rig->projector_intrinsics_ = rig->sim_->projector_intrinsics();
+    } else if (pbackend == "glfw") {
+      auto pc = glfw::parse_glfw_projector_config(pj, {"intrinsics"});
+      if (!pc) return pc.status();
+      if (!pj.contains("intrinsics"))
+        return Error(Code::invalid_argument, "rig config: projector.intrinsics: missing",
+                     "give the projector's calibrated intrinsics (width, height, fx, fy, cx, cy)");
+      pj.at("intrinsics").get_to(rig->projector_intrinsics_);
+      if (pc->width == 0) pc->width = rig->projector_intrinsics_.width;
+      if (pc->height == 0) pc->height = rig->projector_intrinsics_.height;
+      auto p = glfw::GlfwProjector::open(*pc);
+      if (!p) return p.status().with_context("rig config: projector");
+      rig->projector_ = std::move(*p);
+    } else {
+      return Error(Code::invalid_argument, "rig config: projector.backend: '" + pbackend + "' is not built into this composite rig",
+                   "projector backends: sim, glfw");
+    }
+
+    // --- cameras
+    size_t sim_i = 0;
+    for (size_t i = 0; i < cams.size(); ++i) {
+      const auto& c = cams[i];
+      const std::string field = "cameras[" + std::to_string(i) + "]";
+      const std::string cb = c.value("backend", "");
+      const bool fed = c.contains("feed");
+      if (cb == "aravis") {
+        auto cfg = aravis::parse_aravis_camera_config(c, field, {"intrinsics", "cam_from_proj", "feed"});
+        if (!cfg) return cfg.status();
+        auto cal = parse_calibration(c, field);
+        if (!cal) return cal.status();
+        aravis::FillFn fill;
+        if (fed && !rig->sim_)
+          return Error(Code::invalid_argument, "rig config: " + field + ".feed: needs projector.backend 'sim'",
+                       "a camera can be fed by the simulated rig only when the projector is simulated too");
+        if (fed) {
+          if (cfg->device.empty()) cfg->device = "Fake";
+          if (cfg->roi_width == 0) {
+            cfg->roi_width = static_cast<int32_t>(cal->intrinsics.width);
+            cfg->roi_height = static_cast<int32_t>(cal->intrinsics.height);
+          }
+          hw::Camera* simcam = &rig->sim_->camera(sim_i);
+          std::mutex* mu = &rig->mu_;
+          fill = [simcam, mu](uint32_t w, uint32_t h, uint32_t bpp, uint8_t* dst) -> Status {
+            std::lock_guard lock(*mu);
+            auto f = simcam->capture(std::chrono::milliseconds(1000));
+            if (!f) return f.status();
+            return copy_sim_frame(*f, w, h, bpp, dst);
+          };
+        }
+        auto cam = aravis::AravisCamera::open(*cfg, fill);
+        if (!cam) return cam.status().with_context("rig config: " + field);
+        if ((*cam)->info().width != cal->intrinsics.width || (*cam)->info().height != cal->intrinsics.height)
+          return Error(Code::invalid_argument,
+                       "rig config: " + field + ": camera delivers " + std::to_string((*cam)->info().width) + "x" +
+                           std::to_string((*cam)->info().height) + " but intrinsics say " +
+                           std::to_string(cal->intrinsics.width) + "x" + std::to_string(cal->intrinsics.height),
+                       "set roi.width/height or fix the intrinsics");
+        rig->cameras_.push_back(std::move(*cam));
+        rig->calibrations_.push_back(fed ? rig->sim_->camera_calibrations()[sim_i] : *cal);
+      } else if (cb == "screencam") {
+        static const std::set<std::string> known = {"backend", "id", "display", "region", "intrinsics", "cam_from_proj"};
+        for (auto it = c.begin(); it != c.end(); ++it)
+          if (known.count(it.key()) == 0)
+            return Error(Code::invalid_argument, "rig config: " + field + "." + it.key() + ": unknown key",
+                         "screencam keys: id, display, region {x, y, width, height}, intrinsics, cam_from_proj");
+        auto cal = parse_calibration(c, field);
+        if (!cal) return cal.status();
+        screencam::ScreenCameraConfig sc;
+        const auto& pi = rig->projector_->info();
+        sc.id = c.value("id", "screen" + std::to_string(i));
+        sc.display = c.value("display", pi.display);
+        sc.x = pi.screen_x;  // default: exactly what the projector shows
+        sc.y = pi.screen_y;
+        sc.width = pi.width;
+        sc.height = pi.height;
+        if (c.contains("region")) {
+          const auto& r = c["region"];
+          sc.x = r.value("x", 0);
+          sc.y = r.value("y", 0);
+          sc.width = r.value("width", 0u);
+          sc.height = r.value("height", 0u);
+        }
+        auto cam = screencam::ScreenCamera::open(sc);
+        if (!cam) return cam.status().with_context("rig config: " + field);
+        rig->cameras_.push_back(std::move(*cam));
+        rig->calibrations_.push_back(*cal);
+      } else if (cb == "libcamera") {
+        auto cfg = libcam::parse_libcamera_camera_config(c, field, {"intrinsics", "cam_from_proj"});
+        if (!cfg) return cfg.status();
+        auto cal = parse_calibration(c, field);
+        if (!cal) return cal.status();
+        if (cfg->width == 0) cfg->width = cal->intrinsics.width;
+        if (cfg->height == 0) cfg->height = cal->intrinsics.height;
+        auto cam = libcam::LibcameraCamera::open(*cfg);
+        if (!cam) return cam.status().with_context("rig config: " + field);
+        rig->cameras_.push_back(std::move(*cam));
+        rig->calibrations_.push_back(*cal);
+      } else {
+        return Error(Code::invalid_argument, "rig config: " + field + ".backend: '" + cb + "' is not a camera backend here",
+                     "camera backends: aravis, screencam, libcamera");
+      }
+      rig->feeds_.push_back(fed ? "sim" : "");
+      rig->sim_index_.push_back(fed ? sim_i : 0);
+      if (fed) ++sim_i;
+    }
+  } catch (const std::exception& e) {
+    return Error(Code::invalid_argument, std::string("rig config: ") + e.what());
+  }
+  return std::unique_ptr<hw::Rig>(std::move(rig));
+}
+
+}  // namespace procam::compose
