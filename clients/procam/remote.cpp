@@ -59,7 +59,31 @@ int cmd_status(const Args& a) {
               d.value("state", "").c_str(), d.value("rig", "").c_str(), d.value("plugins", 0));
   const auto& s = d["scans"];
   std::printf("scans: %d done, %d failed, %d queued\n", s.value("done", 0), s.value("failed", 0), s.value("queued", 0));
-  if (d.contains("current")) std::printf("current: %s\n", d["current"].dump().c_str());
+  if (d.contains("current")) {
+    const auto& cur = d["current"];
+    const auto& pr = cur.value("progress", nlohmann::json());
+    std::printf("current: %s  %s  %s/%s", cur.value("scan_id", "").c_str(), cur.value("state", "").c_str(),
+                cur.value("plugin", "").c_str(), cur.value("method", "").c_str());
+    if (pr.is_object())
+      std::printf("  %s %d/%d", pr.value("stage", "").c_str(), pr.value("done", 0), pr.value("total", 0));
+    std::printf("\n");
+  }
+  if (d.contains("metrics") && d["metrics"].is_object()) {  // daemons since issue 6
+    const auto& m = d["metrics"];
+    const auto& dm = m.value("decode_ms", nlohmann::json::object());
+    std::printf("queue: %d of %d  rejected busy: %d  cancelled: %d\n", m.value("queue_depth", 0),
+                m.value("queue_limit", 0), m.value("scans_rejected_busy", 0), m.value("scans_cancelled", 0));
+    std::printf("frames: %llu captured, %llu dropped (re-captured)\n",
+                static_cast<unsigned long long>(m.value("frames_captured", uint64_t{0})),
+                static_cast<unsigned long long>(m.value("frames_dropped", uint64_t{0})));
+    std::printf("decode ms: last %.1f  mean %.1f  max %.1f\n", dm.value("last", 0.0), dm.value("mean", 0.0),
+                dm.value("max", 0.0));
+    std::printf("requests: %llu (%llu bad)  stored scans: %d (%.1f MiB)  curve: %s\n",
+                static_cast<unsigned long long>(m.value("requests", uint64_t{0})),
+                static_cast<unsigned long long>(m.value("bad_requests", uint64_t{0})), m.value("scans_stored", 0),
+                static_cast<double>(m.value("results_bytes", uint64_t{0})) / 1048576.0,
+                m.value("curve", false) ? "on" : "off");
+  }
   return 0;
 }
 

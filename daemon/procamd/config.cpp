@@ -20,11 +20,13 @@ std::string resolve(const std::string& base, const std::string& p) {
 Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir) {
   if (!j.is_object()) return Error(Code::invalid_argument, "daemon config must be a JSON object");
   static const std::set<std::string> known = {"rig", "plugin_paths", "scene_dirs", "endpoint", "results_dir",
-                                              "log", "threads", "max_queue", "probe_plugins", "comment"};
+                                              "log", "threads", "max_queue", "probe_plugins", "curve",
+                                              "retention", "comment"};
   for (auto it = j.begin(); it != j.end(); ++it)
     if (!known.count(it.key()))
       return Error(Code::invalid_argument, "daemon config: unknown key '" + it.key() + "'",
-                   "known keys: rig, plugin_paths, scene_dirs, endpoint, results_dir, log, threads, max_queue, probe_plugins");
+                   "known keys: rig, plugin_paths, scene_dirs, endpoint, results_dir, log, threads, max_queue, "
+                   "probe_plugins, curve, retention");
   Config c;
   std::string key;
   try {
@@ -58,12 +60,64 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
     c.max_queue = j.value("max_queue", c.max_queue);
     key = "probe_plugins";
     c.probe_plugins = j.value("probe_plugins", c.probe_plugins);
+    key = "curve";
+    if (j.contains("curve") && !j["curve"].is_null()) {
+      const auto& cv = j["curve"];
+      if (!cv.is_object())
+        return Error(Code::invalid_argument, "daemon config: 'curve' must be an object",
+                     "{\"secret_key_file\": \"server.secret\", \"authorized_keys\": \"authorized_keys\"}");
+      for (auto it = cv.begin(); it != cv.end(); ++it)
+        if (it.key() != "secret_key_file" && it.key() != "authorized_keys" && it.key() != "comment")
+          return Error(Code::invalid_argument, "daemon config: unknown key 'curve." + it.key() + "'",
+                       "known keys: secret_key_file, authorized_keys");
+      key = "curve.secret_key_file";
+      if (!cv.contains("secret_key_file") || !cv.contains("authorized_keys"))
+        return Error(Code::invalid_argument, "daemon config: 'curve' needs 'secret_key_file' and 'authorized_keys'",
+                     "make a key pair with `procam keygen --out server`");
+      c.curve.secret_key_file = resolve(base_dir, cv["secret_key_file"].get<std::string>());
+      key = "curve.authorized_keys";
+      c.curve.authorized_keys = resolve(base_dir, cv["authorized_keys"].get<std::string>());
+      c.curve.enabled = true;
+    }
+    key = "retention";
+    if (j.contains("retention") && !j["retention"].is_null()) {
+      const auto& rv = j["retention"];
+      if (!rv.is_object())
+        return Error(Code::invalid_argument, "daemon config: 'retention' must be an object",
+                     "{\"max_age_days\": 30, \"max_scans\": 1000, \"min_free_mb\": 1024}");
+      for (auto it = rv.begin(); it != rv.end(); ++it) {
+        key = "retention." + it.key();
+        if (it.key() == "max_age_days") {
+          if (!it->is_number() || it->get<double>() < 0 || !(it->get<double>() < 1e6))
+            return Error(Code::invalid_argument, "daemon config: 'retention.max_age_days' must be a number 0..1e6");
+          c.retention_max_age_days = it->get<double>();
+        } else if (it.key() == "max_scans" || it.key() == "min_free_mb") {
+          if (!it->is_number_unsigned())
+            return Error(Code::invalid_argument, "daemon config: '" + key + "' must be an integer >= 0");
+          if (it.key() == "max_scans") c.retention_max_scans = it->get<size_t>();
+          else c.retention_min_free_mb = it->get<uint64_t>();
+        } else if (it.key() != "comment") {
+          return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
+                       "known keys: max_age_days, max_scans, min_free_mb");
+        }
+      }
+    }
   } catch (const std::exception& e) {
     return Error(Code::invalid_argument, "daemon config: '" + key + "' has the wrong type: " + e.what());
   }
   if (c.threads == 0 || c.threads > 256) return Error(Code::invalid_argument, "daemon config: 'threads' must be 1..256");
-  if (c.max_queue == 0) return Error(Code::invalid_argument, "daemon config: 'max_queue' must be >= 1");
+  if (c.max_queue == 0 || c.max_queue > 100000)
+    return Error(Code::invalid_argument, "daemon config: 'max_queue' must be 1..100000");
+  if (c.endpoint.empty()) return Error(Code::invalid_argument, "daemon config: 'endpoint' must not be empty");
   return c;
+}
+
+bool is_local_endpoint(const std::string& ep) {
+  if (ep.rfind("ipc://", 0) == 0 || ep.rfind("inproc://", 0) == 0) return true;
+  if (ep.rfind("tcp://", 0) != 0) return false;
+  const std::string host = ep.substr(6, ep.rfind(':') == std::string::npos || ep.rfind(':') < 6 ? std::string::npos
+                                                                                             : ep.rfind(':') - 6);
+  return host.rfind("127.", 0) == 0 || host == "localhost" || host == "[::1]" || host == "lo";
 }
 
 Result<Config> load_config(const std::string& path) {

@@ -11,6 +11,13 @@
 
 namespace procam::daemon {
 
+// Remote access: ZeroMQ CURVE with an allowlist (README "Remote access with CURVE keys").
+struct CurveConfig {
+  bool enabled = false;
+  std::string secret_key_file;   // the daemon's secret key (Z85, from `procam keygen`), mode 0600
+  std::string authorized_keys;   // file: one client public key (Z85) per line, '#' comments
+};
+
 struct Config {
   nlohmann::json rig;                     // the rig config object (loaded if given as a path)
   std::string rig_dir;                    // folder relative rig paths resolve against
@@ -22,10 +29,20 @@ struct Config {
   unsigned threads = 2;
   size_t max_queue = 16;
   bool probe_plugins = true;
+  CurveConfig curve;
+  // Retention of finished scans (0 = no limit); see engine::RetentionPolicy.
+  double retention_max_age_days = 0;
+  size_t retention_max_scans = 0;
+  uint64_t retention_min_free_mb = 0;
 };
 
+// True for endpoints only this machine can reach: ipc://, inproc://,
+// tcp://127.x.x.x, tcp://[::1], tcp://localhost.
+bool is_local_endpoint(const std::string& endpoint);
+
 // Parses a config file; relative paths resolve against the file's folder.
-// Unknown keys and wrong types are errors naming the key.
+// Unknown keys and wrong types are errors naming the key. Never throws (the
+// parser is fuzzed: tests/fuzz/).
 Result<Config> load_config(const std::string& path);
 // Same from an already-parsed object; `base_dir` for relative paths.
 Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir);

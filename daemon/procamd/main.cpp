@@ -137,12 +137,22 @@ int main(int argc, char** argv) {
   scfg.results_dir = cfg->results_dir;
   scfg.threads = cfg->threads;
   scfg.max_queue = cfg->max_queue;
+  scfg.retention.max_age_days = cfg->retention_max_age_days;
+  scfg.retention.max_scans = cfg->retention_max_scans;
+  scfg.retention.min_free_mb = cfg->retention_min_free_mb;
   engine::ScanService service(std::move(*rig), plugins, scfg,
                               [&](const std::string& id, const std::string& ev, nlohmann::json f) {
                                 if (server_ptr) server_ptr->notify_event(id, ev, std::move(f));
                               });
   daemon::Server server(service, plugins);
   server_ptr = &server;
+  if (cfg->curve.enabled) {
+    if (auto s = server.enable_curve(cfg->curve); !s) return fail(s, 3);
+  } else if (!daemon::is_local_endpoint(cfg->endpoint)) {
+    PROCAM_LOG(daemon, warn) << "listening on non-local endpoint " << cfg->endpoint
+                             << " WITHOUT authentication or encryption; configure \"curve\" (README "
+                                "\"Remote access with CURVE keys\") unless this network is trusted";
+  }
   if (auto s = server.bind(cfg->endpoint); !s) return fail(s, 3);
   if (auto s = service.start(); !s) return fail(s, 3);
   PROCAM_LOG(daemon, info) << "ready; results in " << cfg->results_dir;

@@ -3,9 +3,13 @@
 #include "server.hpp"
 
 #include <sys/eventfd.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <fstream>
+#include <sstream>
 #include <variant>
 
 #include "procam/core/log.hpp"
@@ -33,7 +37,154 @@ Server::Server(engine::ScanService& service, const host::PluginHost& plugins)
 }
 
 Server::~Server() {
+  zap_stop_ = true;
+  if (zap_thread_.joinable()) zap_thread_.join();
   if (event_fd_ >= 0) ::close(event_fd_);
+}
+
+Result<std::string> read_z85_key_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Error(Code::io_error, "cannot read key file '" + path + "'", "create one with `procam keygen`");
+  std::string line;
+  while (std::getline(in, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
+    size_t b = line.find_first_not_of(" \t");
+    if (b == std::string::npos || line[b] == '#') continue;
+    line = line.substr(b);
+    if (line.size() != 40)
+      return Error(Code::invalid_argument, "key file '" + path + "' does not hold a 40-character Z85 CURVE key",
+                   "create one with `procam keygen`");
+    return line;
+  }
+  return Error(Code::invalid_argument, "key file '" + path + "' is empty", "create one with `procam keygen`");
+}
+
+namespace {
+int64_t mtime_ns(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return -1;
+  return static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
+}
+}  // namespace
+
+Status Server::enable_curve(const CurveConfig& curve) {
+  if (!zmq_has("curve"))
+    return Error(Code::unavailable, "this libzmq was built without CURVE", "install Debian's libzmq5");
+  auto secret = read_z85_key_file(curve.secret_key_file);
+  if (!secret) return secret.status().with_context("curve.secret_key_file");
+  struct stat st {};
+  if (::stat(curve.secret_key_file.c_str(), &st) == 0 && (st.st_mode & (S_IRWXG | S_IRWXO)))
+    PROCAM_LOG(daemon, warn) << "secret key file '" << curve.secret_key_file
+                             << "' is readable by others; chmod 600 it";
+  char pub[41] = {};
+  if (zmq_curve_public(pub, secret->c_str()) != 0)
+    return Error(Code::invalid_argument, "'" + curve.secret_key_file + "' is not a valid Z85 CURVE secret key",
+                 "create one with `procam keygen`");
+  authorized_keys_path_ = curve.authorized_keys;
+  if (mtime_ns(authorized_keys_path_) < 0)
+    return Error(Code::io_error, "cannot read curve.authorized_keys '" + authorized_keys_path_ + "'",
+                 "create it: one client public key (procam keygen's .pub file content) per line");
+  (void)key_allowed("");  // load now so errors show at start
+  try {
+    router_.set(zmq::sockopt::curve_server, 1);
+    router_.set(zmq::sockopt::curve_secretkey, *secret);
+    router_.set(zmq::sockopt::zap_domain, "procam");
+  } catch (const zmq::error_t& e) {
+    return Error(Code::internal, std::string("setting CURVE options: ") + e.what());
+  }
+  // The handler must be bound before any client connects.
+  std::atomic<int> ready{0};
+  zap_thread_ = std::thread([this, &ready] {
+    zmq::socket_t zap(ctx_, zmq::socket_type::rep);
+    try {
+      zap.set(zmq::sockopt::linger, 0);
+      zap.bind("inproc://zeromq.zap.01");
+      ready = 1;
+    } catch (const zmq::error_t& e) {
+      PROCAM_LOG(daemon, error) << "ZAP handler: " << e.what();
+      ready = -1;
+      return;
+    }
+    while (!zap_stop_) {
+      zmq::pollitem_t items[] = {{zap.handle(), 0, ZMQ_POLLIN, 0}};
+      try {
+        zmq::poll(items, 1, std::chrono::milliseconds(200));
+        if (!(items[0].revents & ZMQ_POLLIN)) continue;
+        std::vector<zmq::message_t> req;
+        if (!zmq::recv_multipart(zap, std::back_inserter(req))) continue;
+        // ZAP 1.0 (RFC 27): version, request id, domain, address, identity, mechanism, credentials...
+        std::string version = req.size() > 0 ? req[0].to_string() : "";
+        std::string request_id = req.size() > 1 ? req[1].to_string() : "";
+        std::string address = req.size() > 3 ? req[3].to_string() : "?";
+        std::string mechanism = req.size() > 5 ? req[5].to_string() : "";
+        std::string key = req.size() > 6 ? req[6].to_string() : "";
+        bool ok = version == "1.0" && mechanism == "CURVE" && key.size() == 32 && key_allowed(key);
+        if (!ok) {
+          // At most 20 lines a minute, so a flood of strangers cannot fill the disk.
+          const auto now = std::chrono::steady_clock::now();
+          if (now - refused_window_ > std::chrono::minutes(1)) {
+            if (refused_quiet_ > 0)
+              PROCAM_LOG(daemon, warn) << "refused " << refused_quiet_ << " more clients in the last minute (not logged)";
+            refused_window_ = now;
+            refused_logged_ = 0;
+            refused_quiet_ = 0;
+          }
+          if (refused_logged_++ < 20) {
+            char z85[41] = "-";
+            if (key.size() == 32) zmq_z85_encode(z85, reinterpret_cast<const uint8_t*>(key.data()), 32);
+            PROCAM_LOG(daemon, warn) << "refused " << (mechanism.empty() ? "?" : mechanism) << " client from "
+                                     << address << " with key " << z85 << " (not in " << authorized_keys_path_
+                                     << ")";
+          } else {
+            ++refused_quiet_;
+          }
+        } else {
+          PROCAM_LOG(daemon, debug) << "accepted CURVE client from " << address;
+        }
+        std::array<std::string, 6> rep = {"1.0", request_id, ok ? "200" : "400",
+                                          ok ? "OK" : "key not authorized", "", ""};
+        for (size_t k = 0; k < rep.size(); ++k)
+          zap.send(zmq::buffer(rep[k]), k + 1 < rep.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+      } catch (const zmq::error_t& e) {
+        if (e.num() == ETERM) break;
+        PROCAM_LOG(daemon, warn) << "ZAP handler: " << e.what();
+      }
+    }
+  });
+  while (ready == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  if (ready < 0) return Error(Code::internal, "cannot start the ZAP authentication handler");
+  curve_ = true;
+  PROCAM_LOG(daemon, info) << "CURVE on: server public key " << pub << ", clients from " << authorized_keys_path_;
+  return Status::Ok();
+}
+
+// On the ZAP thread only. Re-reads the allowlist when its file changed.
+bool Server::key_allowed(const std::string& key32) {
+  const int64_t mt = mtime_ns(authorized_keys_path_);
+  if (mt != authorized_mtime_) {
+    authorized_mtime_ = mt;
+    authorized_.clear();
+    std::ifstream in(authorized_keys_path_);
+    std::string line;
+    size_t n = 0, bad = 0;
+    while (std::getline(in, line)) {
+      ++n;
+      while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
+      size_t b = line.find_first_not_of(" \t");
+      if (b == std::string::npos || line[b] == '#') continue;
+      std::string z = line.substr(b, 40);
+      uint8_t bin[32];
+      if (z.size() != 40 || !zmq_z85_decode(bin, z.c_str())) {
+        ++bad;
+        PROCAM_LOG(daemon, warn) << authorized_keys_path_ << ":" << n << ": not a Z85 public key; ignored";
+        continue;
+      }
+      authorized_.emplace_back(reinterpret_cast<const char*>(bin), 32);
+    }
+    PROCAM_LOG(daemon, info) << "authorized keys: " << authorized_.size() << " from " << authorized_keys_path_
+                             << (bad ? " (" + std::to_string(bad) + " bad lines)" : "");
+  }
+  return std::find(authorized_.begin(), authorized_.end(), key32) != authorized_.end();
 }
 
 Status Server::bind(const std::string& endpoint) {
@@ -143,6 +294,8 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
     if (i == 1) break;  // DEALER without delimiter: body starts here
   }
   if (msg.size() - i != 1) {
+    ++requests_;
+    ++bad_requests_;
     reply(env, proto::encode_error(std::nullopt, Error(Code::bad_message,
         "expected exactly one JSON frame after the envelope, got " + std::to_string(msg.size() - i),
         "send one frame holding a JSON object (see proto/PROTOCOL.md)")));
@@ -151,8 +304,10 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
   }
   const std::string_view bytes(static_cast<const char*>(msg[i].data()), msg[i].size());
   std::string id;
+  ++requests_;
   auto req = proto::decode_request(bytes, &id);
   if (!req) {
+    ++bad_requests_;
     PROCAM_LOG(daemon, warn) << "rejected request: " << req.status().to_string();
     reply(env, proto::encode_error(id.empty() ? std::nullopt : std::optional<std::string>(id), req.status()));
     return;
@@ -167,7 +322,8 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
         auto v = proto::negotiate_version(h);
         if (!v) return err(v.status());
         ok({{"version", *v}, {"daemon", "procamd 0.1.0"}, {"rig", service_.rig_name()},
-            {"capabilities", {"events", "fetch"}}});
+            {"capabilities", curve_ ? nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe", "curve"}
+                                    : nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe"}}});
       },
       [&](const proto::ListPlugins&) {
         nlohmann::json plugins = nlohmann::json::array(), rejected = nlohmann::json::array();
@@ -191,13 +347,42 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
       [&](const proto::DescribeRig&) { ok({{"rig", service_.rig_description()}}); },
       [&](const proto::Scan& s) {
         engine::ScanRequest sr{s.plugin, s.method, s.label, s.params, s.rig_options};
-        auto r = service_.submit(sr);
+        auto r = service_.submit(sr, req->id);
         if (!r) return err(r.status());
-        if (s.events) subscribers_[(*r)["scan_id"].get<std::string>()].push_back(env);
+        if (s.events) {
+          const std::string sid = (*r)["scan_id"].get<std::string>();
+          const std::string st = (*r).value("state", "");
+          if (st == "done" || st == "failed") {
+            // A repeated request for a scan that already ended: its final
+            // event went out long ago, so send it again after the reply.
+            ok(*r);
+            nlohmann::json ev = {{"state", st}};
+            if (auto summ = service_.scan_summary(sid); summ && !(*summ)["error"].is_null())
+              ev["error"] = (*summ)["error"];
+            reply(env, proto::encode_event(sid, seq_.count(sid) ? seq_[sid] : 0, "state", ev));
+            return;
+          }
+          auto& subs = subscribers_[sid];
+          if (std::find(subs.begin(), subs.end(), env) == subs.end()) subs.push_back(env);
+        }
         ok(*r);
       },
+      [&](const proto::Cancel& c) {
+        auto r = service_.cancel(c.scan_id);
+        if (!r) return err(r.status());
+        ok(*r);
+      },
+      [&](const proto::Ping&) {
+        ok({{"uptime_s", service_.uptime_s()}, {"time_utc", proto::utc_timestamp(std::chrono::system_clock::now())}});
+      },
       [&](const proto::StatusQuery& q) {
-        if (!q.scan_id) return ok({{"daemon", service_.daemon_status()}});
+        if (!q.scan_id) {
+          auto d = service_.daemon_status();
+          d["metrics"]["requests"] = requests_;
+          d["metrics"]["bad_requests"] = bad_requests_;
+          d["metrics"]["curve"] = curve_;
+          return ok({{"daemon", std::move(d)}});
+        }
         auto r = service_.scan_summary(*q.scan_id);
         if (!r) return err(r.status());
         ok({{"scan", *r}});

@@ -7,12 +7,20 @@
 // Events come from the scan worker through notify_event(), which is
 // thread-safe and never blocks. Any malformed request gets an error reply;
 // nothing a client sends can stop the loop.
+//
+// Security: with CURVE enabled (enable_curve, before bind) a ZAP handler
+// thread answers libzmq's authentication requests on inproc://zeromq.zap.01:
+// a client is let in only if its CURVE public key is in the authorized_keys
+// file (re-read when the file changes). Everyone else never gets a session.
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <deque>
 #include <map>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -22,6 +30,7 @@
 #include "procam/core/status.hpp"
 #include "procam/engine/service.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "config.hpp"
 
 namespace procam::daemon {
 
@@ -30,6 +39,9 @@ public:
   Server(engine::ScanService& service, const host::PluginHost& plugins);
   ~Server();
 
+  // Makes the socket a CURVE server with an allowlist; call before bind().
+  // Errors name the key file that is missing, unreadable or malformed.
+  Status enable_curve(const CurveConfig& curve);
   // Binds `endpoint` (error names the endpoint, e.g. address in use).
   Status bind(const std::string& endpoint);
   // Serves until `stop_fd` is readable.
@@ -42,6 +54,8 @@ private:
   void handle(std::vector<zmq::message_t>& msg);
   void reply(const Envelope& env, const std::string& body, const std::string* extra = nullptr);
   void drain_events();
+  void zap_loop();
+  bool key_allowed(const std::string& key32);
 
   engine::ScanService& service_;
   const host::PluginHost& plugins_;
@@ -53,6 +67,20 @@ private:
   std::deque<PendingEvent> events_;
   std::map<std::string, std::vector<Envelope>> subscribers_;
   std::map<std::string, uint64_t> seq_;
+  uint64_t requests_ = 0, bad_requests_ = 0;  // main thread only
+  bool curve_ = false;
+  // ZAP handler (CURVE only): its own thread and REP socket.
+  std::string authorized_keys_path_;
+  std::vector<std::string> authorized_;         // 32-byte binary public keys
+  int64_t authorized_mtime_ = -1;
+  std::atomic<bool> zap_stop_{false};
+  std::chrono::steady_clock::time_point refused_window_{};  // ZAP thread only: log rate limit
+  unsigned refused_logged_ = 0, refused_quiet_ = 0;
+  std::thread zap_thread_;
 };
+
+// Reads a Z85 CURVE key (40 characters) from a file holding it as its first
+// non-comment line. Errors name the file.
+Result<std::string> read_z85_key_file(const std::string& path);
 
 }  // namespace procam::daemon

@@ -259,6 +259,20 @@ def cmd_scan(client, args):
     return 0
 
 
+def cmd_cancel(client, args):
+    """PROTOCOL.md 5.8."""
+    reply, _ = client.request("cancel", scan_id=args.scan_id)
+    print(f"scan {reply['scan_id']}: was {reply['previous_state']}, now {reply['state']}")
+    return 0
+
+
+def cmd_ping(client, _args):
+    """PROTOCOL.md 5.9: liveness, answered at once even while a scan runs."""
+    reply, _ = client.request("ping")
+    print(f"alive: up {reply['uptime_s']:.0f} s, daemon clock {reply['time_utc']}")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description="procam protocol v1 reference client")
     ap.add_argument("--endpoint", default="tcp://127.0.0.1:5560")
@@ -278,11 +292,15 @@ def main(argv=None):
     sc.add_argument("--poll-interval", type=float, default=5.0,
                     help="poll status after this many seconds without events")
     sc.add_argument("--scan-timeout", type=float, default=3600.0)
+    cc = sub.add_parser("cancel", help="cancel a queued or running scan")
+    cc.add_argument("scan_id")
+    sub.add_parser("ping", help="is the daemon alive?")
     args = ap.parse_args(argv)
 
     client = Client(args.endpoint, args.timeout)
     try:
-        return (cmd_list if args.command == "list" else cmd_scan)(client, args)
+        commands = {"list": cmd_list, "scan": cmd_scan, "cancel": cmd_cancel, "ping": cmd_ping}
+        return commands[args.command](client, args)
     except DaemonError as e:
         print_error("error", e.error)
         return 1

@@ -18,8 +18,9 @@ namespace {
 
 using json = nlohmann::json;
 
-constexpr std::array<std::string_view, 7> kTypes = {
-    "hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch"};
+// In RequestBody's variant order.
+constexpr std::array<std::string_view, 9> kTypes = {
+    "hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch", "cancel", "ping"};
 
 constexpr const char* kSpecHint = "see proto/PROTOCOL.md";
 
@@ -276,6 +277,13 @@ Result<RequestBody> decode_result(const Fields& f) {
   return RequestBody{ResultQuery{std::move(**scan_id)}};
 }
 
+Result<RequestBody> decode_cancel(const Fields& f) {
+  PROCAM_TRY(f.only({"scan_id"}));
+  auto scan_id = f.string("scan_id", true, kMaxIdBytes);
+  PROCAM_TRY(scan_id);
+  return RequestBody{Cancel{std::move(**scan_id)}};
+}
+
 Result<RequestBody> decode_fetch(const Fields& f) {
   PROCAM_TRY(f.only({"scan_id", "file", "offset", "max_bytes"}));
   Fetch r;
@@ -364,6 +372,11 @@ Result<Request> decode_request_impl(std::string_view bytes, std::string* id_out)
     body = decode_result(f);
   } else if (type == "fetch") {
     body = decode_fetch(f);
+  } else if (type == "cancel") {
+    body = decode_cancel(f);
+  } else if (type == "ping") {
+    Status s = f.only({});
+    body = s.ok() ? Result<RequestBody>(RequestBody{Ping{}}) : Result<RequestBody>(s);
   } else {
     std::vector<std::string> names(kTypes.begin(), kTypes.end());
     return Error(Code::unknown_type, "unknown request type '" + type + "'",
@@ -400,6 +413,8 @@ json request_fields(const RequestBody& body) {
       return {{"scan_id", f.scan_id}, {"file", f.file}, {"offset", f.offset},
               {"max_bytes", f.max_bytes}};
     }
+    json operator()(const Cancel& c) const { return {{"scan_id", c.scan_id}}; }
+    json operator()(const Ping&) const { return json::object(); }
   };
   return std::visit(Visitor{}, body);
 }

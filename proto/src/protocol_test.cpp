@@ -68,6 +68,8 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
       {"7", ResultQuery{"scan-1"}},
       {"8", fetch},
       {"9", Fetch{"s", "f.ply"}},
+      {"10", Cancel{"scan-1"}},
+      {"11", Ping{}},
       {std::string(kMaxIdBytes, 'x'), ListPlugins{}},
   };
   std::set<std::string_view> types;
@@ -700,7 +702,8 @@ TEST(ProtoSpec, EveryExampleInProtocolMdDecodes) {
       ADD_FAILURE() << "unknown example tag '" << ex.tag << "'";
     }
   }
-  for (auto t : {"hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch"}) {
+  for (auto t : {"hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch",
+                 "cancel", "ping"}) {
     EXPECT_TRUE(request_types.count(t)) << "no request example of type " << t;
     EXPECT_TRUE(reply_types.count(t)) << "no reply example of type " << t;
   }

@@ -15,7 +15,8 @@ from jsonschema import Draft202012Validator, RefResolver
 PROTO = pathlib.Path(__file__).resolve().parent.parent
 ROOT = PROTO.parent
 SCHEMAS = PROTO / "schemas"
-REQUEST_TYPES = ["hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch"]
+REQUEST_TYPES = ["hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch",
+                 "cancel", "ping"]
 
 failures = []
 

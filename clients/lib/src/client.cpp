@@ -6,7 +6,9 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <cstdio>
 #include <fstream>
+#include <random>
 #include <thread>
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
@@ -20,16 +22,103 @@ std::string default_endpoint() {
   return e && *e ? e : kDefaultEndpoint;
 }
 
+Result<std::string> load_key(const std::string& value) {
+  std::string key = value;
+  std::error_code ec;
+  if (value.size() != 40 || fs::is_regular_file(value, ec)) {  // Z85 may contain '/': a file only if one exists
+    std::ifstream in(value);
+    if (!in) return Error(Code::invalid_argument, "'" + value + "' is neither a 40-character Z85 key nor a readable key file",
+                          "make keys with `procam keygen --out NAME`");
+    key.clear();
+    std::string line;
+    while (std::getline(in, line)) {
+      while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
+      size_t b = line.find_first_not_of(" \t");
+      if (b == std::string::npos || line[b] == '#') continue;
+      key = line.substr(b);
+      break;
+    }
+  }
+  uint8_t bin[32];
+  if (key.size() != 40 || !zmq_z85_decode(bin, key.c_str()))
+    return Error(Code::invalid_argument, "'" + value + "' does not hold a 40-character Z85 CURVE key",
+                 "make keys with `procam keygen --out NAME`");
+  return key;
+}
+
+Result<CurveKeys> curve_keys_from_env() {
+  CurveKeys k;
+  const char* server = std::getenv("PROCAM_SERVER_KEY");
+  if (!server || !*server) return k;
+  auto sp = load_key(server);
+  if (!sp) return sp.status().with_context("$PROCAM_SERVER_KEY");
+  k.server_public = *sp;
+  const char* client = std::getenv("PROCAM_CLIENT_KEY");
+  if (!client || !*client)
+    return Error(Code::invalid_argument, "$PROCAM_SERVER_KEY is set but $PROCAM_CLIENT_KEY is not",
+                 "set PROCAM_CLIENT_KEY to your .secret file from `procam keygen`");
+  auto cs = load_key(client);
+  if (!cs) return cs.status().with_context("$PROCAM_CLIENT_KEY");
+  k.client_secret = *cs;
+  return k;
+}
+
+Result<std::pair<std::string, std::string>> generate_keypair() {
+  if (!zmq_has("curve")) return Error(Code::unavailable, "libzmq was built without CURVE");
+  char pub[41] = {}, sec[41] = {};
+  if (zmq_curve_keypair(pub, sec) != 0) return Error(Code::internal, "zmq_curve_keypair failed");
+  return std::make_pair(std::string(pub), std::string(sec));
+}
+
 struct Client::Impl {
   zmq::context_t ctx{1};
   zmq::socket_t sock{ctx, zmq::socket_type::dealer};
   bool connected = false;
+  bool curve = false;
   Status connect_error;
 };
 
 Client::Client(std::string endpoint, std::chrono::milliseconds timeout)
     : endpoint_(std::move(endpoint)), timeout_(timeout), impl_(std::make_unique<Impl>()) {
+  init(curve_keys_from_env());
+}
+
+Client::Client(std::string endpoint, std::chrono::milliseconds timeout, const CurveKeys& keys)
+    : endpoint_(std::move(endpoint)), timeout_(timeout), impl_(std::make_unique<Impl>()) {
+  init(keys);
+}
+
+std::string Client::new_request_id() { return id_prefix_ + "-" + std::to_string(next_id_++); }
+
+void Client::init(const Result<CurveKeys>& keys) {
+  {
+    std::random_device rd;
+    const uint64_t r = (uint64_t{rd()} << 32) ^ rd() ^ static_cast<uint64_t>(::getpid());
+    char buf[24];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(r));
+    id_prefix_ = buf;
+  }
+  if (!keys) {
+    impl_->connect_error = keys.status();
+    return;
+  }
   try {
+    if (keys->enabled()) {
+      std::string pub = keys->client_public;
+      if (pub.empty()) {
+        char p[41] = {};
+        if (zmq_curve_public(p, keys->client_secret.c_str()) != 0) {
+          impl_->connect_error = Error(Code::invalid_argument, "the client secret key is not a valid CURVE key",
+                                       "make keys with `procam keygen --out NAME`");
+          return;
+        }
+        pub = p;
+      }
+      impl_->sock.set(zmq::sockopt::curve_serverkey, keys->server_public);
+      impl_->sock.set(zmq::sockopt::curve_publickey, pub);
+      impl_->sock.set(zmq::sockopt::curve_secretkey, keys->client_secret);
+      impl_->curve = true;
+    }
     impl_->sock.set(zmq::sockopt::linger, 0);
     impl_->sock.set(zmq::sockopt::heartbeat_ivl, 2000);
     impl_->sock.set(zmq::sockopt::heartbeat_timeout, 6000);
@@ -43,9 +132,9 @@ Client::Client(std::string endpoint, std::chrono::milliseconds timeout)
 
 Client::~Client() = default;
 
-Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::string* extra) {
+Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::string* extra, const std::string& id) {
   if (!impl_->connected) return impl_->connect_error;
-  proto::Request req{"c" + std::to_string(::getpid()) + "-" + std::to_string(next_id_++), body};
+  proto::Request req{id.empty() ? new_request_id() : id, body};
   const std::string bytes = proto::encode_request(req);
   try {
     impl_->sock.send(zmq::message_t(), zmq::send_flags::sndmore);
@@ -59,7 +148,9 @@ Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::stri
     if (left.count() <= 0)
       return Error(Code::unavailable, "no reply from procamd at " + endpoint_ + " within " +
                                           std::to_string(timeout_.count()) + " ms",
-                   "is procamd running? start it with `procamd --config configs/procamd.json`");
+                   impl_->curve ? "is procamd running, and does it list our public key in its authorized_keys? "
+                                  "(with CURVE a refused key looks like no daemon)"
+                                : "is procamd running? start it with `procamd --config configs/procamd.json`");
     zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
     try {
       zmq::poll(items, 1, left);
@@ -88,6 +179,13 @@ Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::stri
     if (extra) *extra = i + 1 < msg.size() ? msg[i + 1].to_string() : std::string();
     return rep;
   }
+}
+
+Result<nlohmann::json> Client::call_with_id(const std::string& id, const proto::RequestBody& body) {
+  auto r = roundtrip(body, nullptr, id);
+  if (!r) return r.status();
+  if (!r->ok) return r->error;
+  return r->body;
 }
 
 Result<nlohmann::json> Client::call(const proto::RequestBody& body) {

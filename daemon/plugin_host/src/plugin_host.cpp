@@ -2,6 +2,9 @@
 // PluginHost: directory scan, the per-file load sequence, session creation.
 #include "procam/host/plugin_host.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <system_error>
@@ -83,7 +86,44 @@ Status PluginHost::load_file(const std::string& path) {
   return st;
 }
 
+namespace {
+
+// Refuses a plugin that someone other than its owner could have replaced: the
+// file, or the folder holding it (after resolving symlinks, both the link's
+// and the target's folder), is world-writable, or it is owned by another
+// ordinary user. Code from such a file would run inside the daemon.
+Status check_plugin_permissions(const std::string& path) {
+  auto check = [](const fs::path& p, const char* what) -> Status {
+    struct stat st {};
+    if (::stat(p.c_str(), &st) != 0)
+      return Error(Code::io_error, std::string("cannot stat ") + what + " '" + p.string() + "'");
+    if (st.st_mode & S_IWOTH)
+      return Error(Code::failed_precondition,
+                   std::string(what) + " '" + p.string() + "' is world-writable; refusing to load code from it",
+                   "chmod o-w '" + p.string() + "' (plugins must only be writable by their owner)");
+    if (st.st_uid != 0 && st.st_uid != ::geteuid())
+      return Error(Code::failed_precondition,
+                   std::string(what) + " '" + p.string() + "' is owned by uid " + std::to_string(st.st_uid) +
+                       ", neither root nor the daemon's user",
+                   "install plugins as root or as the daemon's user");
+    return {};
+  };
+  const fs::path file(path);
+  std::error_code exists_ec;
+  if (!fs::exists(file, exists_ec)) return {};  // the loader reports a missing file (not_found)
+  PROCAM_TRY(check(file, "plugin file"));
+  PROCAM_TRY(check(file.parent_path().empty() ? fs::path(".") : file.parent_path(), "plugin folder"));
+  std::error_code ec;
+  const fs::path real = fs::canonical(file, ec);
+  if (!ec && real != file) PROCAM_TRY(check(real.parent_path(), "plugin folder"));
+  return {};
+}
+
+}  // namespace
+
 Status PluginHost::load_file_impl(const std::string& path) {
+  // 0. Who could have written it?
+  PROCAM_TRY(check_plugin_permissions(path));
   // 1. The info block, read from the file: no plugin code runs.
   auto file = detail::read_plugin_info(path);
   if (!file.ok()) return file.status();

@@ -5,6 +5,7 @@
 #include "procam/host/plugin_host.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -365,6 +366,26 @@ TEST_F(PluginHostTest, NonElfAndTruncatedFilesRejected) {
 
   EXPECT_EQ(host.rejected().size(), 3u);
   expect_host_still_works(host);
+}
+
+// Code that others could have replaced never runs in the daemon (issue 6).
+TEST_F(PluginHostTest, WorldWritablePluginFilesAndFoldersAreRefused) {
+  PluginHost host;
+  const std::string copy = tmp_.file("writable.so");
+  fs::copy_file(fixture("good"), copy);
+  ::chmod(copy.c_str(), 0666);
+  Status st = host.load_file(copy);
+  EXPECT_EQ(st.code(), Code::failed_precondition);
+  EXPECT_TRUE(contains(st.message(), "world-writable")) << st.message();
+  EXPECT_TRUE(contains(st.hint(), "chmod o-w")) << st.hint();
+  ::chmod(copy.c_str(), 0644);
+  ::chmod(tmp_.path().c_str(), 0777);
+  st = host.load_file(copy);
+  EXPECT_EQ(st.code(), Code::failed_precondition);
+  EXPECT_TRUE(contains(st.message(), "plugin folder")) << st.message();
+  ::chmod(tmp_.path().c_str(), 0700);
+  EXPECT_TRUE(host.load_file(copy).ok());
+  EXPECT_TRUE(host.plugins().size() == 1u);
 }
 
 TEST_F(PluginHostTest, SessionCreateFailureCarriesPluginMessage) {

@@ -76,8 +76,18 @@ struct Fetch {
   bool operator==(const Fetch&) const = default;
 };
 
-using RequestBody =
-    std::variant<Hello, ListPlugins, DescribeRig, Scan, StatusQuery, ResultQuery, Fetch>;
+// Cancels a queued or running scan (PROTOCOL.md 5.8).
+struct Cancel {
+  std::string scan_id;
+  bool operator==(const Cancel&) const = default;
+};
+// Liveness check answered at once, even while a scan runs (PROTOCOL.md 5.9).
+struct Ping {
+  bool operator==(const Ping&) const = default;
+};
+
+using RequestBody = std::variant<Hello, ListPlugins, DescribeRig, Scan, StatusQuery, ResultQuery,
+                                 Fetch, Cancel, Ping>;
 
 struct Request {
   std::string id;
@@ -86,7 +96,8 @@ struct Request {
 };
 
 // Wire "type" of a request body: "hello", "list_plugins", "describe_rig",
-// "scan", "status", "result", "fetch". Replies to it carry the same type.
+// "scan", "status", "result", "fetch", "cancel", "ping". Replies to it carry
+// the same type.
 std::string_view type_name(const RequestBody& body);
 
 // Decodes and fully validates one request body frame (PROTOCOL.md

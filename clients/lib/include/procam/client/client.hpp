@@ -26,10 +26,36 @@ inline constexpr const char* kDefaultEndpoint = "tcp://127.0.0.1:5560";
 // $PROCAM_ENDPOINT or kDefaultEndpoint.
 std::string default_endpoint();
 
+// CURVE keys for a daemon that requires them (PROTOCOL.md 1.6), Z85 text of
+// 40 characters each. Empty server_public = no CURVE.
+struct CurveKeys {
+  std::string server_public;  // the daemon's public key
+  std::string client_public;  // ours (derived from client_secret when empty)
+  std::string client_secret;
+  bool enabled() const { return !server_public.empty(); }
+};
+
+// Reads a Z85 key: `value` is either the 40-character key itself or the path
+// of a file whose first non-comment line is the key (procam keygen's files).
+Result<std::string> load_key(const std::string& value);
+
+// Keys from the environment: $PROCAM_SERVER_KEY (daemon public key or its
+// .pub file) and $PROCAM_CLIENT_KEY (our secret key or its .secret file).
+// No CURVE (empty result) when PROCAM_SERVER_KEY is unset; an error when a
+// variable is set but unreadable.
+Result<CurveKeys> curve_keys_from_env();
+
+// A new CURVE key pair: {public, secret}, Z85.
+Result<std::pair<std::string, std::string>> generate_keypair();
+
 class Client {
 public:
+  // Keys come from the environment (curve_keys_from_env); a bad key there
+  // makes every call fail with that error.
   explicit Client(std::string endpoint,
                   std::chrono::milliseconds timeout = std::chrono::milliseconds(10000));
+  // Explicit CURVE keys (keys.enabled() false: plain connection).
+  Client(std::string endpoint, std::chrono::milliseconds timeout, const CurveKeys& keys);
   ~Client();
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
@@ -37,8 +63,14 @@ public:
   const std::string& endpoint() const { return endpoint_; }
 
   // Sends one request and waits for its reply; returns the reply's fields
-  // (everything but procam/id/type/ok) or the daemon's error.
+  // (everything but procam/id/type/ok) or the daemon's error. Request ids are
+  // "<random 64-bit hex>-<counter>", unique across clients, so a scan
+  // request retried with call_with_id() is never run twice.
   Result<nlohmann::json> call(const proto::RequestBody& body);
+  // The same with a caller-chosen request id (for retries: same id, same body).
+  Result<nlohmann::json> call_with_id(const std::string& id, const proto::RequestBody& body);
+  // A fresh request id of the form call() uses.
+  std::string new_request_id();
 
   // Runs a scan with events on, calling `on_event` for each event, until the
   // scan ends; returns the final scan summary (from `status`). Waits at most
@@ -54,13 +86,16 @@ public:
   Result<nlohmann::json> fetch_all(const std::string& scan_id, const std::string& dir);
 
 private:
-  Result<proto::Reply> roundtrip(const proto::RequestBody& body, std::string* extra_frame);
+  Result<proto::Reply> roundtrip(const proto::RequestBody& body, std::string* extra_frame,
+                                 const std::string& id = "");
+  void init(const Result<CurveKeys>& keys);
   struct Impl;
   std::string endpoint_;
   std::chrono::milliseconds timeout_;
   std::unique_ptr<Impl> impl_;
   std::vector<proto::Event> pending_events_;
   uint64_t next_id_ = 1;
+  std::string id_prefix_;
 };
 
 }  // namespace procam::client

@@ -7,12 +7,20 @@
 // Events are delivered through EventSink on the worker thread; the sink must
 // not block and must not call back into the service.
 // Persistence: each scan lives in <results_dir>/<scan_id>/ with a
-// manifest.json written atomically when it ends; finished scans found there at
-// start are served again, folders without a final manifest are reported as
-// failed ("interrupted").
+// manifest.json written atomically (temp + rename + fsync of the folder) when
+// it ends; finished scans found there at start are served again, folders
+// without a final manifest are reported as failed ("interrupted") and get a
+// manifest saying so.
+// Retries: submit() remembers (request id, content) → scan id for
+// ServiceConfig::dedupe_window (at most dedupe_max entries), so a retried
+// scan request is answered with the scan it already queued.
+// Retention: after start and after every finished scan, the oldest finished
+// scans are deleted while a limit of RetentionPolicy is exceeded — except
+// scans a client fetched from within RetentionPolicy::download_grace.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -32,12 +40,23 @@
 
 namespace procam::engine {
 
+// Limits on kept finished scans; 0 disables a limit. Oldest (by finish time) go first.
+struct RetentionPolicy {
+  double max_age_days = 0;          // delete scans finished longer ago
+  size_t max_scans = 0;             // keep at most this many finished scans
+  uint64_t min_free_mb = 0;         // delete while the results disk has less free space
+  std::chrono::seconds download_grace{600};  // never delete a scan fetched this recently
+};
+
 struct ServiceConfig {
   std::string results_dir;
   unsigned threads = 2;         // suggested to plugins
   size_t max_queue = 16;        // queued (not running) scans
   CaptureOptions capture;
   bool evaluate = true;         // compare with ground truth when the rig has it
+  RetentionPolicy retention;
+  std::chrono::seconds dedupe_window{600};  // how long scan request ids are remembered
+  size_t dedupe_max = 4096;                 // and how many at most
 };
 
 struct ScanRequest {
@@ -65,15 +84,28 @@ public:
 
   // Validates plugin/method/params (creates the plugin session now, so a bad
   // parameter is refused at once) and queues the scan.
-  // → {"scan_id","state":"queued","queue_position":n}; unavailable when full.
-  Result<nlohmann::json> submit(const ScanRequest& req);
+  // → {"scan_id","state":"queued","queue_position":n}; unavailable ("busy: N
+  // scans ahead of you") when max_queue scans wait. A non-empty `request_id`
+  // seen before with the same content returns that scan instead, with
+  // "duplicate": true and its current state.
+  Result<nlohmann::json> submit(const ScanRequest& req, const std::string& request_id = "");
+  // Cancels a queued scan (it ends failed/cancelled now) or the running one
+  // (it stops before its next frame). → {"scan_id","previous_state","state"};
+  // not_found / failed_precondition (already finished).
+  Result<nlohmann::json> cancel(const std::string& scan_id);
 
   nlohmann::json daemon_status() const;
+  double uptime_s() const;
   Result<nlohmann::json> scan_summary(const std::string& scan_id) const;
   // The manifest of a finished (done or failed) scan.
   Result<nlohmann::json> manifest(const std::string& scan_id) const;
-  // Path of a file listed in a finished scan's manifest.
+  // Path of a file listed in a finished scan's manifest; always inside
+  // <results_dir>/<scan_id>/ and a regular file (no symlinks). Marks the scan
+  // as being downloaded (retention keeps it for download_grace).
   Result<std::string> file_path(const std::string& scan_id, const std::string& file) const;
+  // Applies the retention policy now (also done after each scan). Returns
+  // the number of scans deleted.
+  size_t apply_retention();
   nlohmann::json rig_description() const;
   std::string rig_name() const;
 
@@ -100,9 +132,20 @@ private:
   nlohmann::json rig_description_;
   std::string rig_name_;             // immutable after construction
   nlohmann::json plugin_rig_json_;  // calibration for plugins; immutable after construction
-  size_t done_ = 0, failed_ = 0;
+  size_t done_ = 0, failed_ = 0, cancelled_ = 0, rejected_busy_ = 0;
+  uint64_t frames_captured_ = 0, frames_dropped_ = 0;
+  double decode_ms_last_ = 0, decode_ms_sum_ = 0, decode_ms_max_ = 0;
+  size_t decode_count_ = 0;
+  uint64_t results_bytes_ = 0;
+  struct Remembered {
+    std::string scan_id;
+    std::chrono::steady_clock::time_point at;
+  };
+  std::map<std::string, Remembered> recent_requests_;  // request id + content digest → scan
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> recent_order_;
   bool stopping_ = false;
   std::atomic<bool> cancel_running_{false};
+  std::string cancel_reason_;  // why cancel_running_ was set (guarded by mu_)
   std::chrono::steady_clock::time_point started_;
   std::thread worker_;
 };
