@@ -11,11 +11,18 @@ PACKAGES=(
   # libraries (see README "Dependencies")
   libopenimageio-dev openimageio-tools   # result files: EXR, PNG, TIFF
   libopencv-dev                          # required by OpenImageIO's CMake package
+  libopencv-contrib-dev                  # GrayCodePattern: speed/identity baseline in procam_sl_ensemble_bench (issue 4)
   nlohmann-json3-dev                     # JSON (config, protocol, plugin ABI data)
   libzmq3-dev cppzmq-dev                 # ZeroMQ transport
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-zmq python3-jsonschema # spec-only Python client; schema checks of PROTOCOL.md examples
+  clang libclang-rt-14-dev               # libFuzzer harnesses over the protocol decoder and config parser (issue 6)
+  # real hardware path (issue 5): GenICam cameras, libcamera, GLFW projector, X servers for tests
+  libaravis-dev aravis-tools aravis-tools-cli libusb-1.0-0-dev   # Aravis 0.8 (+ arv-fake-gv-camera-0.8)
+  libcamera-dev                                                  # libcamera cameras
+  libglfw3-dev libgl-dev libgl1-mesa-dri libglx-mesa0 libx11-dev # GLFW projector, X11 screen camera
+  xvfb xserver-xorg-core xserver-xorg-video-dummy x11-xserver-utils # Xvfb / two-monitor Xorg dummy + xrandr
 )
 
 missing=()
@@ -40,4 +47,4 @@ fi
 echo "install-deps: installing ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+$SUDO apt-get install -y -qq "${missing[@]}"

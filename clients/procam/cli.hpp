@@ -55,5 +55,11 @@ int cmd_status(const Args&);
 int cmd_scan(const Args&);
 int cmd_result(const Args&);
 int cmd_decode(const Args&);
+int cmd_bench(const Args&);  // bench.cpp (issue 4): speed-vs-error report
+int cmd_sim(const Args&);  // sim.cpp (issue 3)
+int cmd_keygen(const Args&);  // service.cpp (issue 6): CURVE keys, cancel, ping
+int cmd_cancel(const Args&);
+int cmd_ping(const Args&);
+int cmd_calibrate_latency(const Args&);  // hw.cpp (issue 5): display/camera latency of a rig
 
 }  // namespace procam::cli

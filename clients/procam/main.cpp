@@ -37,6 +37,23 @@ const std::vector<Command> kCommands = {
     {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins"},
      "decode --plugin P --method M --frames DIR --out DIR [--param k=v]... [--rig RIG.json] [--plugins DIR]...\n"
      "                                offline: decode image files sorted by name in plan order (no daemon)"},
+    {"bench", cmd_bench, {"rig", "scenes", "scene", "method", "param", "out", "keep", "plugins", "threads", "only-listed"},
+     "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
+     "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs)\n"
+     "                                offline: every method on every sim scene; speed-vs-error table + plot"},
+    {"sim", cmd_sim, {"scene", "pattern", "out", "rig", "list"},
+     "sim --scene S --pattern white|black|gray:BIT[:inv]|checker:SIZE:DX:DY|FILE --out DIR [--rig RIG.json]\n"
+     "                                offline: render a sim scene with ground truth and direct/global split;\n"
+     "                                sim --list scenes; sim --scene S --pattern gray-errors (per-bit errors)"},
+    {"cancel", cmd_cancel, {"endpoint", "timeout", "scan"},
+     "cancel --scan ID                cancel a queued or running scan"},
+    {"ping", cmd_ping, {"endpoint", "timeout"},
+     "ping                            is procamd alive? (answers at once even while scanning)"},
+    {"calibrate-latency", cmd_calibrate_latency, {"rig", "cycles", "write"},
+     "calibrate-latency --rig RIG.json [--cycles N] [--write 1]\n"
+     "                                offline (stop procamd): measure display/camera latency; --write stores it in the rig config"},
+    {"keygen", cmd_keygen, {"out"},
+     "keygen --out NAME               new CURVE key pair: NAME.pub, NAME.secret (README \"Remote access\")"},
 };
 
 void print_usage(FILE* f) {
