@@ -179,10 +179,7 @@ int cmd_bench(const Args& a) {
   if (!rig) return report(rig.status());
   const nlohmann::json rig_json = engine::plugin_rig_json(**rig, threads);
 
-  std::vector<std::string> dirs = a.list("plugins");
-  if (const char* env = std::getenv("PROCAM_PLUGIN_PATH"))
-    for (auto& p : split_colon(env)) dirs.push_back(p);
-  if (dirs.empty()) dirs = split_colon(PROCAM_DEFAULT_PLUGIN_DIRS);
+  const std::vector<std::string> dirs = plugin_search_dirs(a);
   host::PluginHost host;
   host.load_directories(dirs);
   const std::vector<std::string> only = a.list("method");

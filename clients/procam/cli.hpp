@@ -43,6 +43,9 @@ int report(const Status& s);
 // "k=v" items to an object; v parsed as JSON when it is JSON, else a string.
 Result<nlohmann::json> kv_object(const std::vector<std::string>& items, const char* what);
 std::vector<std::string> split_colon(const std::string& s);
+// Plugin folders for offline commands: --plugins DIR..., then
+// $PROCAM_PLUGIN_PATH, else the build's and the install's plugin folders.
+std::vector<std::string> plugin_search_dirs(const Args& a);
 // The short scan summary (`make demo`): method, patterns, decode time, accuracy.
 void print_summary(const nlohmann::json& manifest, const std::string& out_dir);
 // Progress on stderr: a redrawn bar on a terminal, sparse lines in logs.

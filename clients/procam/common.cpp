@@ -3,8 +3,14 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 
 #include "cli.hpp"
+#include "procam/core/strings.hpp"
+
+#ifndef PROCAM_DEFAULT_PLUGIN_DIRS
+#define PROCAM_DEFAULT_PLUGIN_DIRS ""
+#endif
 
 namespace procam::cli {
 client::Client Args::connect() const {
@@ -140,16 +146,14 @@ void progress_line(const proto::Event& ev) {
   std::fflush(stderr);
 }
 
-std::vector<std::string> split_colon(const std::string& s) {
-  std::vector<std::string> out;
-  size_t pos = 0;
-  while (pos <= s.size()) {
-    size_t e = s.find(':', pos);
-    if (e == std::string::npos) e = s.size();
-    if (e > pos) out.push_back(s.substr(pos, e - pos));
-    pos = e + 1;
-  }
-  return out;
+std::vector<std::string> split_colon(const std::string& s) { return split_nonempty(s, ':'); }
+
+std::vector<std::string> plugin_search_dirs(const Args& a) {
+  std::vector<std::string> dirs = a.list("plugins");
+  if (const char* env = std::getenv("PROCAM_PLUGIN_PATH"))
+    for (auto& p : split_nonempty(env)) dirs.push_back(p);
+  if (dirs.empty()) dirs = split_nonempty(PROCAM_DEFAULT_PLUGIN_DIRS);
+  return dirs;
 }
 
 }  // namespace procam::cli

@@ -33,10 +33,7 @@ int cmd_decode(const Args& a) {
   if (!rig_cfg) return report(rig_cfg.status().with_context("--rig"));
   auto rig_json = engine::plugin_rig_json_from_config(*rig_cfg, std::max(1u, std::thread::hardware_concurrency()));
   if (!rig_json) return report(rig_json.status());
-  std::vector<std::string> dirs = a.list("plugins");
-  if (const char* env = std::getenv("PROCAM_PLUGIN_PATH"))
-    for (auto& p : split_colon(env)) dirs.push_back(p);
-  if (dirs.empty()) dirs = split_colon(PROCAM_DEFAULT_PLUGIN_DIRS);
+  const std::vector<std::string> dirs = plugin_search_dirs(a);
   host::PluginHost host;
   host.load_directories(dirs);
   auto session = host.create_session(a.get("plugin"), a.get("method"), params->dump(), rig_json->dump());

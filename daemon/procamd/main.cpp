@@ -13,6 +13,7 @@
 
 #include "config.hpp"
 #include "procam/core/log.hpp"
+#include "procam/core/strings.hpp"
 #include "procam/engine/service.hpp"
 #include "procam/host/plugin_host.hpp"
 #include "procam/hw/rig.hpp"
@@ -34,18 +35,6 @@ void usage() {
                "  --plugins DIR   add a plugin folder (also PROCAM_PLUGIN_PATH, colon-separated)\n"
                "  --log SPEC      log levels, e.g. info or daemon=debug,engine=info\n"
                "  --no-probe      load plugins without the crash-isolating probe process\n");
-}
-
-std::vector<std::string> split_colon(const std::string& s) {
-  std::vector<std::string> out;
-  size_t pos = 0;
-  while (pos <= s.size()) {
-    size_t e = s.find(':', pos);
-    if (e == std::string::npos) e = s.size();
-    if (e > pos) out.push_back(s.substr(pos, e - pos));
-    pos = e + 1;
-  }
-  return out;
 }
 
 int fail(const procam::Status& s, int code) {
@@ -104,8 +93,8 @@ int main(int argc, char** argv) {
   if (!log::configure(cfg->log)) return fail(Error(Code::invalid_argument, "bad log spec '" + cfg->log + "'"), 2);
   for (auto& p : extra_plugins) cfg->plugin_paths.push_back(p);
   if (const char* env = std::getenv("PROCAM_PLUGIN_PATH"))
-    for (auto& p : split_colon(env)) cfg->plugin_paths.push_back(p);
-  if (cfg->plugin_paths.empty()) cfg->plugin_paths = split_colon(PROCAM_DEFAULT_PLUGIN_DIRS);
+    for (auto& p : split_nonempty(env)) cfg->plugin_paths.push_back(p);
+  if (cfg->plugin_paths.empty()) cfg->plugin_paths = split_nonempty(PROCAM_DEFAULT_PLUGIN_DIRS);
 
   PROCAM_LOG(daemon, info) << "procamd 0.1.0 starting (config " << config_path << ")";
   hw::RigContext rctx{cfg->rig_dir, cfg->scene_dirs};

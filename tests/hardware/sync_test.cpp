@@ -9,7 +9,7 @@
 #include <cstring>
 #include <fstream>
 
-#include "gv_fake.hpp"
+#include "../../hw/aravis/testing/gv_fake.hpp"
 #include "rig_helpers.hpp"
 #include "procam/core/image.hpp"
 #include "procam/engine/sync.hpp"

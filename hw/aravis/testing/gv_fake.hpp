@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Test helper: one arv-fake-gv-camera-0.8 process on loopback, started and
-// stopped by the test (killed with the test process if it crashes).
+// Test helper (hw/aravis tests and tests/hardware): one arv-fake-gv-camera-0.8
+// process on loopback, started and stopped by the test (killed with the test
+// process if it crashes).
 #pragma once
 
 #include <fcntl.h>
