@@ -34,7 +34,9 @@ for i in $(seq 1 50); do
 done
 "$BIN/procam" status --endpoint "$ENDPOINT"
 echo
-"$BIN/procam" plugins --endpoint "$ENDPOINT" | head -n 3
+# Plugins and their methods (parameters: `procam plugins`, full list in $BUILD/demo-plugins.txt).
+"$BIN/procam" plugins --endpoint "$ENDPOINT" > "$BUILD/demo-plugins.txt"
+grep -v -- '--param' "$BUILD/demo-plugins.txt" | cut -c1-110
 echo
 echo "== scanning scene '$SCENE' with structured-light/gray"
 "$BIN/procam" scan --endpoint "$ENDPOINT" --plugin structured-light --method gray \

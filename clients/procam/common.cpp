@@ -2,6 +2,7 @@
 // Shared CLI helpers: errors, key=value parsing, the scan summary, progress.
 #include <unistd.h>
 
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 
@@ -84,7 +85,12 @@ void print_summary(const nlohmann::json& m, const std::string& out_dir) {
       if (r.contains("model")) std::printf("  model         %s\n", r["model"].get<std::string>().c_str());
       if (r.contains("why")) {  // first sentence; the manifest has the rest
         std::string why = r["why"].get<std::string>();
-        if (auto dot = why.find(". "); dot != std::string::npos) why = why.substr(0, dot + 1);
+        // Sentence end = ". " before a capital letter (not "Eq. 3.5").
+        for (size_t i = 0; i + 2 < why.size(); ++i)
+          if (why[i] == '.' && why[i + 1] == ' ' && std::isupper(static_cast<unsigned char>(why[i + 2]))) {
+            why.resize(i + 1);
+            break;
+          }
         std::printf("  why           %s\n", why.c_str());
       }
     }
