@@ -16,21 +16,13 @@
 
 #include "procam/hw/sim/ground_truth.hpp"
 #include "procam/hw/sim/sim_rig.hpp"
-#include "test_util.hpp"
+#include "shipped_test_util.hpp"
 
 namespace procam::sim {
 namespace {
 
-SimRigConfig default_rig() {
-  auto c = parse_sim_rig_config(test::read_json(test::configs_dir() + "/rigs/sim.json"));
-  EXPECT_TRUE(c.ok()) << c.status().to_string();
-  return c.ok() ? *c : SimRigConfig{};
-}
-Scene shipped_scene(const std::string& name) {
-  auto s = load_scene(name, {test::configs_dir() + "/scenes"});
-  EXPECT_TRUE(s.ok()) << s.status().to_string();
-  return s.ok() ? *s : Scene{};
-}
+using test::default_rig;
+using test::shipped_scene;
 
 struct Prepared {
   SimRigConfig rig = default_rig();
