@@ -182,6 +182,7 @@ int cmd_sim(const Args& a) {
                                  threads, &prep);
   if (!ren.ok()) return report(ren.status());
   Renderer& r = **ren;
+  r.set_camera_lens(cam.lens);
   if (a.get("pattern") == "gray-errors") return gray_errors(a, *scene, r, proj);
   auto pattern = make_pattern(a.get("pattern", "white"), proj.intrinsics.width, proj.intrinsics.height);
   if (!pattern.ok()) return report(pattern.status());

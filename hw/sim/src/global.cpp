@@ -65,10 +65,11 @@ void solve_dense(std::vector<double>& A, std::vector<double>& R, size_t n, int t
   }
 }
 
-// Gaussian of σ sampled at integers, truncated at 3σ + 1, normalised.
+// Gaussian of σ sampled at integers, truncated at 3σ (rounded up; at least
+// 1), normalised.
 std::vector<float> gaussian_kernel(double sigma) {
   if (!(sigma > 1e-3)) return {1.f};
-  const int r = static_cast<int>(std::ceil(3.0 * sigma + 1.0));
+  const int r = std::max(1, static_cast<int>(std::ceil(3.0 * sigma)));
   std::vector<double> w(static_cast<size_t>(2 * r + 1));
   double sum = 0;
   for (int j = -r; j <= r; ++j) {
@@ -80,60 +81,79 @@ std::vector<float> gaussian_kernel(double sigma) {
   return out;
 }
 
-// Separable blur of a cw×ch grid with `kernel` (zero outside).
-void blur_grid(std::vector<float>& g, uint32_t cw, uint32_t ch, const std::vector<float>& kernel) {
-  if (kernel.size() <= 1) return;
+// Separable blur of a w×h grid with `kernel` (zero outside): out = K ∗ in.
+// Both passes run along rows as one saxpy per tap (vectorised), rows split
+// over threads. `tmp` is scratch of w·h floats.
+void blur_separable(const float* in, float* out, float* tmp, uint32_t w, uint32_t h,
+                    const std::vector<float>& kernel, int threads) {
   const auto r = static_cast<int64_t>(kernel.size() / 2);
-  std::vector<float> tmp(g.size(), 0.f);
-  for (uint32_t y = 0; y < ch; ++y)
-    for (int64_t x = 0; x < cw; ++x) {
-      float s = 0;
+  const auto W = static_cast<int64_t>(w), H = static_cast<int64_t>(h);
+  detail::parallel_rows(h, threads, [&](uint32_t b, uint32_t e) {
+    for (uint32_t y = b; y < e; ++y) {
+      const float* src = in + size_t{y} * w;
+      float* dst = tmp + size_t{y} * w;
+      std::fill(dst, dst + w, 0.f);
       for (int64_t j = -r; j <= r; ++j) {
-        const int64_t xx = x + j;
-        if (xx >= 0 && xx < cw) s += kernel[static_cast<size_t>(j + r)] * g[size_t{y} * cw + static_cast<size_t>(xx)];
+        const float k = kernel[static_cast<size_t>(j + r)];
+        const int64_t lo = std::max<int64_t>(0, -j), hi = std::min<int64_t>(W, W - j);
+        for (int64_t x = lo; x < hi; ++x) dst[x] += k * src[x + j];
       }
-      tmp[size_t{y} * cw + static_cast<size_t>(x)] = s;
     }
-  for (int64_t y = 0; y < ch; ++y)
+  });
+  detail::parallel_rows(h, threads, [&](uint32_t b, uint32_t e) {
+    for (uint32_t y = b; y < e; ++y) {
+      float* dst = out + size_t{y} * w;
+      std::fill(dst, dst + w, 0.f);
+      for (int64_t j = -r; j <= r; ++j) {
+        const int64_t yy = static_cast<int64_t>(y) + j;
+        if (yy < 0 || yy >= H) continue;
+        const float k = kernel[static_cast<size_t>(j + r)];
+        const float* src = tmp + static_cast<size_t>(yy) * w;
+        for (uint32_t x = 0; x < w; ++x) dst[x] += k * src[x];
+      }
+    }
+  });
+}
+
+// Level l+1 of a pyramid: sums of 2×2 cells of level l (cells past the edge are 0).
+void sum_2x2(const float* fine, uint32_t fw, uint32_t fh, float* coarse, uint32_t cw, uint32_t ch) {
+  for (uint32_t y = 0; y < ch; ++y)
     for (uint32_t x = 0; x < cw; ++x) {
       float s = 0;
-      for (int64_t j = -r; j <= r; ++j) {
-        const int64_t yy = y + j;
-        if (yy >= 0 && yy < ch) s += kernel[static_cast<size_t>(j + r)] * tmp[static_cast<size_t>(yy) * cw + x];
-      }
-      g[static_cast<size_t>(y) * cw + x] = s;
+      for (uint32_t dy = 0; dy < 2; ++dy)
+        for (uint32_t dx = 0; dx < 2; ++dx) {
+          const uint32_t fx = 2 * x + dx, fy = 2 * y + dy;
+          if (fx < fw && fy < fh) s += fine[size_t{fy} * fw + fx];
+        }
+      coarse[size_t{y} * cw + x] = s;
     }
 }
 
-// Bilinear sample of a coarse grid at fine pixel (x, y) of a model's bbox.
-float sample_coarse(const DiffusionModel& m, const std::vector<float>& g, uint32_t x, uint32_t y) {
-  const double f = m.factor;
-  double cx = (static_cast<double>(x - m.x0) + 0.5) / f - 0.5;
-  double cy = (static_cast<double>(y - m.y0) + 0.5) / f - 0.5;
-  cx = std::clamp(cx, 0.0, static_cast<double>(m.cw - 1));
-  cy = std::clamp(cy, 0.0, static_cast<double>(m.ch - 1));
-  const auto ix = std::min(static_cast<uint32_t>(cx), m.cw > 1 ? m.cw - 2 : 0u);
-  const auto iy = std::min(static_cast<uint32_t>(cy), m.ch > 1 ? m.ch - 2 : 0u);
-  const auto fx = static_cast<float>(cx - ix), fy = static_cast<float>(cy - iy);
-  const uint32_t ix1 = m.cw > 1 ? ix + 1 : ix, iy1 = m.ch > 1 ? iy + 1 : iy;
-  const float a = g[size_t{iy} * m.cw + ix], b = g[size_t{iy} * m.cw + ix1];
-  const float c = g[size_t{iy1} * m.cw + ix], d = g[size_t{iy1} * m.cw + ix1];
-  const float top = a + fx * (b - a), bot = c + fx * (d - c);
-  return top + fy * (bot - top);
-}
-
-// Sum of values (value(i) for the model's object pixels, 0 elsewhere) per
-// coarse cell.
-template <typename F>
-std::vector<float> downsample(const DiffusionModel& m, const PreparedView& v, F value) {
-  std::vector<float> g(size_t{m.cw} * m.ch, 0.f);
-  for (uint32_t y = m.y0; y < m.y1; ++y)
-    for (uint32_t x = m.x0; x < m.x1; ++x) {
-      const size_t i = size_t{y} * v.width + x;
-      if (v.object[i] != m.object) continue;
-      g[size_t{(y - m.y0) / m.factor} * m.cw + (x - m.x0) / m.factor] += value(i);
+// fine += bilinear 2× upsampling of coarse (cell centres: fine i ↔ coarse
+// i/2 − ¼, i.e. weights ¾ / ¼ to the nearer / farther coarse cell; clamped).
+void add_upsampled_2x(const float* coarse, uint32_t cw, uint32_t ch, float* fine, uint32_t fw, uint32_t fh) {
+  auto taps = [](uint32_t i, uint32_t n, uint32_t& a, uint32_t& b) {
+    const uint32_t k = i / 2;
+    a = k;
+    if (i % 2 == 0) b = k > 0 ? k - 1 : k;
+    else b = k + 1 < n ? k + 1 : k;
+  };
+  for (uint32_t y = 0; y < fh; ++y) {
+    uint32_t ya, yb;
+    taps(y, ch, ya, yb);
+    const float* ra = coarse + size_t{std::min(ya, ch - 1)} * cw;
+    const float* rb = coarse + size_t{std::min(yb, ch - 1)} * cw;
+    float* dst = fine + size_t{y} * fw;
+    for (uint32_t x = 0; x < fw; ++x) {
+      uint32_t xa, xb;
+      taps(x, cw, xa, xb);
+      xa = std::min(xa, cw - 1);
+      xb = std::min(xb, cw - 1);
+      const float top = 0.75f * ra[xa] + 0.25f * ra[xb];
+      const float bot = 0.75f * rb[xa] + 0.25f * rb[xb];
+      dst[x] += 0.75f * top + 0.25f * bot;
     }
-  return g;
+  }
 }
 
 }  // namespace
@@ -547,6 +567,137 @@ void GlossyViewComponent::apply(const FrameContext& frame, uint32_t row_begin, u
 
 // ---- Diffusion -----------------------------------------------------------------
 
+double dipole_profile(const Material& m, double r_mm) {
+  // Jensen et al. 2001, Eq. 4–5: σ_t' = 1/ℓ, σ_a = (1 − α')σ_t', σ_tr =
+  // √(3σ_aσ_t'), real source at z_r = 1/σ_t', virtual at z_v = z_r(1 + 4A/3),
+  // A = (1 + F_dr)/(1 − F_dr), F_dr = −1.440/n² + 0.710/n + 0.668 + 0.0636n.
+  const double st = 1.0 / m.mean_free_path_mm;
+  const double sa = (1.0 - m.scattering_albedo) * st;
+  const double str = std::sqrt(3.0 * sa * st);
+  const double n = m.ior;
+  const double fdr = -1.440 / (n * n) + 0.710 / n + 0.668 + 0.0636 * n;
+  const double A = (1 + fdr) / (1 - fdr);
+  const double zr = 1.0 / st, zv = zr * (1 + 4.0 * A / 3.0);
+  const double dr = std::sqrt(r_mm * r_mm + zr * zr), dv = std::sqrt(r_mm * r_mm + zv * zv);
+  return m.scattering_albedo / (4 * M_PI) *
+         (zr * (1 + str * dr) * std::exp(-str * dr) / (dr * dr * dr) +
+          zv * (1 + str * dv) * std::exp(-str * dv) / (dv * dv * dv));
+}
+
+std::vector<std::pair<double, double>> fit_dipole_gaussians(const Material& m, double px_per_mm) {
+  // Target: the fraction of the dipole's energy within radius r (px), on a
+  // log grid; basis: the same for a delta (1) and Gaussians σ = ½·2^j px,
+  // 1 − exp(−r²/2σ²), up to σ ≥ 2ℓ_d. Fit: non-negative least squares by
+  // cyclic coordinate descent (small, convex), then weights normalised to 1.
+  const double ld_px = m.diffusion_length_mm() * px_per_mm;
+  std::vector<double> sig{0.0};
+  for (double sg = 1.0; sg < std::max(1.0, 2.0 * ld_px) && sig.size() < 12; sg *= 2) sig.push_back(sg);
+  if (sig.back() < 2.0 * ld_px) sig.push_back(sig.back() * 2);
+  // Cumulative energy of the dipole by the trapezoid rule on r in mm (log spaced).
+  const double r_max_mm = 12.0 * m.diffusion_length_mm() + 20.0 * m.mean_free_path_mm;
+  const int N = 4000;
+  std::vector<double> rr(N + 1), cum(N + 1, 0.0);
+  const double r_min_mm = 1e-4 * m.mean_free_path_mm;
+  for (int k = 0; k <= N; ++k) rr[static_cast<size_t>(k)] = r_min_mm * std::pow(r_max_mm / r_min_mm, double(k) / N);
+  auto f = [&](double r) { return dipole_profile(m, r) * 2 * M_PI * r; };
+  cum[0] = f(rr[0]) * rr[0] / 2;  // ∫_0^{r_min} ≈ triangle
+  for (size_t k = 1; k <= static_cast<size_t>(N); ++k) cum[k] = cum[k - 1] + 0.5 * (f(rr[k - 1]) + f(rr[k])) * (rr[k] - rr[k - 1]);
+  const double total = cum.back();
+  std::vector<double> rk, target;
+  for (double r_px = 0.25; r_px < r_max_mm * px_per_mm; r_px *= 1.189207) {  // 2^(1/4)
+    const double r_mm = r_px / px_per_mm;
+    const auto it = std::lower_bound(rr.begin(), rr.end(), r_mm);
+    const auto k = static_cast<size_t>(std::clamp<ptrdiff_t>(it - rr.begin(), 1, N));
+    const double t = (r_mm - rr[k - 1]) / (rr[k] - rr[k - 1]);
+    rk.push_back(r_px);
+    target.push_back((cum[k - 1] + std::clamp(t, 0.0, 1.0) * (cum[k] - cum[k - 1])) / total);
+  }
+  const size_t J = sig.size(), K = rk.size();
+  std::vector<double> B(K * J);
+  for (size_t k = 0; k < K; ++k)
+    for (size_t j = 0; j < J; ++j)
+      B[k * J + j] = sig[j] == 0 ? 1.0 : 1.0 - std::exp(-rk[k] * rk[k] / (2 * sig[j] * sig[j]));
+  std::vector<double> w(J, 1.0 / static_cast<double>(J)), res(K);
+  for (size_t k = 0; k < K; ++k) {
+    double s = 0;
+    for (size_t j = 0; j < J; ++j) s += B[k * J + j] * w[j];
+    res[k] = s - target[k];
+  }
+  for (int sweep = 0; sweep < 400; ++sweep)
+    for (size_t j = 0; j < J; ++j) {
+      double num = 0, den = 0;
+      for (size_t k = 0; k < K; ++k) {
+        num += B[k * J + j] * res[k];
+        den += B[k * J + j] * B[k * J + j];
+      }
+      if (!(den > 0)) continue;
+      const double nw = std::max(0.0, w[j] - num / den), dw = nw - w[j];
+      if (dw == 0) continue;
+      for (size_t k = 0; k < K; ++k) res[k] += B[k * J + j] * dw;
+      w[j] = nw;
+    }
+  double sum = 0;
+  for (double x : w) sum += x;
+  std::vector<std::pair<double, double>> out;
+  for (size_t j = 0; j < J; ++j)
+    if (w[j] > 1e-4 * sum) out.emplace_back(sig[j], w[j] / sum);
+  return out;
+}
+
+namespace {
+
+// Builds the pyramid and the terms of a model from its (σ, weight) list.
+void build_pyramid(DiffusionModel& m, const PreparedView& view,
+                   const std::vector<std::pair<double, double>>& terms) {
+  uint32_t top = 0;
+  auto level_of = [](double sigma) {
+    uint32_t l = 0;
+    while (l < 6 && double(2u << l) <= sigma) ++l;  // 2^(l+1) ≤ σ → go up
+    return l;
+  };
+  for (const auto& t : terms) top = std::max(top, level_of(t.first));
+  m.levels.resize(top + 1);
+  for (uint32_t l = 0; l <= top; ++l) {
+    DiffusionLevel& L = m.levels[l];
+    L.factor = 1u << l;
+    if (l == 0) {
+      L.cw = m.x1 - m.x0;
+      L.ch = m.y1 - m.y0;
+      L.mask.assign(size_t{L.cw} * L.ch, 0.f);
+      for (uint32_t y = m.y0; y < m.y1; ++y)
+        for (uint32_t x = m.x0; x < m.x1; ++x)
+          if (view.object[size_t{y} * view.width + x] == m.object) L.mask[size_t{y - m.y0} * L.cw + (x - m.x0)] = 1.f;
+    } else {
+      const DiffusionLevel& F = m.levels[l - 1];
+      L.cw = (F.cw + 1) / 2;
+      L.ch = (F.ch + 1) / 2;
+      L.mask.assign(size_t{L.cw} * L.ch, 0.f);
+      sum_2x2(F.mask.data(), F.cw, F.ch, L.mask.data(), L.cw, L.ch);
+    }
+  }
+  std::vector<float> blurred, tmp;
+  for (const auto& [sigma, weight] : terms) {
+    const uint32_t l = level_of(sigma);
+    DiffusionLevel& L = m.levels[l];
+    DiffusionTerm t;
+    t.weight = weight;
+    t.sigma_px = sigma;
+    const double f = L.factor;
+    double var = sigma * sigma;
+    if (l > 0) var -= (f * f - 1) / 12.0;
+    for (uint32_t k = 1; k <= l; ++k) var -= double(1u << (2 * k)) / 6.0;
+    t.kernel = gaussian_kernel(std::sqrt(std::max(0.0, var)) / f);
+    blurred.assign(L.mask.size(), 0.f);
+    tmp.assign(L.mask.size(), 0.f);
+    blur_separable(L.mask.data(), blurred.data(), tmp.data(), L.cw, L.ch, t.kernel, 1);
+    t.inv_mask.resize(L.mask.size());
+    for (size_t c = 0; c < L.mask.size(); ++c) t.inv_mask[c] = blurred[c] > 1e-6f ? 1.f / blurred[c] : 0.f;
+    L.terms.push_back(std::move(t));
+  }
+}
+
+}  // namespace
+
 std::vector<DiffusionModel> build_diffusion(const Scene& scene, const PreparedView& view,
                                             const Rigid3& world_from_cam) {
   std::vector<DiffusionModel> out;
@@ -586,69 +737,137 @@ std::vector<DiffusionModel> build_diffusion(const Scene& scene, const PreparedVi
       return static_cast<double>(v[v.size() / 2]);
     };
     const double z = median(depths);
-    const double px_per_mm = view.camera.intrinsics.fx / z;
+    m.px_per_mm = view.camera.intrinsics.fx / z;
+    std::vector<std::pair<double, double>> terms;
     if (m.sheet) {
       if (behind.empty()) continue;  // nothing behind: the transmitted light leaves the scene
       m.behind_mm = median(behind);
       m.behind_albedo = median(behind_albedo);
       m.sigma_mm = 0.77 * m.behind_mm;
       m.gain = mat.transmittance * mat.transmittance * m.behind_albedo / M_PI;
+      m.sigma_px = m.sigma_mm * m.px_per_mm;
+      terms.emplace_back(m.sigma_px, 1.0);
     } else {
       m.sigma_mm = mat.diffusion_length_mm();
       m.gain = (mat.albedo - mat.direct_albedo()) / M_PI;
+      m.sigma_px = m.sigma_mm * m.px_per_mm;
+      terms = fit_dipole_gaussians(mat, m.px_per_mm);
     }
-    m.sigma_px = m.sigma_mm * px_per_mm;
-    // Coarse grid: cell f ≈ σ/2 (σ ≥ 2f keeps σ' > 0); the cell box (variance
-    // (f² − 1)/12) and the bilinear upsampling tent (f²/6) are taken out of σ².
-    m.factor = std::clamp(static_cast<uint32_t>(m.sigma_px / 2.0), 1u, 32u);
-    const double f = m.factor;
-    double var = m.sigma_px * m.sigma_px;
-    if (m.factor > 1) var -= (f * f - 1) / 12.0 + f * f / 6.0;
-    const double sigma_c = std::sqrt(std::max(0.0, var)) / f;
-    m.kernel = gaussian_kernel(sigma_c);
-    m.cw = (m.x1 - m.x0 + m.factor - 1) / m.factor;
-    m.ch = (m.y1 - m.y0 + m.factor - 1) / m.factor;
-    m.mask_blurred = downsample(m, view, [](size_t) { return 1.f; });
-    blur_grid(m.mask_blurred, m.cw, m.ch, m.kernel);
+    build_pyramid(m, view, terms);
     out.push_back(std::move(m));
   }
   return out;
 }
 
 void DiffusionComponent::begin_frame(const FrameContext& frame, int threads) {
-  blurred_.resize(models_.size());
   const PreparedView& v = frame.view;
+  d_.resize(models_.size());
+  s_.resize(models_.size());
   for (size_t k = 0; k < models_.size(); ++k) {
     const DiffusionModel& m = models_[k];
-    std::vector<float>& g = blurred_[k];
-    g.assign(size_t{m.cw} * m.ch, 0.f);
-    // Rows of coarse cells in parallel: chunk boundaries on cell rows.
-    detail::parallel_rows(m.ch, threads, [&](uint32_t cb, uint32_t ce) {
-      for (uint32_t y = m.y0 + cb * m.factor; y < std::min(m.y1, m.y0 + ce * m.factor); ++y)
-        for (uint32_t x = m.x0; x < m.x1; ++x) {
-          const size_t i = size_t{y} * v.width + x;
-          if (v.object[i] != m.object) continue;
-          g[size_t{(y - m.y0) / m.factor} * m.cw + (x - m.x0) / m.factor] += frame.irradiance[i];
+    auto& D = d_[k];
+    auto& S = s_[k];
+    const size_t top = m.levels.size();
+    D.resize(top);
+    S.resize(top);
+    const DiffusionLevel& L0 = m.levels[0];
+    const bool level0 = !L0.terms.empty();
+    // Level 0 (only when a term lives there): the object's irradiance over
+    // its bbox. Level 1: 2×2 sums, straight from the irradiance (one pass
+    // over the full-resolution pixels either way). Higher levels: 2×2 sums.
+    if (level0) {
+      D[0].resize(size_t{L0.cw} * L0.ch);
+      detail::parallel_rows(L0.ch, threads, [&](uint32_t b, uint32_t e) {
+        for (uint32_t y = b; y < e; ++y) {
+          const float* mask = L0.mask.data() + size_t{y} * L0.cw;
+          const float* irr = frame.irradiance + size_t{y + m.y0} * v.width + m.x0;
+          float* dst = D[0].data() + size_t{y} * L0.cw;
+          for (uint32_t x = 0; x < L0.cw; ++x) dst[x] = mask[x] * irr[x];
         }
-    });
-    blur_grid(g, m.cw, m.ch, m.kernel);
+      });
+    }
+    if (top > 1) {
+      const DiffusionLevel& L1 = m.levels[1];
+      D[1].resize(size_t{L1.cw} * L1.ch);
+      detail::parallel_rows(L1.ch, threads, [&](uint32_t b, uint32_t e) {
+        for (uint32_t cy = b; cy < e; ++cy) {
+          float* dst = D[1].data() + size_t{cy} * L1.cw;
+          std::fill(dst, dst + L1.cw, 0.f);
+          for (uint32_t dy = 0; dy < 2 && 2 * cy + dy < L0.ch; ++dy) {
+            const uint32_t y = 2 * cy + dy;
+            const float* mask = L0.mask.data() + size_t{y} * L0.cw;
+            const float* irr = frame.irradiance + size_t{y + m.y0} * v.width + m.x0;
+            for (uint32_t x = 0; x < L0.cw; ++x) dst[x / 2] += mask[x] * irr[x];
+          }
+        }
+      });
+    }
+    for (size_t l = 2; l < top; ++l) {
+      const DiffusionLevel& F = m.levels[l - 1];
+      const DiffusionLevel& L = m.levels[l];
+      D[l].resize(size_t{L.cw} * L.ch);
+      sum_2x2(D[l - 1].data(), F.cw, F.ch, D[l].data(), L.cw, L.ch);
+    }
+    // Per level: Σ_t w_t (G_t ∗ D) / (G_t ∗ mask).
+    for (size_t l = level0 ? 0 : 1; l < top; ++l) {
+      const DiffusionLevel& L = m.levels[l];
+      const size_t n = size_t{L.cw} * L.ch;
+      S[l].assign(n, 0.f);
+      for (const DiffusionTerm& t : L.terms) {
+        const float w = static_cast<float>(t.weight);
+        const float* src = D[l].data();
+        if (t.kernel.size() > 1) {
+          blurred_.resize(n);
+          tmp_.resize(n);
+          blur_separable(D[l].data(), blurred_.data(), tmp_.data(), L.cw, L.ch, t.kernel, n > 65536 ? threads : 1);
+          src = blurred_.data();
+        }
+        float* dst = S[l].data();
+        const float* inv = t.inv_mask.data();
+        for (size_t c = 0; c < n; ++c) dst[c] += w * src[c] * inv[c];
+      }
+    }
+    // Down to level 1; apply() adds level 1 (2× upsampled) and level 0.
+    for (size_t l = top - 1; l > 1; --l) {
+      const DiffusionLevel& F = m.levels[l - 1];
+      const DiffusionLevel& L = m.levels[l];
+      add_upsampled_2x(S[l].data(), L.cw, L.ch, S[l - 1].data(), F.cw, F.ch);
+    }
   }
 }
 
 void DiffusionComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
                                float* radiance) const {
   const PreparedView& v = frame.view;
+  std::vector<float> row;
   for (size_t k = 0; k < models_.size(); ++k) {
     const DiffusionModel& m = models_[k];
     const auto gain = static_cast<float>(m.gain);
-    for (uint32_t y = std::max(row_begin, m.y0); y < std::min(row_end, m.y1); ++y)
-      for (uint32_t x = m.x0; x < m.x1; ++x) {
-        const size_t i = size_t{y} * v.width + x;
-        if (v.object[i] != m.object) continue;
-        const float den = sample_coarse(m, m.mask_blurred, x, y);
-        if (!(den > 1e-6f)) continue;
-        radiance[i] += gain * sample_coarse(m, blurred_[k], x, y) / den;
+    const DiffusionLevel& L0 = m.levels[0];
+    const bool level0 = !L0.terms.empty(), level1 = m.levels.size() > 1;
+    for (uint32_t y = std::max(row_begin, m.y0); y < std::min(row_end, m.y1); ++y) {
+      const uint32_t ly = y - m.y0;
+      row.assign(L0.cw, 0.f);
+      if (level0) std::copy_n(s_[k][0].data() + size_t{ly} * L0.cw, L0.cw, row.data());
+      if (level1) {
+        // The level-1 result at this row, bilinear (¾/¼ taps, as add_upsampled_2x).
+        const DiffusionLevel& L1 = m.levels[1];
+        const float* S1 = s_[k][1].data();
+        const uint32_t ya = ly / 2;
+        const uint32_t yb = ly % 2 == 0 ? (ya > 0 ? ya - 1 : ya) : std::min(ya + 1, L1.ch - 1);
+        const float* ra = S1 + size_t{ya} * L1.cw;
+        const float* rb = S1 + size_t{yb} * L1.cw;
+        for (uint32_t x = 0; x < L0.cw; ++x) {
+          const uint32_t xa = x / 2;
+          const uint32_t xb = x % 2 == 0 ? (xa > 0 ? xa - 1 : xa) : std::min(xa + 1, L1.cw - 1);
+          const float top = 0.75f * ra[xa] + 0.25f * ra[xb], bot = 0.75f * rb[xa] + 0.25f * rb[xb];
+          row[x] += 0.75f * top + 0.25f * bot;
+        }
       }
+      const float* mask = L0.mask.data() + size_t{ly} * L0.cw;
+      float* out = radiance + size_t{y} * v.width + m.x0;
+      for (uint32_t x = 0; x < L0.cw; ++x) out[x] += gain * mask[x] * row[x];
+    }
   }
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "parallel.hpp"
 #include "procam/hw/sim/raycast.hpp"
@@ -155,6 +156,22 @@ Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& proj
   return prepare_view(scene, projector, camera, camera.cam_from_proj, threads);
 }
 
+namespace {
+// Blur-stack level k (σ_k ≤ σ < σ_{k+1}, σ clamped to the top level) and the
+// weight of level k + 1 that matches the variance: w = (σ² − σ_k²)/(σ_{k+1}² − σ_k²).
+std::pair<uint8_t, float> blur_level(double sigma) {
+  constexpr size_t L = kBlurLevelSigmaPx.size();
+  size_t k = 0;
+  while (k + 1 < L && static_cast<double>(kBlurLevelSigmaPx[k + 1]) <= sigma) ++k;
+  double w = 0;
+  if (k + 1 < L) {
+    const double s0 = static_cast<double>(kBlurLevelSigmaPx[k]), s1 = static_cast<double>(kBlurLevelSigmaPx[k + 1]);
+    w = (sigma * sigma - s0 * s0) / (s1 * s1 - s0 * s0);
+  }
+  return {static_cast<uint8_t>(k), static_cast<float>(w)};
+}
+}  // namespace
+
 DefocusMap compute_defocus(const PreparedView& view, const ProjectorModel& projector, double focus_mm) {
   DefocusMap d;
   d.focus_mm = focus_mm;
@@ -162,23 +179,16 @@ DefocusMap compute_defocus(const PreparedView& view, const ProjectorModel& proje
   d.sigma_px.assign(n, 0.f);
   d.level.assign(n, 0);
   d.weight.assign(n, 0.f);
-  constexpr size_t L = kBlurLevelSigmaPx.size();
   size_t needed = 1;
   for (size_t i = 0; i < n; ++i) {
     if (!view.lit[i]) continue;
     const double z = static_cast<double>(view.proj_z_mm[i]);
     const double sigma = projector.aperture_mm > 0 ? projector.blur_sigma_px(z, focus_mm) : 0.0;
     d.sigma_px[i] = static_cast<float>(sigma);
-    size_t k = 0;
-    while (k + 1 < L && static_cast<double>(kBlurLevelSigmaPx[k + 1]) <= sigma) ++k;
-    double w = 0;
-    if (k + 1 < L) {
-      const double s0 = static_cast<double>(kBlurLevelSigmaPx[k]), s1 = static_cast<double>(kBlurLevelSigmaPx[k + 1]);
-      w = (sigma * sigma - s0 * s0) / (s1 * s1 - s0 * s0);  // variance-matched blend
-    }
-    d.level[i] = static_cast<uint8_t>(k);
-    d.weight[i] = static_cast<float>(w);
-    needed = std::max(needed, k + (w > 0 ? 2 : 1));
+    const auto [k, w] = blur_level(sigma);
+    d.level[i] = k;
+    d.weight[i] = w;
+    needed = std::max(needed, size_t{k} + (w > 0 ? 2u : 1u));
   }
   d.levels_needed = needed;
   return d;
@@ -186,7 +196,14 @@ DefocusMap compute_defocus(const PreparedView& view, const ProjectorModel& proje
 
 // ---- PreparedPattern -------------------------------------------------------
 
-Result<PreparedPattern> PreparedPattern::from_pattern(const procam_image& pattern, const ProjectorModel& projector) {
+Result<PreparedPattern> PreparedPattern::from_pattern(const procam_image& pattern, const ProjectorModel& projector,
+                                                      int threads) {
+  PreparedPattern p;
+  if (Status st = p.assign(pattern, projector, threads); !st.ok()) return st;
+  return p;
+}
+
+Status PreparedPattern::assign(const procam_image& pattern, const ProjectorModel& projector, int threads) {
   if (const char* bad = validate_view(pattern))
     return Error(Code::invalid_argument, std::string("pattern image is malformed: ") + bad);
   if (pattern.channels != 1)
@@ -197,13 +214,17 @@ Result<PreparedPattern> PreparedPattern::from_pattern(const procam_image& patter
                      " but the projector is " + std::to_string(projector.intrinsics.width) + "x" +
                      std::to_string(projector.intrinsics.height),
                  "render patterns at the projector resolution from the rig description");
-  PreparedPattern p;
+  // Storage of an earlier pattern of the same size is reused (its zero
+  // border stays zero; every interior value is overwritten).
+  PreparedPattern& p = *this;
+  const bool same_size = p.width_ == pattern.width && p.height_ == pattern.height && !p.levels_.empty();
   p.width_ = pattern.width;
   p.height_ = pattern.height;
   const size_t stride = p.stride();
-  p.levels_.resize(1);
+  if (p.levels_.empty()) p.levels_.resize(1);
+  p.built_ = 1;
   std::vector<float>& l0 = p.levels_[0];
-  l0.assign(stride * (size_t{p.height_} + 2), 0.f);
+  if (!same_size) l0.assign(stride * (size_t{p.height_} + 2), 0.f);
   const auto* base = static_cast<const uint8_t*>(pattern.data);
   if (pattern.pixel_type == PROCAM_PIXEL_U8 || pattern.pixel_type == PROCAM_PIXEL_U16) {
     const bool u8 = pattern.pixel_type == PROCAM_PIXEL_U8;
@@ -211,16 +232,18 @@ Result<PreparedPattern> PreparedPattern::from_pattern(const procam_image& patter
     std::vector<float> lut(u8 ? 256u : 65536u);
     for (size_t c = 0; c < lut.size(); ++c)
       lut[c] = static_cast<float>(projector.emitted(static_cast<double>(c) / static_cast<double>(max_code)));
-    for (uint32_t y = 0; y < p.height_; ++y) {
-      float* dst = l0.data() + (size_t{y} + 1) * stride + 1;
-      const uint8_t* row = base + size_t{y} * pattern.stride_bytes;
-      if (u8) {
-        for (uint32_t x = 0; x < p.width_; ++x) dst[x] = lut[row[x]];
-      } else {
-        const auto* r16 = reinterpret_cast<const uint16_t*>(row);
-        for (uint32_t x = 0; x < p.width_; ++x) dst[x] = lut[r16[x]];
+    detail::parallel_rows(p.height_, threads, [&](uint32_t yb, uint32_t ye) {
+      for (uint32_t y = yb; y < ye; ++y) {
+        float* dst = l0.data() + (size_t{y} + 1) * stride + 1;
+        const uint8_t* row = base + size_t{y} * pattern.stride_bytes;
+        if (u8) {
+          for (uint32_t x = 0; x < p.width_; ++x) dst[x] = lut[row[x]];
+        } else {
+          const auto* r16 = reinterpret_cast<const uint16_t*>(row);
+          for (uint32_t x = 0; x < p.width_; ++x) dst[x] = lut[r16[x]];
+        }
       }
-    }
+    });
   } else {
     // F32: emitted curve tabulated at 65536 steps, linearly interpolated
     // (error < 1e-9 for gamma >= 1); exact at 0 and 1.
@@ -241,7 +264,7 @@ Result<PreparedPattern> PreparedPattern::from_pattern(const procam_image& patter
       }
     }
   }
-  return p;
+  return Status::Ok();
 }
 
 Result<PreparedPattern> PreparedPattern::from_emitted(const Image& emitted) {
@@ -252,6 +275,7 @@ Result<PreparedPattern> PreparedPattern::from_emitted(const Image& emitted) {
   p.height_ = emitted.height();
   const size_t stride = p.stride();
   p.levels_.resize(1);
+  p.built_ = 1;
   p.levels_[0].assign(stride * (size_t{p.height_} + 2), 0.f);
   for (uint32_t y = 0; y < p.height_; ++y) {
     const float* src = emitted.row<float>(y);
@@ -266,14 +290,10 @@ Result<PreparedPattern> PreparedPattern::from_emitted(const Image& emitted) {
   return p;
 }
 
-size_t PreparedPattern::levels_built() const {
-  size_t k = 0;
-  while (k < levels_.size() && !levels_[k].empty()) ++k;
-  return k;
-}
+size_t PreparedPattern::levels_built() const { return built_; }
 
 const float* PreparedPattern::level(size_t k) const {
-  if (k >= levels_.size() || levels_[k].empty()) return nullptr;
+  if (k >= built_) return nullptr;
   return levels_[k].data();
 }
 
@@ -283,19 +303,18 @@ void PreparedPattern::build_levels(size_t count, int threads) {
   if (levels_.size() < count) levels_.resize(count);
   const size_t stride = this->stride();
   const size_t rows = size_t{height_} + 2;
-  std::vector<float> tmp;
-  for (size_t k = 1; k < count; ++k) {
-    if (!levels_[k].empty()) continue;
+  tmp_.resize(stride * rows);
+  for (size_t k = built_; k < count; ++k) {
     const std::vector<float> kernel = box_gaussian_kernel(static_cast<double>(kBlurLevelSigmaPx[k]));
     const auto r = static_cast<int64_t>(kernel.size() / 2);
     const std::vector<float>& src = levels_[0];
-    tmp.assign(stride * rows, 0.f);
     // Horizontal pass over the padded image (zero outside): per tap a saxpy
     // along the row, which the compiler vectorises.
     detail::parallel_rows(static_cast<uint32_t>(rows), threads, [&](uint32_t b, uint32_t e) {
       for (uint32_t y = b; y < e; ++y) {
         const float* in = src.data() + size_t{y} * stride;
-        float* out = tmp.data() + size_t{y} * stride;
+        float* out = tmp_.data() + size_t{y} * stride;
+        std::fill(out, out + stride, 0.f);
         for (int64_t j = -r; j <= r; ++j) {
           const float w = kernel[static_cast<size_t>(j + r)];
           const int64_t x_lo = std::max<int64_t>(0, -j);
@@ -304,20 +323,22 @@ void PreparedPattern::build_levels(size_t count, int threads) {
         }
       }
     });
-    std::vector<float> dst(stride * rows, 0.f);
+    std::vector<float>& dst = levels_[k];
+    dst.resize(stride * rows);
     detail::parallel_rows(static_cast<uint32_t>(rows), threads, [&](uint32_t b, uint32_t e) {
       for (uint32_t y = b; y < e; ++y) {
         float* out = dst.data() + size_t{y} * stride;
+        std::fill(out, out + stride, 0.f);
         for (int64_t j = -r; j <= r; ++j) {
           const int64_t yy = static_cast<int64_t>(y) + j;
           if (yy < 0 || yy >= static_cast<int64_t>(rows)) continue;
           const float w = kernel[static_cast<size_t>(j + r)];
-          const float* in = tmp.data() + static_cast<size_t>(yy) * stride;
+          const float* in = tmp_.data() + static_cast<size_t>(yy) * stride;
           for (size_t x = 0; x < stride; ++x) out[x] += w * in[x];
         }
       }
     });
-    levels_[k] = std::move(dst);
+    built_ = k + 1;
   }
 }
 
@@ -355,7 +376,14 @@ void add_sampled(const FrameContext& frame, const std::vector<float>& gain, uint
 
 void DirectComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
                             float* radiance) const {
-  add_sampled(frame, frame.view.direct_gain, row_begin, row_end, radiance);
+  if (frame.irradiance == nullptr || frame.direct_per_irradiance == nullptr) {
+    add_sampled(frame, frame.view.direct_gain, row_begin, row_end, radiance);
+    return;
+  }
+  const size_t b = size_t{row_begin} * frame.view.width, e = size_t{row_end} * frame.view.width;
+  const float* k = frame.direct_per_irradiance;
+  const float* irr = frame.irradiance;
+  for (size_t i = b; i < e; ++i) radiance[i] += k[i] * irr[i];
 }
 
 // ---- Renderer ---------------------------------------------------------------
@@ -364,12 +392,78 @@ Renderer::Renderer(PreparedView view, ProjectorModel projector, int threads)
     : view_(std::move(view)), projector_(std::move(projector)), threads_(threads < 1 ? 1 : threads) {
   defocus_ = compute_defocus(view_, projector_, projector_.focus_mm);
   components_.push_back(std::make_unique<DirectComponent>());
+  direct_per_irradiance_.assign(view_.pixel_count(), 0.f);
+  for (size_t i = 0; i < view_.pixel_count(); ++i)
+    if (view_.irradiance_gain[i] > 0.f) direct_per_irradiance_[i] = view_.direct_gain[i] / view_.irradiance_gain[i];
 }
 
 void Renderer::set_focus_mm(double focus_mm) {
   if (!(focus_mm > 0) || !std::isfinite(focus_mm)) focus_mm = projector_.focus_mm;
   if (focus_mm == defocus_.focus_mm) return;
   defocus_ = compute_defocus(view_, projector_, focus_mm);
+}
+
+void Renderer::set_camera_lens(const CameraLens& lens) {
+  lens_ = lens;
+  cam_levels_ = 1;
+  cam_level_.clear();
+  cam_weight_.clear();
+  if (!(lens.aperture_mm > 0) || !(lens.focus_mm > 0)) return;
+  const size_t n = view_.pixel_count();
+  cam_level_.assign(n, 0);
+  cam_weight_.assign(n, 0.f);
+  for (size_t i = 0; i < n; ++i) {
+    const double sigma = lens.blur_sigma_px(view_.camera.intrinsics.fx, static_cast<double>(view_.depth_mm[i]));
+    const auto [k, w] = blur_level(sigma);
+    cam_level_[i] = k;
+    cam_weight_[i] = w;
+    cam_levels_ = std::max(cam_levels_, size_t{k} + (w > 0 ? 2u : 1u));
+  }
+}
+
+void Renderer::blur_camera(float* radiance) const {
+  const uint32_t W = view_.width, H = view_.height;
+  const size_t n = view_.pixel_count();
+  cam_stack_.resize(cam_levels_);
+  cam_tmp_.resize(n);
+  for (size_t k = 1; k < cam_levels_; ++k) {
+    const std::vector<float> kernel = box_gaussian_kernel(static_cast<double>(kBlurLevelSigmaPx[k]));
+    const auto r = static_cast<int64_t>(kernel.size() / 2);
+    std::vector<float>& dst = cam_stack_[k];
+    dst.resize(n);
+    // Separable, clamped to the border (no darkening at the image edge).
+    detail::parallel_rows(H, threads_, [&](uint32_t b, uint32_t e) {
+      for (uint32_t y = b; y < e; ++y) {
+        const float* in = radiance + size_t{y} * W;
+        float* out = cam_tmp_.data() + size_t{y} * W;
+        for (uint32_t x = 0; x < W; ++x) {
+          float s = 0;
+          for (int64_t j = -r; j <= r; ++j)
+            s += kernel[static_cast<size_t>(j + r)] * in[std::clamp<int64_t>(int64_t{x} + j, 0, int64_t{W} - 1)];
+          out[x] = s;
+        }
+      }
+    });
+    detail::parallel_rows(H, threads_, [&](uint32_t b, uint32_t e) {
+      for (uint32_t y = b; y < e; ++y) {
+        float* out = dst.data() + size_t{y} * W;
+        std::fill(out, out + W, 0.f);
+        for (int64_t j = -r; j <= r; ++j) {
+          const float w = kernel[static_cast<size_t>(j + r)];
+          const float* in = cam_tmp_.data() + static_cast<size_t>(std::clamp<int64_t>(int64_t{y} + j, 0, int64_t{H} - 1)) * W;
+          for (uint32_t x = 0; x < W; ++x) out[x] += w * in[x];
+        }
+      }
+    });
+  }
+  detail::parallel_rows(H, threads_, [&](uint32_t b, uint32_t e) {
+    for (size_t i = size_t{b} * W; i < size_t{e} * W; ++i) {
+      const size_t k = cam_level_[i];
+      const float w = cam_weight_[i];
+      const float a = k == 0 ? radiance[i] : cam_stack_[k][i];
+      radiance[i] = w > 0.f ? a + w * (cam_stack_[k + 1][i] - a) : a;
+    }
+  });
 }
 
 void Renderer::add_component(std::unique_ptr<TransportComponent> component) {
@@ -402,6 +496,7 @@ Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance
       add_sampled(frame, view_.irradiance_gain, b, e, irradiance_.data());
     });
     frame.irradiance = irradiance_.data();
+    frame.direct_per_irradiance = direct_per_irradiance_.data();
   }
   for (const auto& c : components_)
     if (wanted(*c)) c->begin_frame(frame, threads_);
@@ -413,6 +508,7 @@ Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance
     for (const auto& c : components_)
       if (wanted(*c)) c->apply(frame, b, e, radiance);
   });
+  if (cam_levels_ > 1) blur_camera(radiance);
   return Status::Ok();
 }
 

@@ -154,7 +154,7 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
       for (size_t i = 0; i < cams->size() && errors.ok(); ++i) {
         FieldReader r((*cams)[i], "cameras[" + std::to_string(i) + "]", errors);
         r.only({"backend", "id", "intrinsics", "cam_from_proj", "bit_depth", "exposure_us", "gain_db",
-                "sensitivity", "full_well_e", "read_noise_e", "shot_noise", "faults"});
+                "sensitivity", "full_well_e", "read_noise_e", "shot_noise", "lens", "faults"});
         check_backend(r);
         SimCameraConfig cam;
         cam.id = r.string("id", "sim" + std::to_string(i));
@@ -168,6 +168,12 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
         s.full_well_e = r.positive("full_well_e", 10000.0, "electrons");
         s.read_noise_e = r.number("read_noise_e", 10.0, "electrons RMS", 0.0, 1e6);
         s.shot_noise = r.boolean("shot_noise", true);
+        if (const nlohmann::json* lj = r.object("lens", false)) {
+          FieldReader l(*lj, r.field("lens"), r.errors());
+          l.only({"aperture_mm", "focus_mm"});
+          cam.lens.aperture_mm = l.number("aperture_mm", 0.0, "mm", 0.0, 1000.0);
+          cam.lens.focus_mm = l.positive("focus_mm", 800.0, "mm");
+        }
         cam.faults = parse_faults(r, true);
         c.cameras.push_back(std::move(cam));
       }
@@ -182,8 +188,10 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
 // ---- SimProjector -------------------------------------------------------------
 
 Status SimProjector::show(const procam_image& pattern, uint64_t pattern_id) {
-  auto prepared = PreparedPattern::from_pattern(pattern, rig_.config_.projector);
-  if (!prepared.ok()) return prepared.status().with_context("sim projector: show");
+  // Prepared into the spare buffer (storage reused frame to frame), swapped
+  // in unless the display drops it.
+  if (Status st = rig_.spare_pattern_.assign(pattern, rig_.config_.projector, rig_.config_.threads); !st.ok())
+    return st.with_context("sim projector: show");
   const FaultConfig& fc = rig_.config_.projector_faults;
   const uint64_t k = ++rig_.projector_faults_.events;
   if (fault_fires(fc.drop_every, fc.seed, k, rig_.projector_fault_rng_)) {
@@ -194,7 +202,7 @@ Status SimProjector::show(const procam_image& pattern, uint64_t pattern_id) {
     rig_.pattern_dropped_ = true;
     return Status::Ok();
   }
-  rig_.pattern_ = std::move(prepared).value();
+  std::swap(rig_.pattern_, rig_.spare_pattern_);
   rig_.pattern_id_ = pattern_id;
   rig_.pattern_shown_ = true;
   rig_.pattern_dropped_ = false;
@@ -343,6 +351,7 @@ Status SimRig::set_scene(const std::string& name_or_path) {
       auto ren = make_scene_renderer(*scene, config_.projector, calibrations_[i], world_from_proj, GlobalOptions{},
                                      config_.threads);
       if (!ren.ok()) return ren.status().with_context("sim rig: camera " + std::to_string(i));
+      (*ren)->set_camera_lens(config_.cameras[i].lens);
       renderers.push_back(std::move(ren).value());
     }
     renderers_ = std::move(renderers);

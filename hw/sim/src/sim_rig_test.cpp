@@ -324,6 +324,19 @@ TEST(SimRig, ConfigErrorsNameTheField) {
   j = rig_json();
   j["exposure"] = 1;
   EXPECT_NE(parse_sim_rig_config(j).status().message().find("exposure: unknown field"), std::string::npos);
+  // Camera lens (defocus): parsed, range-checked, unknown keys named.
+  j = rig_json();
+  j["cameras"][0]["lens"] = {{"aperture_mm", 8}, {"focus_mm", 600}};
+  auto lens = parse_sim_rig_config(j);
+  ASSERT_TRUE(lens.ok()) << lens.status().message();
+  EXPECT_EQ(lens->cameras[0].lens.aperture_mm, 8.0);
+  EXPECT_EQ(lens->cameras[0].lens.focus_mm, 600.0);
+  EXPECT_EQ(parse_sim_rig_config(rig_json())->cameras[0].lens.aperture_mm, 0.0);  // default: pinhole
+  j["cameras"][0]["lens"]["f_number"] = 2;
+  EXPECT_NE(parse_sim_rig_config(j).status().message().find("cameras[0].lens.f_number: unknown field"),
+            std::string::npos);
+  j["cameras"][0]["lens"] = {{"aperture_mm", -1}};
+  EXPECT_NE(parse_sim_rig_config(j).status().message().find("cameras[0].lens.aperture_mm"), std::string::npos);
   j = rig_json();
   j["scene"] = "missing-scene";
   auto cfg = parse_sim_rig_config(j);

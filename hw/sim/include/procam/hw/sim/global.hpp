@@ -18,6 +18,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "procam/core/calibration.hpp"
@@ -107,27 +108,59 @@ private:
   std::vector<float> e_direct_, e_global_, e_total_, block_mean_;
 };
 
-// Screen-space diffusion of one object's irradiance: a normalised Gaussian
-// blur of the projector irradiance over the object's pixels,
-// radiance += gain · (G_σ ∗ (E·m)) / (G_σ ∗ m), m = the object's pixel mask.
-//  - sub-surface (translucent body): σ = diffusion length ℓ_d in mm converted
-//    to pixels at the object's median depth, gain = (albedo − F0)/π;
-//  - thin sheet: σ = 0.77·d (the Lambertian sheet→background→sheet kernel's
-//    half-width fit, d = distance to the surface behind), gain = τ²·ρ_bg/π.
+// Screen-space diffusion of one object's irradiance E (iu) over the object's
+// pixels m, as a normalised convolution with a radial kernel K:
+//   radiance += gain · (K ∗ (E·m)) / (K ∗ m)      (light stays in the object)
+// K is a weighted sum of Gaussians, K = Σ_t w_t·G_{σ_t} (Σ w_t = 1; σ = 0 is
+// a delta, the light leaving where it entered):
+//  - sub-surface (translucent body): K = the radial profile R_d(r) of the
+//    dipole diffusion model (Jensen et al. 2001, Eq. 4–5; transport mean free
+//    path ℓ, single-scattering albedo α', refractive index n), fitted by
+//    non-negative least squares to a sum of Gaussians of σ = 0, ½, 1, 2, 4 …
+//    camera pixels (d'Eon & Luebke 2007) at the object's median depth; gain =
+//    (albedo − F0)/π — the scene's albedo sets the energy, the dipole the
+//    shape (its sharp peak of width ~ℓ and its tail out to ℓ_d = 1/σ_tr);
+//  - thin sheet: one Gaussian of σ = 0.77·d (the Lambertian sheet→background→
+//    sheet kernel's half-width fit, d = distance to the surface behind), gain =
+//    τ²·ρ_bg/π.
+// Evaluation: a pyramid over the object's bounding box. Level l has cells of
+// 2^l pixels (sums of 2×2 cells of level l−1). A Gaussian term lives on the
+// coarsest level with 2^l ≤ σ and is blurred there with σ_c, chosen so that
+// σ_c²·4^l + box variance (4^l − 1)/12 + the variance of the bilinear
+// 2× upsamplings back to level 0, Σ_{k=1..l} 4^k/6, equals σ² (px²). Per
+// frame: fill level 0, sum up the pyramid, blur each term and divide by its
+// blurred mask, add the levels back down with 2× bilinear upsampling.
+struct DiffusionTerm {
+  double weight = 0;             // w_t, Σ = 1
+  double sigma_px = 0;           // σ_t, camera pixels (0: delta)
+  std::vector<float> kernel;     // separable, on its level's grid (odd length; {1} for none)
+  std::vector<float> inv_mask;   // 1 / (kernel ∗ mask) per cell of its level (0 where the mask is ~0)
+};
+struct DiffusionLevel {
+  uint32_t factor = 1;           // cell size in pixels (2^l)
+  uint32_t cw = 0, ch = 0;       // grid size
+  std::vector<float> mask;       // object pixels per cell
+  std::vector<DiffusionTerm> terms;
+};
 struct DiffusionModel {
   int32_t object = -1;
   bool sheet = false;
-  double sigma_px = 0;   // Gaussian σ in camera pixels
+  double sigma_px = 0;   // characteristic width in camera pixels: ℓ_d (translucent) or the sheet's σ
   double sigma_mm = 0;   // the same on the surface, mm
+  double px_per_mm = 0;  // camera pixels per mm at the object's median depth
   double gain = 0;       // ru per iu
   double behind_mm = 0;  // sheets: distance to the background, mm
   double behind_albedo = 0;
   uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // pixel bbox [x0, x1) × [y0, y1)
-  uint32_t factor = 1;                      // coarse grid cell, pixels
-  uint32_t cw = 0, ch = 0;                  // coarse grid size
-  std::vector<float> kernel;                // coarse-grid Gaussian, odd length
-  std::vector<float> mask_blurred;          // G ∗ m on the coarse grid
+  std::vector<DiffusionLevel> levels;       // levels[0]: one cell per pixel of the bbox
 };
+
+// Dipole diffusion profile (Jensen et al. 2001): R_d(r) in 1/mm² for a
+// translucent material (r in mm), and its Gaussian-sum fit in camera pixels
+// (px_per_mm) as (σ_px, weight) pairs with σ = 0 for the delta; weights ≥ 0,
+// Σ = 1. Exposed for tests and docs.
+double dipole_profile(const Material& m, double r_mm);
+std::vector<std::pair<double, double>> fit_dipole_gaussians(const Material& m, double px_per_mm);
 
 class DiffusionComponent final : public TransportComponent {
 public:
@@ -140,7 +173,9 @@ public:
 
 private:
   std::vector<DiffusionModel> models_;
-  std::vector<std::vector<float>> blurred_;  // per model, G ∗ (E·m) on the coarse grid
+  // Per model, per level: the summed irradiance (d_) and the result (s_).
+  std::vector<std::vector<std::vector<float>>> d_, s_;
+  std::vector<float> blurred_, tmp_;
 };
 
 // Glossy reflection toward the camera (camera side of the glossy transport):

@@ -28,6 +28,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -110,8 +111,13 @@ public:
   PreparedPattern() = default;
   // From a pattern (1 channel; U8 /255, U16 /(2^bit_depth − 1), F32 clamped to
   // [0, 1]) through the projector's black level and gamma. invalid_argument if
-  // the size differs from the projector's or the view is malformed.
-  static Result<PreparedPattern> from_pattern(const procam_image& pattern, const ProjectorModel& projector);
+  // the size differs from the projector's or the view is malformed. Rows are
+  // converted on up to `threads` threads.
+  static Result<PreparedPattern> from_pattern(const procam_image& pattern, const ProjectorModel& projector,
+                                              int threads = 1);
+  // The same into this object, reusing its storage when the size matches
+  // (the per-frame path of the sim projector). On error nothing changes.
+  Status assign(const procam_image& pattern, const ProjectorModel& projector, int threads = 1);
   // From linear emitted light (F32, 1 channel, any finite values: the renderer
   // is linear in it). Used for light-transport work and linearity tests.
   static Result<PreparedPattern> from_emitted(const Image& emitted);
@@ -128,7 +134,9 @@ public:
 
 private:
   uint32_t width_ = 0, height_ = 0;
-  std::vector<std::vector<float>> levels_;  // [0] sharp; empty vectors: not built
+  std::vector<std::vector<float>> levels_;  // [0] sharp; levels_[k] valid for k < built_
+  size_t built_ = 0;
+  std::vector<float> tmp_;                  // build_levels scratch
 };
 
 // Everything a component sees for one frame.
@@ -140,6 +148,10 @@ struct FrameContext {
   // emitted light, for the whole image; nullptr unless a component asked for
   // it (TransportComponent::needs_irradiance()).
   const float* irradiance = nullptr;
+  // direct_gain / irradiance_gain per pixel (direct_albedo/π; 0 where not
+  // lit), set together with `irradiance`: the direct component then reads
+  // the irradiance instead of sampling the pattern a second time.
+  const float* direct_per_irradiance = nullptr;
 };
 
 // One light-transport path from projector to camera. Implementations must be
@@ -172,6 +184,17 @@ public:
              float* radiance) const override;
 };
 
+// Camera lens (thin lens). aperture_mm 0 = pinhole: no camera defocus (the
+// default). Blur circle b = aperture_mm · fx · |1/focus_mm − 1/z| camera
+// pixels at depth z (mm), Gaussian σ = b/4 — the projector's model.
+struct CameraLens {
+  double aperture_mm = 0;
+  double focus_mm = 800;
+  double blur_sigma_px(double fx, double z_mm) const {
+    return 0.25 * aperture_mm * fx * std::abs(1.0 / focus_mm - (std::isfinite(z_mm) && z_mm > 0 ? 1.0 / z_mm : 0.0));
+  }
+};
+
 class Renderer {
 public:
   // Installs the direct component; focus at the projector's default.
@@ -188,6 +211,15 @@ public:
   void set_focus_mm(double focus_mm);
   double focus_mm() const { return defocus_.focus_mm; }
   const DefocusMap& defocus() const { return defocus_; }
+
+  // Camera defocus for the following renders: the radiance (all parts,
+  // ambient included) is blurred per pixel with σ = lens.blur_sigma_px(fx,
+  // depth) — pixels without a surface use z = ∞ — as a blend of a blur stack
+  // (kBlurLevelSigmaPx, clamped at the image border), like the projector's
+  // defocus. A gather approximation: each pixel takes its own σ, so depth
+  // edges do not bleed as a true scatter would. Linear in the pattern.
+  void set_camera_lens(const CameraLens& lens);
+  const CameraLens& camera_lens() const { return lens_; }
 
   void add_component(std::unique_ptr<TransportComponent> component);
   void clear_components() { components_.clear(); }
@@ -212,6 +244,14 @@ private:
   std::vector<std::unique_ptr<TransportComponent>> components_;
   int threads_ = 1;
   mutable std::vector<float> irradiance_;  // per-frame scratch (thread-bound renderer)
+  std::vector<float> direct_per_irradiance_;  // FrameContext::direct_per_irradiance
+  void blur_camera(float* radiance) const;
+  CameraLens lens_;
+  std::vector<uint8_t> cam_level_;   // per pixel: lower stack level
+  std::vector<float> cam_weight_;    // weight of the level above
+  size_t cam_levels_ = 1;            // 1: no camera blur
+  mutable std::vector<std::vector<float>> cam_stack_;
+  mutable std::vector<float> cam_tmp_;
 };
 
 }  // namespace procam::sim

@@ -51,6 +51,7 @@ struct SimCameraConfig {
   std::string id;                  // "sim0", "sim1", ... unless given
   CameraCalibration calibration;   // intrinsics + cam_from_proj (true = reported)
   SensorModel sensor;
+  CameraLens lens;                 // camera defocus; aperture 0 (default) = pinhole
   FaultConfig faults;
 };
 
@@ -165,6 +166,7 @@ private:
   std::vector<std::unique_ptr<SimCamera>> cameras_;
   // Shared projector state.
   PreparedPattern pattern_;
+  PreparedPattern spare_pattern_;  // the next pattern is prepared here (storage reuse)
   uint64_t pattern_id_ = 0;
   bool pattern_shown_ = false;
   bool pattern_dropped_ = false;  // fault injection: the last show() never reached the screen
