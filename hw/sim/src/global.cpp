@@ -438,6 +438,19 @@ void add_glossy_transport(const Scene& scene, const PreparedView& view, const Pr
 void InterreflectionComponent::begin_frame(const FrameContext& frame, int threads) {
   const PreparedView& v = frame.view;
   const size_t n = model_.size();
+  if (!compact_ && n > 0 && n <= 65536 && model_.gather_patch.size() == 4 * v.pixel_count()) {
+    const size_t m = model_.gather_patch.size();
+    gather_p16_.assign(m, 0);
+    gather_w_.assign(m, 0.f);
+    for (size_t k = 0; k < m; ++k) {
+      const size_t i = k / 4;
+      const int32_t q = model_.gather_patch[k];
+      if (q < 0 || v.object[i] < 0) continue;
+      gather_p16_[k] = static_cast<uint16_t>(q);
+      gather_w_[k] = static_cast<float>(static_cast<double>(model_.gather_weight[k]) * static_cast<double>(v.albedo[i]) / M_PI);
+    }
+    compact_ = true;
+  }
   sum_.assign(n, 0.0);
   std::mutex merge;
   detail::parallel_rows(v.height, threads, [&](uint32_t rb, uint32_t re) {
@@ -483,16 +496,26 @@ void InterreflectionComponent::begin_frame(const FrameContext& frame, int thread
 void InterreflectionComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
                                      float* radiance) const {
   const PreparedView& v = frame.view;
+  const size_t b = size_t{row_begin} * v.width, e = size_t{row_end} * v.width;
+  const float* eg = e_global_.data();
+  if (compact_) {
+    const uint16_t* p = gather_p16_.data();
+    const float* w = gather_w_.data();
+    for (size_t i = b; i < e; ++i)
+      radiance[i] += w[4 * i] * eg[p[4 * i]] + w[4 * i + 1] * eg[p[4 * i + 1]] + w[4 * i + 2] * eg[p[4 * i + 2]] +
+                     w[4 * i + 3] * eg[p[4 * i + 3]];
+    return;
+  }
   const auto inv_pi = static_cast<float>(1.0 / M_PI);
-  for (size_t i = size_t{row_begin} * v.width; i < size_t{row_end} * v.width; ++i) {
+  for (size_t i = b; i < e; ++i) {
     if (v.object[i] < 0) continue;
-    float e = 0;
+    float sum = 0;
     for (size_t s = 0; s < 4; ++s) {
-      const int32_t p = model_.gather_patch[4 * i + s];
-      if (p < 0) break;
-      e += model_.gather_weight[4 * i + s] * e_global_[static_cast<size_t>(p)];
+      const int32_t q = model_.gather_patch[4 * i + s];
+      if (q < 0) break;
+      sum += model_.gather_weight[4 * i + s] * eg[static_cast<size_t>(q)];
     }
-    radiance[i] += v.albedo[i] * inv_pi * e;
+    radiance[i] += v.albedo[i] * inv_pi * sum;
   }
 }
 

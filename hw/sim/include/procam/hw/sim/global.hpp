@@ -106,6 +106,13 @@ private:
   RadiosityModel model_;
   std::vector<double> sum_;
   std::vector<float> e_direct_, e_global_, e_total_, block_mean_;
+  // The gather in the form apply() streams (built on the first frame, when
+  // the view's albedo is at hand): 4 patch indices (uint16; empty pixels and
+  // unused slots point at patch 0 with weight 0) and weights premultiplied
+  // by albedo/π, so a pixel costs 24 bytes and no branches.
+  std::vector<uint16_t> gather_p16_;
+  std::vector<float> gather_w_;
+  bool compact_ = false;
 };
 
 // Screen-space diffusion of one object's irradiance E (iu) over the object's
