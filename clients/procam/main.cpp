@@ -29,14 +29,17 @@ const std::vector<Command> kCommands = {
      "rig                             describe the active rig (hardware, calibration, state)"},
     {"status", cmd_status, {"endpoint", "timeout", "scan"},
      "status [--scan ID]              daemon status, or one scan's state and progress"},
-    {"scan", cmd_scan, {"endpoint", "timeout", "plugin", "method", "param", "rig-option", "label", "out"},
-     "scan --plugin P --method M [--param k=v]... [--rig-option k=v]... [--label L] --out DIR\n"
-     "                                run a scan, show progress, download results, print a summary"},
+    {"scan", cmd_scan, {"endpoint", "timeout", "plugin", "method", "param", "rig-option", "label", "save-frames", "out"},
+     "scan --plugin P --method M [--param k=v]... [--rig-option k=v]... [--label L] [--save-frames 1] --out DIR\n"
+     "                                run a scan, show progress, download results, print a summary;\n"
+     "                                --save-frames 1 also keeps the raw frames (frame-r<round>-<i>.png)\n"
+     "                                for `procam decode --frames DIR`"},
     {"result", cmd_result, {"endpoint", "timeout", "scan", "out"},
      "result --scan ID --out DIR      download a finished scan's results"},
     {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins"},
      "decode --plugin P --method M --frames DIR --out DIR [--param k=v]... [--rig RIG.json] [--plugins DIR]...\n"
-     "                                offline: decode image files sorted by name in plan order (no daemon)"},
+     "                                offline: decode a scan's saved frames (frame-r<round>-<i>.png), or\n"
+     "                                image files sorted by name in plan order (later rounds in roundN/)"},
     {"bench", cmd_bench, {"rig", "scenes", "scene", "method", "param", "out", "keep", "plugins", "threads", "only-listed"},
      "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
      "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs)\n"

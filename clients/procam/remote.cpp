@@ -101,6 +101,7 @@ int cmd_scan(const Args& a) {
   s.params = *params;
   s.rig_options = *ropts;
   s.label = a.has("label") ? a.get("label") : "";
+  s.save_frames = a.has("save-frames") && a.get("save-frames") != "0";
   std::fprintf(stderr, "scanning with %s/%s on %s\n", s.plugin.c_str(), s.method.c_str(), c.endpoint().c_str());
   auto fin = c.scan(s, progress_line);
   if (!fin) return report(fin.status());

@@ -346,7 +346,7 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
       },
       [&](const proto::DescribeRig&) { ok({{"rig", service_.rig_description()}}); },
       [&](const proto::Scan& s) {
-        engine::ScanRequest sr{s.plugin, s.method, s.label, s.params, s.rig_options};
+        engine::ScanRequest sr{s.plugin, s.method, s.label, s.params, s.rig_options, s.save_frames};
         auto r = service_.submit(sr, req->id);
         if (!r) return err(r.status());
         if (s.events) {

@@ -240,7 +240,7 @@ Result<RequestBody> decode_hello(const Fields& f) {
 }
 
 Result<RequestBody> decode_scan(const Fields& f) {
-  PROCAM_TRY(f.only({"plugin", "method", "params", "rig_options", "events", "label"}));
+  PROCAM_TRY(f.only({"plugin", "method", "params", "rig_options", "events", "label", "save_frames"}));
   Scan s;
   auto plugin = f.name("plugin");
   PROCAM_TRY(plugin);
@@ -260,6 +260,9 @@ Result<RequestBody> decode_scan(const Fields& f) {
   auto label = f.string("label", false, kMaxLabelBytes, true);
   PROCAM_TRY(label);
   s.label = label->value_or("");
+  auto save_frames = f.boolean("save_frames");
+  PROCAM_TRY(save_frames);
+  s.save_frames = save_frames->value_or(false);
   return RequestBody{std::move(s)};
 }
 
@@ -401,6 +404,7 @@ json request_fields(const RequestBody& body) {
       if (!s.rig_options.is_null() && !s.rig_options.empty()) j["rig_options"] = s.rig_options;
       if (s.events) j["events"] = true;
       if (!s.label.empty()) j["label"] = s.label;
+      if (s.save_frames) j["save_frames"] = true;
       return j;
     }
     json operator()(const StatusQuery& s) const {

@@ -4,11 +4,14 @@
 // simulated rig's ground truth.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
 #include "daemon_process.hpp"
 #include "procam/core/image_io.hpp"
+#include "procam/engine/rig_json.hpp"
 
 namespace procam::testing {
 namespace {
@@ -118,6 +121,60 @@ TEST_F(DaemonTest, GrayScanOfTiltedBoxMatchesGroundTruthAndResultsDownload) {
   for (size_t i = 0; i < depth->pixel_count(); ++i)
     mismatched += std::isfinite(depth->ptr<float>()[i]) != (valid->ptr<uint8_t>()[i] != 0);
   EXPECT_LT(mismatched, depth->pixel_count() / 1000);  // triangulation may drop a few grazing pixels
+}
+
+// save_frames: the raw frames of every round stay in the scan folder, are
+// listed and fetchable, and `procam decode` on the downloaded folder gives the
+// live scan's correspondences exactly — including the later (correction)
+// rounds of a multi-round method, whose patterns depend on round 1's result.
+TEST_F(DaemonTest, SavedFramesOfAMultiRoundScanDecodeOfflineToTheSameResult) {
+  proto::Scan s;
+  s.plugin = "structured-light";
+  s.method = "ensemble";
+  s.rig_options = {{"scene", "metal-lamp"}};  // glossy errors: the ensemble adds correction rounds
+  s.save_frames = true;
+  auto fin = client_.scan(s, nullptr);
+  ASSERT_TRUE(fin.ok()) << fin.status().to_string();
+  ASSERT_EQ((*fin)["state"], "done") << fin->dump(2);
+  auto r = client_.call(proto::ResultQuery{(*fin)["scan_id"]});
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const auto& m = (*r)["manifest"];
+  const auto rounds = m["plan"]["rounds"].size();
+  ASSERT_GE(rounds, 2u) << "the test needs a multi-round scan: " << m["plan"].dump();
+  const size_t patterns = m["plan"]["patterns"].get<size_t>();
+  EXPECT_EQ(m["saved_frames"], patterns);
+  size_t listed = 0, later_rounds = 0;
+  for (const auto& f : m["files"]) {
+    const std::string name = f["name"];
+    listed += name.rfind("frame-r", 0) == 0;
+    later_rounds += name.rfind("frame-r2-", 0) == 0;
+  }
+  EXPECT_EQ(listed, patterns);
+  EXPECT_GT(later_rounds, 0u);
+
+  TempDir scan_dir, redecoded;
+  auto got = client_.fetch_all(m["scan_id"], scan_dir.path.string());
+  ASSERT_TRUE(got.ok()) << got.status().to_string();
+  std::string text;
+  ASSERT_EQ(run_command({bin("procam"), "decode", "--plugin", "structured-light", "--method", "ensemble", "--frames",
+                         scan_dir.path.string(), "--out", redecoded.path.string(), "--rig",
+                         source("configs/rigs/sim.json"), "--plugins", PROCAM_PLUGIN_DIR},
+                        &text),
+            0)
+      << text;
+  auto live = read_image((scan_dir.path / "proj_col_px.exr").string());
+  auto offline = read_image((redecoded.path / "proj_col_px.exr").string());
+  ASSERT_TRUE(live.ok() && offline.ok());
+  ASSERT_EQ(live->pixel_count(), offline->pixel_count());
+  size_t differ = 0;
+  for (size_t i = 0; i < live->pixel_count(); ++i) {
+    const float a = live->ptr<float>()[i], b = offline->ptr<float>()[i];
+    differ += !((std::isnan(a) && std::isnan(b)) || a == b);
+  }
+  EXPECT_EQ(differ, 0u);
+  auto om = engine::read_json_file((redecoded.path / "manifest.json").string());
+  ASSERT_TRUE(om.ok());
+  EXPECT_EQ((*om)["plan"]["rounds"].size(), rounds);
 }
 
 TEST_F(DaemonTest, BadScanRequestsGetClearErrorsAndDaemonKeepsServing) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "procam/core/image_io.hpp"
@@ -50,6 +51,12 @@ Result<hw::Frame> capture_one(hw::Rig& rig, SyncEngine& sync, const host::Planne
 
 }  // namespace
 
+std::string recorded_frame_name(int round, size_t index) {
+  char b[48];
+  std::snprintf(b, sizeof b, "frame-r%d-%03zu.png", round, index);
+  return b;
+}
+
 Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const CaptureOptions& opts,
                              const ProgressFn& progress, const std::atomic<bool>& cancel) {
   ScanOutcome out;
@@ -78,6 +85,11 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
       out.frames_retried = sync.report().retried;
       out.sync = sync.report().to_json();
       if (!frame) return frame.status().with_context(frame_context(round, i, f.label));
+      if (!opts.record_dir.empty()) {
+        const std::string path = (fs::path(opts.record_dir) / recorded_frame_name(round, i)).string();
+        if (Status w = write_image(path, frame->image); !w)
+          return w.with_context("recording " + frame_context(round, i, f.label));
+      }
       auto ta = Clock::now();
       Status s = session.add_frame(static_cast<uint32_t>(i), frame->image.view());
       add_ms += ms_since(ta);
@@ -117,13 +129,25 @@ Result<ScanOutcome> run_offline(host::Session& session, const std::string& frame
   ScanOutcome out;
   if (!fs::is_directory(frames_dir))
     return Error(Code::not_found, "frames folder '" + frames_dir + "' does not exist");
+  std::error_code ec;
+  const bool recorded = fs::is_regular_file(fs::path(frames_dir) / recorded_frame_name(1, 0), ec);
   for (int round = 1;; ++round) {
     auto plan = session.next_plan();
     if (!plan) return plan.status().with_context("planning round " + std::to_string(round));
     if (!plan->has_value()) break;
     const host::Plan& p = **plan;
-    const std::string dir = round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
-    auto files = list_image_files(dir);
+    std::string dir = round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
+    std::vector<std::string> files;
+    if (recorded) {
+      dir = frames_dir;
+      for (size_t i = 0;; ++i) {
+        const fs::path f = fs::path(frames_dir) / recorded_frame_name(round, i);
+        if (!fs::is_regular_file(f, ec)) break;
+        files.push_back(f.string());
+      }
+    } else {
+      files = list_image_files(dir);
+    }
     if (files.size() != p.frames.size()) {
       std::string labels;
       for (size_t i = 0; i < p.frames.size(); ++i)
@@ -131,7 +155,9 @@ Result<ScanOutcome> run_offline(host::Session& session, const std::string& frame
       return Error(Code::invalid_argument,
                    "round " + std::to_string(round) + " needs " + std::to_string(p.frames.size()) +
                        " frames in '" + dir + "' but found " + std::to_string(files.size()) + " image files",
-                   "name the files so that sorting by name gives the plan order: " + labels);
+                   recorded ? "recorded frames are named " + recorded_frame_name(round, 0) + ", ...: the scan that "
+                                                                               "recorded them used another method or parameters"
+                            : "name the files so that sorting by name gives the plan order: " + labels);
     }
     out.rounds.push_back({p.note, p.frames.size()});
     out.patterns += p.frames.size();

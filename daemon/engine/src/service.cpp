@@ -242,7 +242,7 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
   using Clock = std::chrono::steady_clock;
   const std::string content =
       nlohmann::json{{"plugin", req.plugin}, {"method", req.method}, {"params", req.params},
-                     {"rig_options", req.rig_options}, {"label", req.label}}
+                     {"rig_options", req.rig_options}, {"label", req.label}, {"save_frames", req.save_frames}}
           .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   {
     std::lock_guard lock(mu_);
@@ -411,7 +411,9 @@ void ScanService::run_one(Record& rec) {
     emit(rec, "progress", {{"stage", p.stage}, {"round", p.round}, {"done", p.done}, {"total", p.total},
                            {"message", p.message}});
   };
-  auto outcome = run_scan(*rig_, session, cfg_.capture, progress, cancel_running_);
+  CaptureOptions capture = cfg_.capture;
+  if (rec.req.save_frames) capture.record_dir = dir;  // frame-r<round>-<index>.png beside the outputs
+  auto outcome = run_scan(*rig_, session, capture, progress, cancel_running_);
   auto cancelled = [&]() -> std::optional<Status> {
     if (!cancel_running_.load()) return std::nullopt;
     std::lock_guard lock(mu_);
@@ -439,6 +441,7 @@ void ScanService::run_one(Record& rec) {
   nlohmann::json rounds = nlohmann::json::array();
   for (const auto& r : outcome->rounds) rounds.push_back({{"note", r.note}, {"frames", r.frames}});
   manifest["plan"] = {{"rounds", rounds}, {"patterns", outcome->patterns}};
+  if (rec.req.save_frames) manifest["saved_frames"] = outcome->patterns;
 
   set_state("writing");
   auto outs = session.outputs();

@@ -59,6 +59,7 @@ struct Scan {
   nlohmann::json rig_options = nlohmann::json::object();  // always an object
   bool events = false;
   std::string label;  // "" when not sent
+  bool save_frames = false;  // keep the raw frames in the scan folder (frame-r<round>-<index>.png)
   bool operator==(const Scan&) const = default;
 };
 struct StatusQuery {

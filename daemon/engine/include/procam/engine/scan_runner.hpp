@@ -32,7 +32,15 @@ struct CaptureOptions {
   std::chrono::milliseconds frame_timeout{2000};
   int retries = 2;     // re-captures of one frame after a dropped/late/corrupt/mismatched frame
                        // (the rig config's sync.retries overrides it)
+  // When set, every frame given to the decoder is also written there as
+  // "frame-r<round>-<index>.png" (lossless, the camera's bit depth), a
+  // layout run_offline() reads back: the raw data of a scan, to decode again
+  // later with other methods or parameters.
+  std::string record_dir;
 };
+
+// The recorded-frame file name (CaptureOptions::record_dir), e.g. frame-r1-007.png.
+std::string recorded_frame_name(int round, size_t index);
 
 struct RoundSummary {
   std::string note;
@@ -53,10 +61,13 @@ struct ScanOutcome {
 Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const CaptureOptions& opts,
                              const ProgressFn& progress, const std::atomic<bool>& cancel);
 
-// Offline: feeds image files instead of a rig. `frames_dir` holds the round-1
-// frames in the plan's order (sorted by file name); a multi-round method reads
-// later rounds from sub-folders "round2", "round3", ... Errors list the files
-// expected (by plan label) versus found.
+// Offline: feeds image files instead of a rig. Two layouts of `frames_dir`:
+//  - recorded (CaptureOptions::record_dir): files frame-r<round>-<index>.png,
+//    all rounds in one folder (other files, e.g. a scan's previews, ignored);
+//  - plain: the round-1 frames in the plan's order (every image file, sorted
+//    by file name); a multi-round method reads later rounds from sub-folders
+//    "round2", "round3", ...
+// Errors list the files expected (by plan label) versus found.
 Result<ScanOutcome> run_offline(host::Session& session, const std::string& frames_dir,
                                 const ProgressFn& progress);
 

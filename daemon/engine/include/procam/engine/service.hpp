@@ -63,6 +63,7 @@ struct ScanRequest {
   std::string plugin, method, label;
   nlohmann::json params = nlohmann::json::object();
   nlohmann::json rig_options = nlohmann::json::object();
+  bool save_frames = false;  // record the raw frames into the scan folder (CaptureOptions::record_dir)
 };
 
 // (scan_id, event name, fields) — fields exclude scan_id/seq, which the server adds.
