@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Per-frame binarization of bit planes (thesis §3.2, Eq. 3.1–3.5), streamed:
-// each plane is folded into a per-pixel accumulator as soon as its image and
-// its reference (the inverse image, or white + black) are available.
+// each plane is folded into per-pixel state as soon as its image and its
+// reference (the inverse image, or white + black) are available
+// (bitplane_stream.hpp drives it).
 //
 // Binarization rule (Eq. 3.5): a pixel is "lit" in plane P when L > L̄, where
 // L is the image under P and L̄ the image under the inverse pattern P̄. With
@@ -16,56 +17,83 @@
 // W + B - L: the light of P and P̄ adds up to the light of the white pattern
 // (W - B) on top of the black frame B, i.e. L + L̄ = (W - B) + 2B. The
 // footnote's form is the special case B = 0.
+//
+// Per-pixel state of one code: `word` (bit `position` set where L > L̄; ties
+// give bit 0), the min over folded planes of the margin |L - L̄| (in input
+// units) and, for float input, flags. Two kernel families, same results:
+//  - 8-bit (U8, bit_depth 8): integer math on the raw bytes, never converted
+//    to float. Synthetic: L - L̄ = 2L - (W + B) exactly. The margin is kept as
+//    uint8, saturated at 255 (full scale): every use of it is unchanged by
+//    that (contrast C = W - B <= 255, so min(margin / C, 1) = 1 and
+//    margin > t * C for t <= 1 either way; the one case t = 1, C = 255 has
+//    |2L - S| <= 255, no saturation). No flags: for integer samples <= full
+//    scale, "L and L̄ both clipped" means L = L̄ = 255 (margin 0: rejected,
+//    also on a tolerated weak plane, decode.hpp), and with the synthetic
+//    inverse it needs W + B >= 510, i.e. C = 0 (rejected by rule 1).
+//    The word is kept as a low and a high byte array (planes at bit
+//    positions 0-7 / 8-15). AVX-512 and AVX2 kernels (chosen at run time,
+//    __builtin_cpu_supports) and portable scalar kernels give bit-identical
+//    state (kernels_test.cpp).
+//  - float (U16, F32, U8 with bit_depth < 8): rows converted to float, margin
+//    float, flags saturated / non-finite.
+// `first`: the plane is the first folded into this margin array — the margin
+// is stored instead of min-ed; `first_word`: the first plane of the word —
+// the word is stored instead of OR-ed (the arrays need no initialisation).
 // Thread-safety: functions are reentrant; callers partition pixels by band.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
-#include <limits>
-#include <vector>
 
 namespace procam::sl {
 
-// Flags a pixel can collect while planes are folded in.
+// Flags a pixel can collect while planes are folded in (float kernels).
 enum PixelFlag : uint8_t {
   kFlagSaturated = 1,  // some plane had both L and L̄ at or above saturation
   kFlagNonFinite = 2,  // some plane had a NaN/inf value (F32 input)
 };
 
-// Per-pixel state of one code (one axis) across its planes.
-struct BitAccumulator {
-  uint32_t bits = 0;
-  std::vector<uint16_t> word;        // bit `position` set where L > L̄ (codes have <= 16 bits)
-  std::vector<float> min_margin;     // min over folded planes of |L - L̄| (input units)
-  std::vector<uint8_t> flags;        // PixelFlag bits
-  std::vector<uint8_t> plane_done;   // per plane: folded in
-
-  void reset(size_t pixels, uint32_t plane_count) {
-    bits = plane_count;
-    word.assign(pixels, 0);
-    min_margin.assign(pixels, std::numeric_limits<float>::infinity());
-    flags.assign(pixels, 0);
-    plane_done.assign(plane_count, 0);
-  }
-};
-
-// Folds one plane into pixels [0, n) of the accumulator arrays (pass pointers
-// offset to a band): word |= (L > L̄) << position; min_margin = min(min_margin,
-// |L - L̄|); flags |= saturated / non-finite. `saturation` is the value at
-// which a sample counts as clipped (full scale). Ties (L == L̄) give bit 0
-// with margin 0, which decode() rejects.
+// Float kernel: word |= (L > L̄) << position; min_margin = min(min_margin,
+// |L - L̄|) (a NaN margin never lowers it; initialise min_margin to +inf);
+// flags |= saturated / non-finite. `saturation` = full scale.
 void fold_plane(const float* L, const float* L_bar, size_t n, uint32_t position, float saturation,
                 uint16_t* word, float* min_margin, uint8_t* flags);
 
-// Fast path of fold_plane for 8-bit frames with the synthetic inverse:
-// L̄ = S - L with S = W + B (per pixel, integer), so L - L̄ = 2L - S exactly —
-// the same word, margin and flags as fold_plane on the float values, without
-// converting the frame. `saturation` is the integer full scale.
-void fold_plane_u8_synthetic(const uint8_t* L, const uint16_t* sum, size_t n, uint32_t position,
-                             int32_t saturation, uint16_t* word, float* min_margin,
-                             uint8_t* flags);
+// 8-bit kernels: word byte |= (L > L̄) << position (0..7; a code's word is
+// kept as a low and a high byte array, so a fold moves 1 byte per pixel of
+// word state, not 2) and the margin (saturated at 255, see above) folded
+// into min_margin, for n pixels. Synthetic:
+// L̄ = W + B - L (B == nullptr: B = 0). Inverse: L̄ given.
+void fold_u8_synthetic(const uint8_t* L, const uint8_t* W, const uint8_t* B, size_t n,
+                       uint32_t position, bool first, bool first_word, uint8_t* word,
+                       uint8_t* min_margin);
+void fold_u8_inverse(const uint8_t* L, const uint8_t* L_bar, size_t n, uint32_t position,
+                     bool first, bool first_word, uint8_t* word, uint8_t* min_margin);
 
-// L̄ = W + B - L for n pixels (synthetic inverse, see above).
+// The portable scalar versions of the 8-bit kernels (what the dispatching
+// functions above run without AVX2 / AVX-512); exposed for the equivalence test.
+void fold_u8_synthetic_scalar(const uint8_t* L, const uint8_t* W, const uint8_t* B, size_t n,
+                              uint32_t position, bool first, bool first_word, uint8_t* word,
+                              uint8_t* min_margin);
+void fold_u8_inverse_scalar(const uint8_t* L, const uint8_t* L_bar, size_t n, uint32_t position,
+                            bool first, bool first_word, uint8_t* word, uint8_t* min_margin);
+// True when the AVX2 kernels (binarize, decode, vote) run: the CPU has AVX2
+// and they are not disabled. avx512_active(): the AVX-512 (F + BW + VL)
+// kernels run instead — the CPU has them and neither hook disabled them;
+// same results as AVX2 and scalar. set_simd_enabled(false) is a test hook
+// that forces the portable scalar kernels, set_avx512_enabled(false) one that
+// forces AVX2 (where present); not to be called while decoding.
+bool simd_active();
+bool avx512_active();
+void set_simd_enabled(bool enabled);
+void set_avx512_enabled(bool enabled);
+
+// out[i] = clamp(src[i] * inv_scale, 0, 1) for n 8-bit pixels (the intensity
+// map of the white frame, inv_scale = 1 / full scale); AVX-512 where active,
+// identical results.
+void intensity_u8(const uint8_t* src, size_t n, float inv_scale, float* out);
+
+// L̄ = W + B - L for n pixels (synthetic inverse, see above; B may be null = 0).
 void synthesize_inverse(const float* L, const float* white, const float* black, size_t n,
                         float* L_bar);
 

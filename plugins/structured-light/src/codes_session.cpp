@@ -14,6 +14,7 @@
 
 #include "codes.hpp"
 #include "multi_round.hpp"
+#include "streaming_session.hpp"
 #include "subpixel.hpp"
 #include "triangulate.hpp"
 #include "vote.hpp"
@@ -23,6 +24,12 @@ namespace procam::sl {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Correction rounds (§3.4): a new value is taken only if the projector
+// pixels within this distance (px) of the one it names are all still on, and
+// the masked white frame still gives the pixel this fraction of its round-1
+// white light (see end_round()).
+constexpr int64_t kCorrectionEdgeMarginPx = 2;
+constexpr float kCorrectionMinLight = 0.5f;
 
 struct Config {
   std::string method;
@@ -36,6 +43,7 @@ struct Config {
   uint32_t mask_dilate_px = 2;
   bool code_maps = false;
   double auto_tolerance = 0.001;
+  uint32_t max_weak_error_px = 1;
 };
 
 const char* model_of(const std::string& m) {
@@ -67,7 +75,7 @@ const char* why_of(const std::string& m) {
          "removing their global light.";
 }
 
-class CodesSession final : public sdk::Session {
+class CodesSession final : public StreamingSession<MultiCodeDecoder> {
  public:
   CodesSession(Config cfg, sdk::Rig rig) : cfg_(std::move(cfg)), rig_(std::move(rig)) {
     rig_.threads = std::clamp(rig_.threads, 1u, 64u);
@@ -129,7 +137,10 @@ class CodesSession final : public sdk::Session {
     }
     plan.set_note(note);
     const sdk::RigCamera& cam = rig_.cameras.at(0);
-    decoder_.emplace(std::move(layout), codes, cam.width, cam.height, rig_.threads);
+    decoder_.emplace(std::move(layout), codes, cam.width, cam.height, rig_.threads,
+                     cfg_.max_weak_error_px,
+                     codes_.size() > 1 ? MultiCodeDecoder::Output::vote
+                                       : MultiCodeDecoder::Output::per_code);
     patterns_ += plan.size();
     ++round_;
     correction_round_ = correction;
@@ -137,84 +148,94 @@ class CodesSession final : public sdk::Session {
     return sdk::ok();
   }
 
-  sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
-    const auto t0 = std::chrono::steady_clock::now();
-    sdk::Error e = decoder_->add_frame(index, frame);
-    decode_ms_ += ms_since(t0);
-    return e;
-  }
-
   sdk::Error end_round() override {
-    const auto t0 = std::chrono::steady_clock::now();
-    MultiResult r = std::move(decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin));
-    decoder_.reset();
+    const ScopedMs timed(decode_ms_);
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const size_t n = size_t{cam.width} * cam.height;
-    full_scale_ = r.full_scale;
     RoundStats stats;
     stats.round = round_;
-    if (round_ == 1) {
-      intensity_ = std::move(r.intensity);
-      lit_ = r.lit;
-    }
+    const bool first_pass = !correction_round_;
     if (codes_.size() == 1) {
+      MultiResult& r = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin);
+      full_scale_ = r.full_scale;
+      weak_[0] += r.weak[0];
+      intensity_ = std::move(r.intensity);
+      lit_ = std::move(r.lit);
       coord_ = std::move(r.codes[0].coord);
       valid_ = std::move(r.codes[0].valid);
       confidence_ = std::move(r.codes[0].confidence);
       for (size_t i = 0; i < n; ++i) cls_[i] = lit_[i] == 0 ? kUnlit : valid_[i] ? kAllAgree : kError;
     } else {
-      std::vector<float> coord(n), conf(n);
-      std::vector<uint8_t> valid(n), cls(n);
-      // Full four-code view: this round's codes, earlier first-pass rounds'
-      // maps (auto), NaN for codes not projected.
-      if (!correction_round_) {
-        if (stage_maps_.empty()) stage_maps_.assign(kEnsembleCodes, std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()));
-        for (size_t j = 0; j < round_codes_.size(); ++j) stage_maps_[round_codes_[j]] = std::move(r.codes[j].coord);
+      // Full four-code view in one decode + vote pass (vote.hpp): this
+      // round's codes, earlier first-pass rounds' maps (auto), NaN maps for
+      // codes not projected. Per-code maps are kept only where needed (auto's
+      // second round, code_maps).
+      const bool keep_maps = first_pass && (auto_mode() || cfg_.code_maps);
+      if (keep_maps && stage_maps_.empty())
+        stage_maps_.assign(kEnsembleCodes, std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()));
+      VoteSpec spec;
+      spec.agree_px = static_cast<float>(cfg_.agree_px);
+      for (size_t j = 0; j < round_codes_.size(); ++j) {
+        spec.round_code[round_codes_[j]] = static_cast<int32_t>(j);
+        if (keep_maps) spec.keep[round_codes_[j]] = stage_maps_[round_codes_[j]].data();
       }
-      std::vector<std::vector<float>> round_maps;
-      if (correction_round_)
-        for (AxisMaps& m : r.codes) round_maps.push_back(std::move(m.coord));
-      const std::vector<std::vector<float>>& src = correction_round_ ? round_maps : stage_maps_;
-      const float* maps[kEnsembleCodes] = {src[0].data(), src[1].data(), src[2].data(), src[3].data()};
-      sdk::parallel_rows(cam.height, rig_.threads, [&](uint32_t y0, uint32_t y1) {
-        vote_pixels(maps, r.lit.data(), size_t{y0} * cam.width, size_t{y1} * cam.width,
-                    static_cast<float>(cfg_.agree_px), coord.data(), valid.data(), conf.data(),
-                    cls.data());
-      });
-      if (!correction_round_) {  // first pass (auto: first or second round): take all pixels
-        coord_ = std::move(coord);
-        valid_ = std::move(valid);
-        confidence_ = std::move(conf);
-        cls_ = std::move(cls);
+      for (uint32_t k = 0; k < kEnsembleCodes; ++k)
+        if (spec.round_code[k] < 0) spec.external[k] = stage_maps_.at(k).data();
+      MultiResult& r = decoder_->finish_vote(cfg_.min_contrast, cfg_.min_bit_margin, spec);
+      full_scale_ = r.full_scale;
+      if (first_pass)
+        for (size_t j = 0; j < round_codes_.size(); ++j) weak_[round_codes_[j]] += r.weak[j];
+      if (round_ == 1) {
+        intensity_ = std::move(r.intensity);
+        lit_ = std::move(r.lit);
+      }
+      VoteMaps& v = r.vote;
+      if (first_pass) {  // first pass (auto: first or second round): take all pixels
+        coord_ = std::move(v.coord);
+        valid_ = std::move(v.valid);
+        confidence_ = std::move(v.confidence);
+        cls_ = std::move(v.cls);
       } else {  // correction: only pixels still in error take the new result
+        // ... and only where the projector pixel it names, and those within
+        // kCorrectionEdgeMarginPx of it, were on in this round. A pixel whose
+        // own projector pixel was switched off (wrongly claimed as resolved,
+        // or inside the mask's dilation) sees only light scattered in from
+        // the unmasked side — sub-surface, defocus, inter-reflection — and
+        // decodes to a column at the mask's edge; it stays an error instead.
+        // Long-range scattering (wax: centimetres) can bring such light from
+        // far beyond the margin, so the pixel must also keep at least
+        // kCorrectionMinLight of its round-1 white light (r.intensity is the
+        // masked white frame).
+        const std::vector<float>& masked_white = r.intensity;
         for (size_t i = 0; i < n; ++i)
-          if (cls_[i] == kError && valid[i] != 0) {
-            coord_[i] = coord[i];
+          if (cls_[i] == kError && v.valid[i] != 0 && masked_white.size() == n &&
+              masked_white[i] >= kCorrectionMinLight * intensity_[i] && clear_of_mask(i, v.coord[i])) {
+            coord_[i] = v.coord[i];
             valid_[i] = 255;
-            confidence_[i] = conf[i];
-            cls_[i] = cls[i];
+            confidence_[i] = v.confidence[i];
+            cls_[i] = v.cls[i];
             ++stats.resolved;
           }
       }
     }
+    decoder_.reset();
     for (size_t i = 0; i < n; ++i) {
       stats.errors += cls_[i] == kError ? 1u : 0u;
       stats.lit += lit_[i] != 0 ? 1u : 0u;
     }
     rounds_.push_back(stats);
-    decode_ms_ += ms_since(t0);
     return sdk::ok();
   }
 
   sdk::Error outputs(sdk::Outputs& out) override {
-    const auto t0 = std::chrono::steady_clock::now();
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
     std::optional<DepthResult> depth;
-    if (rig_.can_triangulate(0))
+    if (rig_.can_triangulate(0)) {
+      const ScopedMs timed(decode_ms_);
       depth = triangulate_columns(cam.calibration, rig_.projector, w, h, coord_.data(),
                                   intensity_.data(), rig_.threads);
-    decode_ms_ += ms_since(t0);
+    }
     size_t valid = 0;
     std::array<size_t, kTransportClassCount> counts{};
     for (size_t i = 0; i < valid_.size(); ++i) {
@@ -253,14 +274,7 @@ class CodesSession final : public sdk::Session {
                       std::string("first-pass column decoded by code ") + kCodeIds[k] +
                           " alone (NaN: invalid or not projected)",
                       w, h, std::move(stage_maps_[k]));
-    if (depth) {
-      out.add_image("depth_mm", "mm", "z of the triangulated point, camera frame (NaN: none)", w,
-                    h, std::move(depth->depth_mm));
-      out.add_points("points", "triangulated points, camera frame; intensity = white / full scale",
-                     "x,y,z,intensity", 4, std::move(depth->points));
-    }
-    out.add_scalar("valid_fraction", "", "fraction of camera pixels with a valid column",
-                   n > 0 ? static_cast<double>(valid) / n : 0.0);
+    add_depth_outputs(out, depth, w, h, valid, n);
     out.add_scalar("error_fraction", "",
                    "lit pixels left as errors (no valid column; ensemble: no two codes agree) / lit",
                    lit > 0 ? static_cast<double>(errors) / static_cast<double>(lit) : 0.0);
@@ -272,7 +286,8 @@ class CodesSession final : public sdk::Session {
     out.add_scalar("rounds", "", "capture rounds (1 + correction rounds run)",
                    static_cast<double>(rounds_.size()));
     nlohmann::json codes = nlohmann::json::array();
-    for (const ProjectedCode& c : codes_) {
+    for (size_t ci = 0; ci < codes_.size(); ++ci) {
+      const ProjectedCode& c = codes_[ci];
       uint32_t min_sw = 0xFFFFFFFFu, max_sw = 0;
       for (uint32_t p = 0; p < c.bits(); ++p) {
         const RunLengths rl = interior_runs(c, p);
@@ -280,9 +295,15 @@ class CodesSession final : public sdk::Session {
         min_sw = std::min(min_sw, rl.min_run);
         max_sw = std::max(max_sw, rl.max_run);
       }
+      const std::vector<uint32_t> bounds = plane_error_bounds(c);
+      nlohmann::json tolerated = nlohmann::json::array();
+      for (uint32_t k = 0; k < bounds.size(); ++k)
+        if (cfg_.max_weak_error_px > 0 && bounds[k] <= cfg_.max_weak_error_px) tolerated.push_back(k);
       codes.push_back({{"id", c.id}, {"name", c.code.name}, {"bits", c.bits()},
                        {"code_columns", c.code.length}, {"max_span_px", c.max_span},
-                       {"min_stripe_px", min_sw}, {"max_stripe_px", max_sw}});
+                       {"min_stripe_px", min_sw}, {"max_stripe_px", max_sw},
+                       {"error_bound_px", bounds}, {"tolerated_weak_bits", tolerated},
+                       {"weak_plane_pixels", weak_[ci]}});
     }
     nlohmann::json rounds = nlohmann::json::array();
     for (const RoundStats& s : rounds_)
@@ -302,6 +323,7 @@ class CodesSession final : public sdk::Session {
         {"why", why_of(cfg_.method)},
         {"min_contrast", cfg_.min_contrast},
         {"min_bit_margin", cfg_.min_bit_margin},
+        {"max_weak_error_px", cfg_.max_weak_error_px},
         {"input_full_scale", full_scale_},
         {"triangulated", depth.has_value()},
         {"camera_index", 0},
@@ -328,9 +350,6 @@ class CodesSession final : public sdk::Session {
     size_t errors = 0, resolved = 0, lit = 0;
   };
 
-  static double ms_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  }
 
   size_t errors_before_round() const { return rounds_.empty() ? 0 : rounds_.back().errors; }
 
@@ -353,6 +372,26 @@ class CodesSession final : public sdk::Session {
   bool set_stop(const char* why) {
     stop_reason_ = why;
     return false;
+  }
+
+  // The projector pixel that camera pixel i decoded to `col` names (by
+  // triangulation), in this round's mask: true when it and every projector
+  // pixel within kCorrectionEdgeMarginPx were on.
+  bool clear_of_mask(size_t i, float col) const {
+    const sdk::RigCamera& cam = rig_.cameras.at(0);
+    const uint32_t pw = rig_.projector_width, ph = rig_.projector_height;
+    const auto u = static_cast<uint32_t>(i % cam.width), v = static_cast<uint32_t>(i / cam.width);
+    const auto x = triangulate_column(cam.calibration, rig_.projector, u, v, col);
+    if (!x) return false;
+    double pu = 0, pv = 0;
+    rig_.projector.project(cam.calibration.cam_from_proj.inverse() * *x, pu, pv);
+    if (!std::isfinite(pu) || !std::isfinite(pv)) return false;
+    const auto cu = static_cast<int64_t>(std::lround(pu)), cv = static_cast<int64_t>(std::lround(pv));
+    const int64_t m = kCorrectionEdgeMarginPx;
+    for (int64_t yy = std::max<int64_t>(0, cv - m); yy <= std::min<int64_t>(ph - 1, cv + m); ++yy)
+      for (int64_t xx = std::max<int64_t>(0, cu - m); xx <= std::min<int64_t>(pw - 1, cu + m); ++xx)
+        if (mask_[static_cast<size_t>(yy) * pw + static_cast<size_t>(xx)] == 0) return false;
+    return true;
   }
 
   // Projector mask for a correction round (after Xu & Aliaga): every
@@ -387,11 +426,12 @@ class CodesSession final : public sdk::Session {
   Config cfg_;
   sdk::Rig rig_;
   std::vector<ProjectedCode> codes_;
-  std::optional<MultiCodeDecoder> decoder_;
   std::vector<float> coord_, confidence_, intensity_;
   std::vector<uint8_t> valid_, cls_, lit_, mask_;
   std::vector<RoundStats> rounds_;
-  std::vector<std::vector<float>> stage_maps_;  // per code: first-pass columns (NaN: not projected)
+  std::vector<std::vector<float>> stage_maps_;  // per code: first-pass columns (NaN: not projected);
+                                                // only for auto and code_maps
+  std::array<size_t, kEnsembleCodes> weak_{};   // per code of codes_: pixels kept through a weak plane
   std::vector<uint32_t> round_codes_;            // code indices of the current round
   bool correction_round_ = false;
   uint32_t corrections_done_ = 0;
@@ -404,7 +444,7 @@ class CodesSession final : public sdk::Session {
   }
   std::string stop_reason_;
   uint32_t round_ = 0, patterns_ = 0;
-  double decode_ms_ = 0, full_scale_ = 0;
+  double full_scale_ = 0;
 };
 
 std::vector<sdk::ParamSpec> common_specs(bool ensemble) {
@@ -420,8 +460,9 @@ std::vector<sdk::ParamSpec> common_specs(bool ensemble) {
        "pixels with white - black below this fraction of full scale are unlit/invalid (~3 sigma "
        "of sensor noise at 8 bit, as for gray)"},
       {"min_bit_margin", sdk::ParamType::number, 0.1, 0.0, 1.0, {},
-       "a code's decode is invalid when any bit's |L - L_inv| is below this fraction of "
+       "a code's decode is invalid when any strict bit's |L - L_inv| is below this fraction of "
        "white - black (near ties, blurred or global-light-dominated bits)"},
+      {"max_weak_error_px", sdk::ParamType::integer, 1, 0.0, 1024.0, {}, kMaxWeakErrorHelp},
   };
   if (ensemble) {
     s.push_back({"black_frame", sdk::ParamType::boolean, false, -kInf, kInf, {},
@@ -521,6 +562,7 @@ sdk::Error create_codes_session(const sdk::CreateArgs& args, std::unique_ptr<sdk
   cfg.black = params.get_bool("black_frame");
   cfg.min_contrast = params.get_number("min_contrast");
   cfg.min_bit_margin = params.get_number("min_bit_margin");
+  cfg.max_weak_error_px = static_cast<uint32_t>(params.get_int("max_weak_error_px"));
   if (args.method == "ensemble" || args.method == "auto") {
     if (args.method == "auto") cfg.auto_tolerance = params.get_number("auto_tolerance");
     cfg.agree_px = params.get_number("agree_px");

@@ -1,39 +1,165 @@
 // SPDX-License-Identifier: MIT
-// Per-pixel decode of an accumulated code: binarized word -> projector
-// coordinate, with the validity rules and a confidence per pixel.
+// Per-pixel decode of an accumulated code (bitplane_stream.hpp): binarized
+// word -> code index -> projector coordinate, with the validity rules and a
+// confidence per pixel.
 //
 // A pixel is valid only when all of these hold (otherwise it is reported
 // invalid rather than guessed):
 //   1. white W and black B are finite and the contrast C = W - B is positive
 //      and at least min_contrast_abs (shadowed / unlit / low-albedo pixels);
+//      with the synthetic inverse of MultiCodeDecoder also W < full scale
+//      (a clipped white is not a usable reference);
 //   2. no plane was saturated (L and L̄ both clipped) or non-finite;
-//   3. every plane's margin |L - L̄| exceeds min_bit_margin * C (near ties;
-//      under direct light the margin equals C, Eq. 3.3–3.5 with α = 1, L_g = 0);
+//   3. every *strict* plane's margin |L - L̄| exceeds min_bit_margin * C (near
+//      ties; under direct light the margin equals C, Eq. 3.3–3.5 with α = 1,
+//      L_g = 0). A *tolerable* plane (below) may fail this rule, but its margin
+//      must be > 0 (an exact tie or a clipped pair carries no sign);
 //   4. the word is a code word of a coordinate < length (e.g. column < W).
-// confidence = min over planes of |L - L̄| / C, clipped to [0, 1] (0 where
-// C <= 0 or values are not finite), reported for every pixel.
+// confidence = min over all planes of |L - L̄| / C, clipped to [0, 1] (0 where
+// C <= 0 or values are not finite), reported for every pixel — so a pixel
+// kept through a weak tolerable plane shows that plane's margin / C.
+//
+// Tolerated weak planes (max_weak_error_px): error_bound[k] of bit position k
+// is the largest coordinate error one flipped bit k can cause, over all
+// coordinates whose flipped word is still a code word (plane_error_bounds).
+// Planes with error_bound <= max_weak_error_px are tolerable; 0 disables the
+// rule (every plane strict: the rule before issue 4). For the
+// Gray code bit 0 (stripe width 2) has bound 1 and bit k 2^(k+1) - 1, so
+// max_weak_error_px = 1 tolerates only the finest plane — the one sub-surface
+// scattering blurs first (thesis §3.2, Fig. 3.3). The bound assumes one weak
+// plane is wrong at a time.
 // Thread-safety: reentrant; callers partition pixels by band.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <mutex>
 #include <vector>
 
-#include "binarize.hpp"
+#include "bitplane_stream.hpp"
+#include "codes.hpp"
 #include "stripe_code.hpp"
 
 namespace procam::sl {
 
+// Help text of the methods' max_weak_error_px parameter.
+inline constexpr const char* kMaxWeakErrorHelp =
+    "tolerated weak planes: a plane whose single wrong bit moves the decoded column by at most "
+    "this many projector columns (error_bound_px in the report; Gray/XOR-04: the stripe-width-2 "
+    "plane for 1) may fail the min_bit_margin rule without invalidating the pixel (its margin "
+    "must still be > 0; confidence then shows that plane's margin); sub-surface scattering "
+    "blurs exactly these planes first (thesis §3.2, Fig. 3.3). 0 = every plane strict";
+
 struct DecodeThresholds {
   float min_contrast_abs = 0.0f;  // rule 1, in input units (min_contrast * full scale)
   float min_bit_margin = 0.1f;    // rule 3, fraction of the contrast
+  bool clipped_white_invalid = false;  // rule 1, synthetic inverse of MultiCodeDecoder
 };
 
-// Decodes pixels [begin, end) of `acc` (whose planes are all folded in).
-// Writes coord[i] (the integer coordinate as float, NaN when invalid),
-// valid[i] (255 / 0) and confidence[i] (see above).
-void decode_pixels(const BitAccumulator& acc, const StripeCode& code, const float* white,
-                   const float* black, size_t begin, size_t end, const DecodeThresholds& t,
-                   float* coord, uint8_t* valid, float* confidence);
+// error_bound[k] per bit position k (k = 0: least significant): max over
+// projector coordinates x whose projected word w(x) XOR (1 << k) is a code
+// word of |x - coord(w(x) XOR (1 << k))| in projector coordinates, rounded
+// up; 0 where no flip of bit k gives a code word. For XOR codes the projected
+// word is what the camera sees, so flipping the base plane flips every
+// decoded Gray bit above it (a huge bound) while any other plane behaves like
+// a Gray plane. The StripeCode form uses coordinate = code index.
+std::vector<uint32_t> plane_error_bounds(const StripeCode& code);
+std::vector<uint32_t> plane_error_bounds(const ProjectedCode& code);
+
+// Per plane p (0 = first projected = most significant): 1 where
+// error_bound[bits - 1 - p] <= max_weak_error_px (all 0 when it is 0).
+std::vector<uint8_t> tolerable_planes(const std::vector<uint32_t>& error_bounds,
+                                      uint32_t max_weak_error_px);
+
+// out -> coord (float(out), NaN where out < 0) and valid (255 / 0; may be
+// null), n pixels.
+void index_maps(const int32_t* out, size_t n, float* coord, uint8_t* valid);
+
+// Per-pixel terms shared by all codes of a round, one row-sized scratch per
+// band: base_ok (rule 1), thr = min_bit_margin * C, inv_c = 1 / C (0 when
+// C <= 0 or not finite) and, for 8-bit state, gate = base_ok ? min(floor(thr),
+// 255) : 255 (an integer margin m passes rule 3 exactly when m > gate).
+struct BaseRow {
+  std::vector<uint8_t> base_ok, gate;
+  std::vector<float> thr, inv_c;
+  explicit BaseRow(size_t width) : base_ok(width), gate(width), thr(width), inv_c(width) {}
+};
+
+// Per-round constants of decode_base (8-bit lookup tables by contrast and
+// white level), built once per finish.
+struct DecodeContext {
+  DecodeContext(const BitPlaneStream& stream, const DecodeThresholds& thresholds);
+  const BitPlaneStream& s;
+  DecodeThresholds t;
+  float inv_scale = 1;
+  // 8-bit state only, indexed by C = W - B in 1..255 / by W:
+  float inv_c8[256] = {}, thr_f8[256] = {}, intensity8[256] = {};
+  uint8_t thr8[256] = {}, lit8[256] = {};
+};
+
+// Fills `row` for pixels [b, e) (row index 0 = pixel b) and, when non-null,
+// lit[i] (255 where C > 0 and C >= min_contrast_abs) and intensity[i]
+// (W / full scale clipped to [0, 1], 0 if not finite), indexed by pixel.
+void decode_base(const DecodeContext& ctx, size_t b, size_t e, BaseRow& row, uint8_t* lit,
+                 float* intensity);
+
+// Word -> value map of one code: `table` (2^bits int32 entries, -1 where the
+// word is no code word; e.g. the code index, or 2 x column). When the code is
+// the Gray code or an XOR code over identity columns and table[w] is
+// scale * index, the SIMD kernel computes the same values arithmetically
+// (XOR with the base, prefix-XOR Gray decode, index < length) instead of a
+// table gather.
+struct WordMap {
+  std::vector<int32_t> table;
+  bool arithmetic = false;
+  int32_t xor_base = -1;    // XOR code: base bit position; -1: plain Gray
+  uint32_t high_mask = 0;   // XOR code: positions above the base
+  uint32_t length = 0;
+  int32_t scale = 1;
+};
+// The StripeCode lookup table as a WordMap, values mapped through `value_of`
+// (code index -> value; null: the index). Detects the arithmetic forms.
+WordMap word_map(const StripeCode& code, const std::vector<int32_t>* value_of = nullptr);
+
+// Decodes code `c` of the stream for pixels [b, e) with the terms of
+// decode_base: out[k] = map value of the pixel's word where pixel b + k is
+// valid, else -1; confidence[k] (may be null) as above. Returns the number of
+// valid pixels kept only because a tolerable plane was tolerated. 8-bit state
+// with AVX2 or AVX-512 runs a SIMD kernel with results identical to the scalar
+// loop.
+size_t decode_code(const DecodeContext& ctx, size_t c, const WordMap& map, size_t b, size_t e,
+                   const BaseRow& row, int32_t* out, float* confidence);
+
+// decode_code followed by index_maps(out, e - b, coord, valid) — one pass
+// where the AVX-512 kernel runs (no int32 row written and re-read), the two
+// calls otherwise; identical maps. scratch: e - b int32.
+size_t decode_code_maps(const DecodeContext& ctx, size_t c, const WordMap& map, size_t b,
+                        size_t e, const BaseRow& row, int32_t* scratch, float* coord,
+                        uint8_t* valid, float* confidence);
+
+// The per-row decode loop shared by the decoders: on the stream's pool, for
+// every row, decode_base into a per-band BaseRow (lit / intensity written
+// when non-null), then row_fn(b, e, base, scratch, weak) with b, e the row's
+// pixels, int32 scratch for 4 rows and the band's per-code tolerated-weak
+// counters (codes entries), which are summed into `weak` (resized to codes).
+template <class RowFn>
+void decode_rows(BitPlaneStream& s, const DecodeContext& ctx, uint8_t* lit, float* intensity,
+                 size_t codes, std::vector<size_t>& weak, RowFn&& row_fn) {
+  weak.assign(codes, 0);
+  std::mutex mutex;
+  s.pool().run(s.height(), [&](uint32_t y0, uint32_t y1) {
+    const size_t w = s.width();
+    BaseRow base(w);
+    std::vector<int32_t> scratch(4 * w);
+    std::vector<size_t> band_weak(codes, 0);
+    for (uint32_t y = y0; y < y1; ++y) {
+      const size_t b = size_t{y} * w;
+      decode_base(ctx, b, b + w, base, lit, intensity);
+      row_fn(b, b + w, base, scratch.data(), band_weak.data());
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    for (size_t c = 0; c < codes; ++c) weak[c] += band_weak[c];
+  });
+}
 
 }  // namespace procam::sl

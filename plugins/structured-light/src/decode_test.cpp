@@ -14,6 +14,8 @@
 #include <vector>
 
 #include "binarize.hpp"
+#include "codes.hpp"
+#include "decode.hpp"
 #include "gray_code.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
@@ -113,8 +115,9 @@ std::vector<TestFrame> render(const Layout& layout, const StripeCode& cols,
 
 RoundResult decode(const Layout& layout, const StripeCode& cols, std::vector<TestFrame>& frames,
                    const std::vector<uint32_t>& order, uint32_t threads = 1,
-                   double min_contrast = 0.03, double min_bit_margin = 0.1) {
-  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, threads);
+                   double min_contrast = 0.03, double min_bit_margin = 0.1,
+                   uint32_t max_weak_error_px = 0) {
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, threads, max_weak_error_px);
   for (uint32_t i : order) {
     sdk::Error e = dec.add_frame(i, frames[i].img);
     EXPECT_TRUE(e.ok()) << e.message;
@@ -383,6 +386,106 @@ TEST(SyntheticDecode, RejectsWrongFramesWithoutChangingState) {
   EXPECT_NE(e.message.find("U8/8-bit"), std::string::npos) << e.message;
   for (uint32_t i = 1; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
   expect_exact(dec.finish(0.03, 0.1), col, kCases[0].sensor);
+}
+
+// ---- tolerated weak planes (decode.hpp, max_weak_error_px) ----------------
+
+// Brute force, independent of plane_error_bounds: flip bit k of every
+// column's Gray word and find the column with that word by search.
+std::vector<uint32_t> brute_force_gray_bounds(uint32_t length, uint32_t bits) {
+  std::vector<uint32_t> word(length);
+  for (uint32_t x = 0; x < length; ++x) word[x] = x ^ (x >> 1);
+  std::vector<uint32_t> bound(bits, 0);
+  for (uint32_t k = 0; k < bits; ++k)
+    for (uint32_t x = 0; x < length; ++x)
+      for (uint32_t y = 0; y < length; ++y)
+        if (word[y] == (word[x] ^ (1u << k)))
+          bound[k] = std::max(bound[k], x > y ? x - y : y - x);
+  return bound;
+}
+
+TEST(WeakPlanes, GrayErrorBoundsMatchBruteForce) {
+  for (uint32_t length : {2u, 5u, 40u, 100u, 256u}) {
+    const StripeCode code = make_gray_code(length);
+    EXPECT_EQ(plane_error_bounds(code), brute_force_gray_bounds(length, code.bits)) << length;
+  }
+  // Full width 1024: bit k flips binary bits k..0, an error of 2^(k+1) - 1.
+  const std::vector<uint32_t> b = plane_error_bounds(make_gray_code(1024));
+  ASSERT_EQ(b.size(), 10u);
+  for (uint32_t k = 0; k < 10; ++k) EXPECT_EQ(b[k], (2u << k) - 1u) << k;
+  // Only the finest plane (the last projected) is tolerable at 1 px.
+  const std::vector<uint8_t> t = tolerable_planes(b, 1);
+  for (uint32_t p = 0; p < 10; ++p) EXPECT_EQ(t[p], p == 9 ? 1 : 0) << p;
+  for (uint8_t v : tolerable_planes(b, 0)) EXPECT_EQ(v, 0);  // 0 = every plane strict
+}
+
+TEST(WeakPlanes, XorBasePlaneBoundIsLarge) {
+  // Projected words of XOR-02 / XOR-04 (thesis Eq. 3.6-3.8) built here, then
+  // bounds by brute force over projected columns.
+  for (const auto& [id, base] : {std::pair{"xor02", 0u}, std::pair{"xor04", 1u}}) {
+    const uint32_t length = 64, bits = 6, high = 0x3Fu & ~((2u << base) - 1u);
+    std::vector<uint32_t> word(length);
+    for (uint32_t x = 0; x < length; ++x) {
+      const uint32_t g = x ^ (x >> 1);
+      word[x] = ((g >> base) & 1u) != 0 ? g ^ high : g;
+    }
+    std::vector<uint32_t> expect(bits, 0);
+    for (uint32_t k = 0; k < bits; ++k)
+      for (uint32_t x = 0; x < length; ++x)
+        for (uint32_t y = 0; y < length; ++y)
+          if (word[y] == (word[x] ^ (1u << k))) expect[k] = std::max(expect[k], x > y ? x - y : y - x);
+    const ProjectedCode code = make_projected_code(id, length);
+    EXPECT_EQ(plane_error_bounds(code), expect) << id;
+    EXPECT_GE(expect[base], length / 2) << id << ": the base plane flips every decoded bit above it";
+  }
+  const std::vector<uint32_t> x2 = plane_error_bounds(make_projected_code("xor02", 1024));
+  EXPECT_GE(x2[0], 512u);
+  EXPECT_EQ(x2[1], 3u);  // like Gray bit 1
+  const std::vector<uint32_t> x4 = plane_error_bounds(make_projected_code("xor04", 1024));
+  EXPECT_EQ(x4[0], 1u);  // projected unchanged: Gray bit 0
+  EXPECT_GE(x4[1], 512u);
+}
+
+TEST(WeakPlanes, FinestGrayPlaneNearTieIsToleratedOnlyWithMaxWeak) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  for (bool inverse : {true, false}) {
+    SCOPED_TRACE(inverse ? "inverse" : "white");
+    const Layout layout = make_layout(cols, nullptr, inverse);
+    const Sensor s = kCases[1].sensor;  // 12 bit
+    std::vector<TestFrame> frames = render(layout, cols, col, s, 23);
+    const size_t step = inverse ? 2 : 1;
+    const size_t finest = 2 + (cols.bits - 1) * step;  // frame of bit 0 (stripe width 2)
+    const size_t mid = 2 + 3 * step;                     // a coarser plane
+    ASSERT_EQ(layout.frames[finest].label, "col bit 0");
+    const size_t weak = 12 * kCamW + 300, tie = 12 * kCamW + 301, coarse = 12 * kCamW + 302;
+    auto set = [&](size_t f, size_t i, double frac) {
+      const int32_t c = col[i];
+      const double sign = cols.bit(layout.frames[f].plane, static_cast<uint32_t>(c)) ? 1.0 : -1.0;
+      const double midv = s.black + s.contrast / 2;
+      frames[0].set(i, s.black + s.contrast, s);
+      frames[1].set(i, s.black, s);
+      frames[f].set(i, midv + sign * frac * s.contrast / 2, s);
+      if (inverse) frames[f + 1].set(i, midv - sign * frac * s.contrast / 2, s);
+    };
+    set(finest, weak, 0.05);   // near tie, right sign
+    set(finest, tie, 0.0);     // exact tie: no sign at all
+    set(mid, coarse, 0.05);    // near tie on a strict plane
+    const RoundResult strict = decode(layout, cols, frames, in_order(frames.size()), 1, 0.03, 0.1, 0);
+    const RoundResult tolerant = decode(layout, cols, frames, in_order(frames.size()), 1, 0.03, 0.1, 1);
+    EXPECT_EQ(strict.cols.valid[weak], 0) << "max_weak_error_px = 0: today's rule";
+    EXPECT_EQ(tolerant.cols.valid[weak], 255);
+    EXPECT_EQ(tolerant.cols.coord[weak], static_cast<float>(col[weak]));
+    EXPECT_NEAR(tolerant.cols.confidence[weak], 0.05f, 0.002f) << "confidence shows the weak plane";
+    EXPECT_EQ(tolerant.cols.valid[tie], 0) << "an exact tie is never valid";
+    EXPECT_EQ(tolerant.cols.valid[coarse], 0) << "coarser planes stay strict";
+    EXPECT_EQ(strict.cols_weak, 0u);
+    EXPECT_GE(tolerant.cols_weak, 1u);
+    // Every other pixel decodes the same under both rules.
+    size_t differ = 0;
+    for (size_t i = 0; i < col.size(); ++i) differ += strict.cols.valid[i] != tolerant.cols.valid[i];
+    EXPECT_EQ(differ, tolerant.cols_weak);
+  }
 }
 
 }  // namespace

@@ -2,9 +2,12 @@
 // Speed of the ensemble decode and of Gray column+row decoding vs OpenCV
 // contrib (issue 4 "Speed"). Camera 1920x1200 8-bit; projector 1024x768, so
 // the ensemble is exactly the thesis's 41 frames (4 codes x 10 planes + white).
-//   BM_EnsembleDecode/threads: all add_frame work + per-code decode + vote.
+//   BM_EnsembleDecode/threads: decoder construction (output maps allocated and
+//     touched) + all add_frame work + per-code decode + vote — what a scan
+//     pays, as codes_session.cpp runs it (max_weak_error_px = 1, its default).
 //   BM_EnsembleAfterLastFrame/threads: the streaming latency — the last
-//     frame's add_frame + finish + vote, with the other 40 frames already in.
+//     frame's add_frame + decode + vote + releasing the decoder (as the
+//     session's end_round), with the other 40 frames already in.
 //   BM_GrayColRowDecode/threads vs BM_OpenCvGetProjPixel: Gray code columns
 //     and rows with inverses on the *same frames* (OpenCV's own generated
 //     patterns, checked equal to ours); OpenCV's getProjPixel is called for
@@ -13,8 +16,11 @@
 // Run: build-*/plugins/structured-light/procam_sl_ensemble_bench
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
+#include <utility>
 #include <vector>
 
 #include "codes.hpp"
@@ -77,28 +83,25 @@ EnsembleData& ens() {
   return d;
 }
 
-void vote_all(const MultiResult& r, uint32_t threads, std::vector<float>& coord, std::vector<uint8_t>& valid,
-              std::vector<float>& conf, std::vector<uint8_t>& cls) {
-  const float* maps[kEnsembleCodes] = {r.codes[0].coord.data(), r.codes[1].coord.data(), r.codes[2].coord.data(),
-                                       r.codes[3].coord.data()};
-  sdk::parallel_rows(kCamH, threads, [&](uint32_t y0, uint32_t y1) {
-    vote_pixels(maps, r.lit.data(), size_t{y0} * kCamW, size_t{y1} * kCamW, 1.0f, coord.data(), valid.data(),
-                conf.data(), cls.data());
-  });
+// What the ensemble session does at end_round (codes_session.cpp): decode the
+// four codes and vote in one pass into the decoder's pre-allocated maps.
+MultiResult& decode_and_vote(MultiCodeDecoder& dec) {
+  VoteSpec spec;
+  for (uint32_t k = 0; k < kEnsembleCodes; ++k) spec.round_code[k] = static_cast<int32_t>(k);
+  spec.agree_px = 1.0f;
+  return dec.finish_vote(0.03, 0.1, spec);
 }
 
+// The whole cost of a scan's decode: the decoder (allocated per round, as in
+// the session, with its output maps), all 41 add_frame calls, decode + vote.
 void BM_EnsembleDecode(benchmark::State& state) {
   const auto threads = static_cast<uint32_t>(state.range(0));
   EnsembleData& d = ens();
-  const size_t n = size_t{kCamW} * kCamH;
-  std::vector<float> coord(n), conf(n);
-  std::vector<uint8_t> valid(n), cls(n);
   for (auto _ : state) {
-    MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads);
+    MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads, 1, MultiCodeDecoder::Output::vote);
     for (uint32_t i = 0; i < d.views.size(); ++i)
       if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
-    vote_all(dec.finish(0.03, 0.1), threads, coord, valid, conf, cls);
-    benchmark::DoNotOptimize(coord.data());
+    benchmark::DoNotOptimize(decode_and_vote(dec).vote.coord.data());
   }
 }
 BENCHMARK(BM_EnsembleDecode)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -106,44 +109,46 @@ BENCHMARK(BM_EnsembleDecode)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Use
 void BM_EnsembleAfterLastFrame(benchmark::State& state) {
   const auto threads = static_cast<uint32_t>(state.range(0));
   EnsembleData& d = ens();
-  const size_t n = size_t{kCamW} * kCamH;
-  std::vector<float> coord(n), conf(n);
-  std::vector<uint8_t> valid(n), cls(n);
   for (auto _ : state) {
     state.PauseTiming();
-    MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads);
+    auto dec = std::make_unique<MultiCodeDecoder>(d.layout, d.codes, kCamW, kCamH, threads, 1,
+                                                  MultiCodeDecoder::Output::vote);
     const auto last = static_cast<uint32_t>(d.views.size() - 1);
     for (uint32_t i = 0; i < last; ++i)
-      if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
+      if (!dec->add_frame(i, d.views[i]).ok()) std::abort();
     state.ResumeTiming();
-    if (!dec.add_frame(last, d.views[last]).ok()) std::abort();
-    vote_all(dec.finish(0.03, 0.1), threads, coord, valid, conf, cls);
-    benchmark::DoNotOptimize(coord.data());
+    // As the session's end_round: last frame, decode + vote, maps moved out,
+    // decoder released (its state goes back to the buffer cache).
+    if (!dec->add_frame(last, d.views[last]).ok()) std::abort();
+    MultiResult r = std::move(decode_and_vote(*dec));
+    dec.reset();
+    benchmark::DoNotOptimize(r.vote.coord.data());
+    state.PauseTiming();
+    r = MultiResult{};  // the host frees the outputs later
+    state.ResumeTiming();
   }
 }
 BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Stages: per-pixel decode of the 4 codes (finish) and the vote, all frames in.
+// Stages with all frames in: per-code decode into per-code maps (finish) and
+// the fused decode + vote (finish_vote).
 void BM_EnsembleStages(benchmark::State& state) {
   const auto threads = static_cast<uint32_t>(state.range(0));
-  const bool vote_only = state.range(1) != 0;
+  const bool vote = state.range(1) != 0;
   EnsembleData& d = ens();
-  const size_t n = size_t{kCamW} * kCamH;
-  std::vector<float> coord(n), conf(n);
-  std::vector<uint8_t> valid(n), cls(n);
-  MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads);
+  MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, threads, 1,
+                       vote ? MultiCodeDecoder::Output::vote : MultiCodeDecoder::Output::per_code);
   for (uint32_t i = 0; i < d.views.size(); ++i)
     if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
-  const MultiResult once = dec.finish(0.03, 0.1);  // a copy for the vote
   for (auto _ : state) {
-    if (vote_only) {
-      vote_all(once, threads, coord, valid, conf, cls);
+    if (vote) {
+      benchmark::DoNotOptimize(decode_and_vote(dec).vote.coord.data());
     } else {
-      benchmark::DoNotOptimize(dec.finish(0.03, 0.1));
+      benchmark::DoNotOptimize(dec.finish(0.03, 0.1).codes[0].coord.data());
     }
   }
 }
-BENCHMARK(BM_EnsembleStages)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "vote_only"})
+BENCHMARK(BM_EnsembleStages)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "fused_vote"})
     ->Unit(benchmark::kMillisecond)->UseRealTime();
 
 struct GrayData {
@@ -165,7 +170,8 @@ GrayData& gray() {
 
 RoundResult gray_decode(uint32_t threads) {
   GrayData& d = gray();
-  BinaryRoundDecoder dec(d.layout, d.cols, &d.rows, kCamW, kCamH, threads);
+  // max_weak_error_px = 0: OpenCV has no tolerated weak planes.
+  BinaryRoundDecoder dec(d.layout, d.cols, &d.rows, kCamW, kCamH, threads, 0);
   for (uint32_t i = 0; i < d.views.size(); ++i)
     if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
   return dec.finish(0.03, 0.1);
@@ -219,7 +225,7 @@ void BM_OpenCvGetProjPixel(benchmark::State& state) {
     for (uint32_t x = 0; x < kCamW; ++x) {
       const size_t i = size_t{y} * kCamW + x;
       const float oc = ours.cols.valid[i] ? ours.cols.coord[i] : -1.0f;
-      const float orow = ours.rows.valid[i] ? ours.rows.coord[i] : -1.0f;
+      const float orow = std::isnan(ours.rows.coord[i]) ? -1.0f : ours.rows.coord[i];
       mismatch += oc != col.at<float>(static_cast<int>(y), static_cast<int>(x)) ||
                   orow != row.at<float>(static_cast<int>(y), static_cast<int>(x));
     }

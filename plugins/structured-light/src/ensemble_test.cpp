@@ -171,8 +171,8 @@ struct Voted {
 
 Voted decode_and_vote(const MultiLayout& l, const std::vector<ProjectedCode>& codes,
                       const std::vector<procam_image>& views, double min_bit_margin = 0.1,
-                      bool reverse = false) {
-  MultiCodeDecoder dec(l, codes, kCamW, kCamH, 2);
+                      bool reverse = false, uint32_t max_weak_error_px = 0) {
+  MultiCodeDecoder dec(l, codes, kCamW, kCamH, 2, max_weak_error_px);
   for (size_t k = 0; k < views.size(); ++k) {
     const size_t i = reverse ? views.size() - 1 - k : k;
     const sdk::Error e = dec.add_frame(static_cast<uint32_t>(i), views[i]);
@@ -407,6 +407,53 @@ TEST(MultiRound, RejectsWrongFramesAndDuplicates) {
   EXPECT_FALSE(dec.add_frame(1, small).ok());
   EXPECT_FALSE(dec.complete());
   EXPECT_THROW(dec.finish(0.03, 0.1), std::logic_error);
+}
+
+// Tolerated weak planes (decode.hpp): a near tie on XOR-04's bit 0 (projected
+// unchanged, the stripe-width-2 Gray plane: error bound 1) is tolerated with
+// max_weak_error_px = 1; a near tie on XOR-02's base plane (bit 0 too, but
+// every decoded bit above depends on it) never is.
+TEST(Ensemble, WeakPlaneToleratedOnlyWhereItsErrorIsBounded) {
+  const auto codes = ensemble_codes();
+  const MultiLayout l = make_multi_layout(codes, false, false);
+  Scene s;  // direct light, no noise: W = 190, B = 0 (no black frame)
+  auto frames = render(l, codes, s, 1);
+  const uint32_t bits = code_bits(kProjW);
+  size_t base02 = 0, bit0_04 = 0;
+  for (size_t f = 0; f < l.frames.size(); ++f) {
+    if (l.frames[f].kind != FrameKind::plane || l.frames[f].plane != bits - 1) continue;
+    if (codes[l.frames[f].code].id == "xor02") base02 = f;
+    if (codes[l.frames[f].code].id == "xor04") bit0_04 = f;
+  }
+  ASSERT_NE(base02, 0u);
+  ASSERT_NE(bit0_04, 0u);
+  const uint32_t x02 = 100, x04 = 200;  // camera columns
+  auto near_tie = [&](size_t f, uint32_t x, const char* id) {
+    const double bit = reference_bit(id, bits - 1, true_col(x));
+    const double w = s.black + s.contrast;  // synthetic inverse: L̄ = W - L, tie at W / 2
+    for (uint32_t y = 0; y < kCamH; ++y)
+      frames[f][size_t{y} * kCamW + x] = static_cast<float>(w / 2 + (bit != 0 ? 1 : -1) * 0.05 * w / 2);
+  };
+  near_tie(base02, x02, "xor02");
+  near_tie(bit0_04, x04, "xor04");
+  for (const auto& [type, nbits] : {std::pair{PROCAM_PIXEL_U8, 8u}, std::pair{PROCAM_PIXEL_U16, 12u}}) {
+    SCOPED_TRACE(nbits);
+    const Quantized q = quantize(frames, type, nbits);
+    const Voted strict = decode_and_vote(l, codes, q.views, 0.1, false, 0);
+    const Voted tolerant = decode_and_vote(l, codes, q.views, 0.1, false, 1);
+    for (uint32_t y = 0; y < kCamH; ++y) {
+      const size_t i02 = size_t{y} * kCamW + x02, i04 = size_t{y} * kCamW + x04;
+      EXPECT_EQ(strict.r.codes[kXor02].valid[i02], 0);
+      EXPECT_EQ(tolerant.r.codes[kXor02].valid[i02], 0) << "XOR-02's base plane is never tolerated";
+      EXPECT_EQ(strict.r.codes[kXor04].valid[i04], 0);
+      EXPECT_EQ(tolerant.r.codes[kXor04].valid[i04], 255);
+      EXPECT_EQ(tolerant.r.codes[kXor04].coord[i04], static_cast<float>(true_col(x04)));
+      EXPECT_NEAR(tolerant.r.codes[kXor04].confidence[i04], 0.05f, 0.01f);
+    }
+    EXPECT_EQ(strict.r.weak[kXor04], 0u);
+    EXPECT_EQ(tolerant.r.weak[kXor04], size_t{kCamH});
+    EXPECT_EQ(tolerant.r.weak[kXor02], 0u);
+  }
 }
 
 }  // namespace

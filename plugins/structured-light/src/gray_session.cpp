@@ -11,6 +11,7 @@
 #include "gray_code.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
+#include "streaming_session.hpp"
 #include "subpixel.hpp"
 #include "triangulate.hpp"
 
@@ -34,9 +35,10 @@ struct GrayConfig {
   bool inverse = true;         // binarize "inverse" (true) or "white"
   double min_contrast = 0.03;  // fraction of full scale
   double min_bit_margin = 0.1; // fraction of the pixel's contrast
+  uint32_t max_weak_error_px = 1;  // tolerated weak planes (decode.hpp)
 };
 
-class GraySession final : public sdk::Session {
+class GraySession final : public StreamingSession<BinaryRoundDecoder> {
  public:
   GraySession(GrayConfig cfg, sdk::Rig rig)
       : cfg_(cfg), rig_(std::move(rig)), cols_(make_gray_code(rig_.projector_width)) {
@@ -59,22 +61,16 @@ class GraySession final : public sdk::Session {
                   (rows ? " and " + std::to_string(layout.row_bits) + " row planes" : "") +
                   (cfg_.inverse ? ", each with its inverse" : ""));
     const sdk::RigCamera& cam = rig_.cameras.at(0);
-    decoder_.emplace(std::move(layout), cols_, rows, cam.width, cam.height, rig_.threads);
+    decoder_.emplace(std::move(layout), cols_, rows, cam.width, cam.height, rig_.threads,
+                     cfg_.max_weak_error_px);
     pattern_count_ = plan.size();
     round_started_ = true;
     has_round = true;
     return sdk::ok();
   }
 
-  sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
-    const auto t0 = std::chrono::steady_clock::now();
-    sdk::Error e = decoder_->add_frame(index, frame);
-    decode_ms_ += ms_since(t0);
-    return e;
-  }
-
   sdk::Error end_round() override {
-    const auto t0 = std::chrono::steady_clock::now();
+    const ScopedMs timed(decode_ms_);
     result_ = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin);
     decoder_.reset();  // releases the accumulators
     const sdk::RigCamera& cam = rig_.cameras.at(0);
@@ -82,7 +78,6 @@ class GraySession final : public sdk::Session {
       depth_ = triangulate_columns(cam.calibration, rig_.projector, cam.width, cam.height,
                                    result_.cols.coord.data(), result_.intensity.data(),
                                    rig_.threads);
-    decode_ms_ += ms_since(t0);
     return sdk::ok();
   }
 
@@ -111,14 +106,7 @@ class GraySession final : public sdk::Session {
     out.add_image("confidence", "",
                   "min over column bits of |L - L_inv| / (white - black), clipped to [0, 1]", w,
                   h, std::move(result_.cols.confidence));
-    if (depth_) {
-      out.add_image("depth_mm", "mm", "z of the triangulated point, camera frame (NaN: none)", w,
-                    h, std::move(depth_->depth_mm));
-      out.add_points("points", "triangulated points, camera frame; intensity = white / full scale",
-                     "x,y,z,intensity", 4, std::move(depth_->points));
-    }
-    out.add_scalar("valid_fraction", "", "fraction of camera pixels with a valid column",
-                   n > 0 ? static_cast<double>(valid) / n : 0.0);
+    add_depth_outputs(out, depth_, w, h, valid, n);
     out.add_scalar("decode_ms", "ms",
                    "plugin time spent decoding (add_frame work + end_round), wall clock",
                    decode_ms_);
@@ -135,6 +123,10 @@ class GraySession final : public sdk::Session {
         {"why", kWhy},
         {"min_contrast", cfg_.min_contrast},
         {"min_bit_margin", cfg_.min_bit_margin},
+        {"max_weak_error_px", cfg_.max_weak_error_px},
+        {"error_bound_px", plane_error_bounds(cols_)},
+        {"weak_plane_pixels", result_.cols_weak},
+        {"row_weak_plane_pixels", result_.rows_weak},
         {"input_full_scale", result_.full_scale},
         {"triangulated", depth_.has_value()},
         {"camera_index", 0},
@@ -145,20 +137,15 @@ class GraySession final : public sdk::Session {
   }
 
  private:
-  static double ms_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  }
 
   GrayConfig cfg_;
   sdk::Rig rig_;
   StripeCode cols_;
   std::optional<StripeCode> rows_;
-  std::optional<BinaryRoundDecoder> decoder_;
   RoundResult result_;
   std::optional<DepthResult> depth_;
   bool round_started_ = false;
   uint32_t pattern_count_ = 0;
-  double decode_ms_ = 0;
 };
 
 }  // namespace
@@ -181,6 +168,7 @@ const std::vector<sdk::ParamSpec>& gray_param_specs() {
        "alpha = 1), so 0.1 rejects only pixels within ~5% of a stripe edge or dominated by "
        "global light/defocus, while keeping a 3.5-sigma margin over sensor noise at 100 DN "
        "contrast"},
+      {"max_weak_error_px", sdk::ParamType::integer, 1, 0.0, 1024.0, {}, kMaxWeakErrorHelp},
   };
   return specs;
 }
@@ -214,6 +202,7 @@ sdk::Error create_gray_session(const sdk::CreateArgs& args, std::unique_ptr<sdk:
   cfg.inverse = params.get_string("binarize") == "inverse";
   cfg.min_contrast = params.get_number("min_contrast");
   cfg.min_bit_margin = params.get_number("min_bit_margin");
+  cfg.max_weak_error_px = static_cast<uint32_t>(params.get_int("max_weak_error_px"));
   out = std::make_unique<GraySession>(cfg, std::move(rig));
   return sdk::ok();
 }

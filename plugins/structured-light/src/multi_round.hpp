@@ -17,7 +17,10 @@
 // ANDed with a projector mask, so decoding needs no change — pixels lit only
 // by switched-off projector pixels fail the contrast rule and stay invalid.
 // Inputs: one-channel U8 / U16 (bit_depth 1..16) / F32 frames of one format.
-// Thread-safety: thread-bound; uses `threads` workers for per-pixel loops.
+// Streaming and per-pixel state: the shared engine of bitplane_stream.hpp
+// (the same as BinaryRoundDecoder's).
+// Thread-safety: thread-bound; uses `threads` workers (a WorkPool owned by
+// the decoder) for per-pixel loops.
 #pragma once
 
 #include <cstdint>
@@ -29,6 +32,7 @@
 #include "plan_layout.hpp"
 #include "procam/plugin_sdk.hpp"
 #include "round_decoder.hpp"
+#include "vote.hpp"
 
 namespace procam::sl {
 
@@ -59,20 +63,41 @@ void render_multi_plan(const MultiLayout& layout, const std::vector<ProjectedCod
 
 struct MultiResult {
   std::vector<AxisMaps> codes;   // per code: projector column (span centre), valid, confidence
+                                 // (finish(); empty after finish_vote())
+  VoteMaps vote;                 // ensemble vote (finish_vote(); empty after finish())
   std::vector<uint8_t> lit;      // 255 where W - B passes the contrast rule (decode.hpp rule 1)
   std::vector<float> intensity;  // white / full scale in [0, 1]
+  std::vector<size_t> weak;      // per code: valid pixels kept through a tolerated weak plane
   double full_scale = 0;
+};
+
+// What finish_vote() votes with, per ensemble slot (vote.hpp order gray,
+// xor02, xor04, minsw): this round's code `round_code[k]`, or, where that is
+// -1, an earlier round's column map `external[k]` (NaN = invalid).
+// keep[k] (optional): also write this round's code's own column map there.
+struct VoteSpec {
+  int32_t round_code[kEnsembleCodes] = {-1, -1, -1, -1};
+  const float* external[kEnsembleCodes] = {nullptr, nullptr, nullptr, nullptr};
+  float* keep[kEnsembleCodes] = {nullptr, nullptr, nullptr, nullptr};
+  float agree_px = 1.0f;
 };
 
 class MultiCodeDecoder {
  public:
+  enum class Output { per_code, vote };
+  // max_weak_error_px: tolerated weak planes (decode.hpp; 0 = every plane
+  // strict). `output` picks which result maps the constructor allocates:
+  // per-code maps for finish(), the vote maps for finish_vote().
   MultiCodeDecoder(MultiLayout layout, const std::vector<ProjectedCode>& codes, uint32_t width,
-                   uint32_t height, uint32_t threads);
+                   uint32_t height, uint32_t threads, uint32_t max_weak_error_px = 0,
+                   Output output = Output::per_code);
 
   // Frame `index` of the layout, each once; BAD_FRAME / STATE errors as
   // BinaryRoundDecoder. The image is only read during the call.
-  sdk::Error add_frame(uint32_t index, const procam_image& frame);
-  bool complete() const { return added_count_ == layout_.frames.size(); }
+  sdk::Error add_frame(uint32_t index, const procam_image& frame) {
+    return stream_.add_frame(index, frame);
+  }
+  bool complete() const { return stream_.complete(); }
 
   // Decode rules of decode.hpp per code (min_contrast: fraction of full scale).
   // Requires complete() (std::logic_error otherwise). The maps live in the
@@ -81,35 +106,24 @@ class MultiCodeDecoder {
   // for page faults. Callers may move the maps out; a later call re-allocates.
   MultiResult& finish(double min_contrast, double min_bit_margin);
 
+  // Decode + ensemble vote in one pass (vote.hpp, vote_keys): no per-code
+  // maps are written (except VoteSpec::keep); fills result.vote, lit,
+  // intensity and weak. Same requirements and map ownership as finish().
+  MultiResult& finish_vote(double min_contrast, double min_bit_margin, const VoteSpec& spec);
+
   const MultiLayout& layout() const { return layout_; }
 
  private:
-  struct Copy {
-    std::vector<uint8_t> u8;
-    std::vector<uint16_t> u16;
-    std::vector<float> f32;
-    procam_image view{};
-  };
-  void fold(const MultiFrame& role, const procam_image& plane, const procam_image* inverse);
-  void fold_waiting_planes();
-  void keep(uint32_t index, const procam_image& frame);
-  void to_float(const procam_image& frame, std::vector<float>& out) const;
-  bool have_reference() const;
+  void allocate_result(Output output);
+  DecodeThresholds thresholds(double min_contrast, double min_bit_margin) const;
 
   MultiLayout layout_;
   std::vector<ProjectedCode> codes_;
-  uint32_t width_, height_, threads_;
-  std::vector<BitAccumulator> acc_;
-  std::vector<float> white_, black_;
-  std::vector<uint16_t> sum_u16_;
+  std::vector<WordMap> index_map_;  // per code: word -> code index (-1: none)
+  std::vector<WordMap> key_map_;    // per code: word -> 2 x column (-1: none)
+  uint32_t width_, height_;
+  BitPlaneStream stream_;
   MultiResult result_;  // pre-allocated output maps
-  void allocate_result();  // W + B of 8-bit rounds (synthetic-inverse fast path)
-  std::vector<Copy> waiting_;
-  std::vector<uint8_t> added_;
-  size_t added_count_ = 0;
-  bool have_format_ = false;
-  uint32_t pixel_type_ = 0, bit_depth_ = 0;
-  float full_scale_ = 0;
 };
 
 }  // namespace procam::sl

@@ -126,13 +126,15 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_TRUE(d[0]["patterns"].is_string());
   std::map<std::string, nlohmann::json> params;
   for (const auto& p : d[0]["params"]) params[p["name"].get<std::string>()] = p;
-  ASSERT_EQ(params.size(), 4u);
+  ASSERT_EQ(params.size(), 5u);
   EXPECT_EQ(params["rows"]["type"], "bool");
   EXPECT_EQ(params["rows"]["default"], false);
   EXPECT_EQ(params["binarize"]["default"], "inverse");
   EXPECT_EQ(params["binarize"]["choices"], nlohmann::json({"inverse", "white"}));
   EXPECT_EQ(params["min_contrast"]["default"], 0.03);
   EXPECT_EQ(params["min_bit_margin"]["default"], 0.1);
+  EXPECT_EQ(params["max_weak_error_px"]["type"], "int");
+  EXPECT_EQ(params["max_weak_error_px"]["default"], 1);
   for (auto& [name, p] : params) EXPECT_FALSE(p["description"].get<std::string>().empty()) << name;
 }
 
@@ -356,13 +358,19 @@ TEST(PluginAbi, CreateErrors) {
             "modulated-phase-shift");
   EXPECT_EQ(create_error("gray", R"({"bits":3})", PROCAM_ERR_INVALID_ARGUMENT),
             "unknown parameter 'bits' for method 'gray' (known: rows, binarize, min_contrast, "
-            "min_bit_margin)");
+            "min_bit_margin, max_weak_error_px)");
   EXPECT_EQ(create_error("gray", R"({"rows":"yes"})", PROCAM_ERR_INVALID_ARGUMENT),
             R"(parameter 'rows' must be true or false, got "yes")");
   EXPECT_EQ(create_error("gray", R"({"min_bit_margin":1.5})", PROCAM_ERR_INVALID_ARGUMENT),
             "parameter 'min_bit_margin' must be a number in 0..1, got 1.5");
   EXPECT_EQ(create_error("gray", R"({"binarize":"grey"})", PROCAM_ERR_INVALID_ARGUMENT),
             R"(parameter 'binarize' must be one of "inverse", "white", got "grey")");
+  for (const char* method : {"gray", "xor02", "xor04", "minsw", "ensemble", "auto"})
+    for (const char* bad : {R"({"max_weak_error_px":-1})", R"({"max_weak_error_px":1.5})",
+                            R"({"max_weak_error_px":2000})", R"({"max_weak_error_px":"1"})"}) {
+      const std::string m = create_error(method, bad, PROCAM_ERR_INVALID_ARGUMENT);
+      EXPECT_NE(m.find("parameter 'max_weak_error_px'"), std::string::npos) << method << " " << m;
+    }
   EXPECT_EQ(create_error("gray", "{oops", PROCAM_ERR_INVALID_ARGUMENT),
             "params_json is not valid JSON");
   procam_session* s = nullptr;

@@ -4,185 +4,87 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <stdexcept>
+#include <limits>
+#include <mutex>
 #include <utility>
 
 namespace procam::sl {
 
+StreamLayout stream_layout(const Layout& layout, const StripeCode& cols, const StripeCode* rows,
+                           uint32_t max_weak_error_px) {
+  StreamLayout s;
+  s.inverse = layout.inverse;
+  s.white = layout.white_index();
+  s.black = layout.black_index();
+  s.bits.push_back(cols.bits);
+  s.tolerable.push_back(tolerable_planes(plane_error_bounds(cols), max_weak_error_px));
+  if (rows != nullptr) {
+    s.bits.push_back(rows->bits);
+    s.tolerable.push_back(tolerable_planes(plane_error_bounds(*rows), max_weak_error_px));
+  }
+  for (const FrameRole& r : layout.frames)
+    s.frames.push_back({r.kind, r.axis == Axis::row ? 1u : 0u, r.plane, r.partner, r.label});
+  return s;
+}
+
 BinaryRoundDecoder::BinaryRoundDecoder(Layout layout, const StripeCode& cols,
                                        const StripeCode* rows, uint32_t width, uint32_t height,
-                                       uint32_t threads)
+                                       uint32_t threads, uint32_t max_weak_error_px)
     : layout_(std::move(layout)),
       cols_(cols),
       has_rows_(rows != nullptr),
       width_(width),
       height_(height),
-      threads_(std::max(1u, threads)) {
+      stream_(stream_layout(layout_, cols, rows, max_weak_error_px), width, height, threads) {
   if (rows != nullptr) rows_ = *rows;
+  allocate_result();
+  stream_.set_intensity_output(result_.intensity.data());
+}
+
+void BinaryRoundDecoder::allocate_result() {
   const size_t n = size_t{width_} * height_;
-  col_acc_.reset(n, cols_.bits);
-  if (has_rows_) row_acc_.reset(n, rows_.bits);
-  waiting_.resize(layout_.frames.size());
-  added_.assign(layout_.frames.size(), 0);
-}
-
-void BinaryRoundDecoder::keep(uint32_t index, const procam_image& frame) {
-  Copy& c = waiting_[index];
-  c.view = frame;
-  const size_t n = size_t{width_} * height_;
-  const size_t row_bytes = size_t{width_} * sdk::bytes_per_sample(frame.pixel_type);
-  void* dst = nullptr;
-  switch (frame.pixel_type) {
-    case PROCAM_PIXEL_U8: c.u8.resize(n); dst = c.u8.data(); break;
-    case PROCAM_PIXEL_U16: c.u16.resize(n); dst = c.u16.data(); break;
-    default: c.f32.resize(n); dst = c.f32.data(); break;
+  // Every page written now, not after the last frame. Rows: coord only (no
+  // method outputs a row confidence or validity map; NaN marks invalid).
+  MapBatch maps;
+  maps.add(result_.cols.coord, n);
+  maps.add(result_.cols.valid, n);
+  maps.add(result_.cols.confidence, n);
+  if (has_rows_) {
+    maps.add(result_.rows.coord, n);
   }
-  for (uint32_t y = 0; y < height_; ++y)
-    std::memcpy(static_cast<uint8_t*>(dst) + y * row_bytes, sdk::row_bytes(frame, y), row_bytes);
-  c.view.data = dst;
-  c.view.stride_bytes = row_bytes;
-}
-
-void BinaryRoundDecoder::to_float(const procam_image& frame, std::vector<float>& out) const {
-  out.resize(size_t{width_} * height_);
-  sdk::parallel_rows(height_, threads_, [&](uint32_t y0, uint32_t y1) {
-    for (uint32_t y = y0; y < y1; ++y) sdk::read_row(frame, y, out.data() + size_t{y} * width_);
-  });
-}
-
-void BinaryRoundDecoder::fold(const FrameRole& role, const procam_image& plane,
-                              const procam_image* inverse) {
-  BitAccumulator& acc = role.axis == Axis::col ? col_acc_ : row_acc_;
-  const uint32_t position = acc.bits - 1 - role.plane;
-  const size_t w = width_;
-  sdk::parallel_rows(height_, threads_, [&](uint32_t y0, uint32_t y1) {
-    std::vector<float> row_l(w), row_lb(w);
-    for (uint32_t y = y0; y < y1; ++y) {
-      const size_t off = size_t{y} * w;
-      sdk::read_row(plane, y, row_l.data());
-      if (inverse != nullptr)
-        sdk::read_row(*inverse, y, row_lb.data());
-      else  // binarize "white": footnote 2, generalised (binarize.hpp)
-        synthesize_inverse(row_l.data(), white_.data() + off, black_.data() + off, w,
-                           row_lb.data());
-      fold_plane(row_l.data(), row_lb.data(), w, position, full_scale_, acc.word.data() + off,
-                 acc.min_margin.data() + off, acc.flags.data() + off);
-    }
-  });
-  acc.plane_done[role.plane] = 1;
-}
-
-void BinaryRoundDecoder::fold_waiting_planes() {
-  for (size_t i = 0; i < layout_.frames.size(); ++i) {
-    const FrameRole& role = layout_.frames[i];
-    if (role.kind != FrameKind::plane || waiting_[i].view.data == nullptr) continue;
-    fold(role, waiting_[i].view, nullptr);
-    waiting_[i] = Copy{};  // release
+  if (result_.intensity.size() != n) {  // a new map: written at finish, not from the white frame
+    stream_.set_intensity_output(nullptr);
+    maps.add(result_.intensity, n);
   }
-}
-
-sdk::Error BinaryRoundDecoder::add_frame(uint32_t index, const procam_image& frame) {
-  if (index >= layout_.frames.size())
-    return sdk::invalid_argument("frame index " + std::to_string(index) + " is out of range (" +
-                                 std::to_string(layout_.frames.size()) + " frames)");
-  const FrameRole& role = layout_.frames[index];
-  const std::string what = "frame " + std::to_string(index) + " (" + role.label + ")";
-  if (added_[index]) return sdk::state_error(what + " was already added");
-  if (sdk::Error e = sdk::check_frame(&frame, width_, height_, 1, what); !e.ok()) return e;
-  if (have_format_ && (frame.pixel_type != pixel_type_ ||
-                       (pixel_type_ != PROCAM_PIXEL_F32 && frame.bit_depth != bit_depth_))) {
-    procam_image first{};
-    first.width = width_;
-    first.height = height_;
-    first.channels = 1;
-    first.pixel_type = pixel_type_;
-    first.bit_depth = bit_depth_;
-    return sdk::bad_frame(what + " is " + sdk::describe_image(frame) +
-                          " but earlier frames of this round are " + sdk::describe_image(first) +
-                          "; all frames of a round must share one format");
-  }
-  if (!have_format_) {
-    pixel_type_ = frame.pixel_type;
-    bit_depth_ = frame.bit_depth;
-    full_scale_ = static_cast<float>(sdk::full_scale(frame));
-    have_format_ = true;
-  }
-
-  switch (role.kind) {
-    case FrameKind::white: to_float(frame, white_); break;
-    case FrameKind::black: to_float(frame, black_); break;
-    case FrameKind::plane:
-    case FrameKind::inverse:
-      if (layout_.inverse) {
-        const auto partner = static_cast<size_t>(role.partner);
-        if (added_[partner]) {
-          const procam_image& other = waiting_[partner].view;
-          if (role.kind == FrameKind::plane)
-            fold(role, frame, &other);
-          else
-            fold(layout_.frames[partner], other, &frame);
-          waiting_[partner] = Copy{};  // release the partner's copy
-        } else {
-          keep(index, frame);
-        }
-      } else {
-        const bool have_reference = added_[static_cast<size_t>(layout_.white_index())] &&
-                                    added_[static_cast<size_t>(layout_.black_index())];
-        if (have_reference)
-          fold(role, frame, nullptr);
-        else
-          keep(index, frame);
-      }
-      break;
-  }
-  added_[index] = 1;
-  ++added_count_;
-  if (!layout_.inverse && (role.kind == FrameKind::white || role.kind == FrameKind::black) &&
-      added_[static_cast<size_t>(layout_.white_index())] &&
-      added_[static_cast<size_t>(layout_.black_index())])
-    fold_waiting_planes();
-  return sdk::ok();
+  maps.run(stream_.pool());
 }
 
 RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margin) {
-  if (!complete()) throw std::logic_error("BinaryRoundDecoder::finish before all frames added");
-  for (uint8_t done : col_acc_.plane_done)
-    if (!done) throw std::logic_error("BinaryRoundDecoder: a column plane was never folded");
-  if (has_rows_)
-    for (uint8_t done : row_acc_.plane_done)
-      if (!done) throw std::logic_error("BinaryRoundDecoder: a row plane was never folded");
-
-  const size_t n = size_t{width_} * height_;
-  RoundResult r;
-  r.full_scale = static_cast<double>(full_scale_);
+  stream_.require_complete("BinaryRoundDecoder");
+  if (result_.intensity.size() != size_t{width_} * height_) allocate_result();
+  RoundResult& r = result_;
+  r.full_scale = static_cast<double>(stream_.full_scale());
   DecodeThresholds t;
-  t.min_contrast_abs = static_cast<float>(min_contrast * static_cast<double>(full_scale_));
+  t.min_contrast_abs = static_cast<float>(min_contrast * r.full_scale);
   t.min_bit_margin = static_cast<float>(min_bit_margin);
-  auto alloc = [n](AxisMaps& m) {
-    m.coord.resize(n);
-    m.valid.resize(n);
-    m.confidence.resize(n);
-  };
-  alloc(r.cols);
-  if (has_rows_) alloc(r.rows);
-  r.intensity.resize(n);
-  const float* white = white_.data();
-  const float* black = black_.data();
-  const float inv_scale = 1.0f / full_scale_;
-  sdk::parallel_rows(height_, threads_, [&](uint32_t y0, uint32_t y1) {
-    const size_t b = size_t{y0} * width_, e = size_t{y1} * width_;
-    decode_pixels(col_acc_, cols_, white, black, b, e, t, r.cols.coord.data(),
-                  r.cols.valid.data(), r.cols.confidence.data());
-    if (has_rows_)
-      decode_pixels(row_acc_, rows_, white, black, b, e, t, r.rows.coord.data(),
-                    r.rows.valid.data(), r.rows.confidence.data());
-    for (size_t i = b; i < e; ++i) {
-      const float v = white[i] * inv_scale;
-      r.intensity[i] = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
-    }
-  });
-  return r;
+  const DecodeContext ctx(stream_, t);
+  const WordMap maps[2] = {word_map(cols_), has_rows_ ? word_map(rows_) : WordMap{}};
+  std::vector<size_t> weak;
+  decode_rows(stream_, ctx, nullptr, stream_.intensity_to_write(r.intensity), has_rows_ ? 2 : 1,
+              weak, [&](size_t b, size_t e, const BaseRow& base, int32_t* idx, size_t* band_weak) {
+                for (size_t axis = 0; axis < (has_rows_ ? 2u : 1u); ++axis) {
+                  AxisMaps& m = axis == 0 ? r.cols : r.rows;
+                  band_weak[axis] += decode_code_maps(
+                      ctx, axis, maps[axis], b, e, base, idx, m.coord.data() + b,
+                      m.valid.empty() ? nullptr : m.valid.data() + b,
+                      m.confidence.empty() ? nullptr : m.confidence.data() + b);
+                }
+              });
+  r.cols_weak = weak[0];
+  r.rows_weak = has_rows_ ? weak[1] : 0;
+  RoundResult out = std::move(result_);
+  result_ = RoundResult{};
+  return out;
 }
 
 }  // namespace procam::sl

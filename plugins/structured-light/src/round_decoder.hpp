@@ -3,25 +3,27 @@
 // (layout from plan_layout.hpp) through binarization as they arrive, then
 // decodes every pixel when the round ends.
 //
-// Streaming: a plane is folded into its accumulator as soon as both it and
-// its reference are present — its inverse frame (binarize "inverse") or the
-// white and black frames (binarize "white"). Until then a copy of the frame
-// is kept in its own pixel format; once folded, the copy is released. In plan
+// Streaming, frame bookkeeping and the per-pixel state are the shared engine
+// of bitplane_stream.hpp (the same as MultiCodeDecoder's): a plane is folded
+// as soon as both it and its reference are present — its inverse frame
+// (binarize "inverse") or the white and black frames (binarize "white") —
+// and a waiting frame is copied in its own pixel format until then. In plan
 // order at most one frame waits at a time, so end of round only runs the
-// per-pixel decode. Frames may arrive in any order. White and black are kept
-// as float for the whole round (references and contrast).
+// per-pixel decode. Frames may arrive in any order.
 //
 // Inputs: one-channel U8, U16 (any bit_depth 1..16) or F32 frames, all of a
 // round in the same format; full scale = 2^bit_depth - 1 (F32: 1.0), which
 // is also the saturation level.
+// Output maps are allocated and touched by the constructor (while frames are
+// still being captured) and moved out by finish().
 // Thread-safety: thread-bound (one session); uses `threads` worker threads
-// internally for per-pixel loops (sdk::parallel_rows).
+// (a WorkPool owned by the decoder) for per-pixel loops.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
-#include "binarize.hpp"
+#include "bitplane_stream.hpp"
 #include "decode.hpp"
 #include "plan_layout.hpp"
 #include "procam/plugin_sdk.hpp"
@@ -38,56 +40,53 @@ struct AxisMaps {
 
 struct RoundResult {
   AxisMaps cols;
-  AxisMaps rows;                  // empty when the layout has no row code
+  AxisMaps rows;                  // coord only (NaN = invalid; valid and confidence
+                                  // empty); all empty when the layout has no row code
   std::vector<float> intensity;   // white image / full scale, clipped to [0, 1] (0 if not finite)
   double full_scale = 0;          // of the input frames
+  size_t cols_weak = 0, rows_weak = 0;  // valid pixels kept through a tolerated weak plane
 };
 
 class BinaryRoundDecoder {
  public:
   // `cols` (and `rows` when non-null) are copied. Frames must be
-  // width x height. threads >= 1.
+  // width x height. threads >= 1. max_weak_error_px: tolerated weak planes
+  // (decode.hpp; 0 = every plane strict).
   BinaryRoundDecoder(Layout layout, const StripeCode& cols, const StripeCode* rows,
-                     uint32_t width, uint32_t height, uint32_t threads);
+                     uint32_t width, uint32_t height, uint32_t threads,
+                     uint32_t max_weak_error_px = 0);
 
   // Frame `index` of the layout (each once). BAD_FRAME for a wrong size,
   // channel count or a format that differs from earlier frames of the round;
   // nothing changes on error. The image is read during the call only.
-  sdk::Error add_frame(uint32_t index, const procam_image& frame);
+  sdk::Error add_frame(uint32_t index, const procam_image& frame) {
+    return stream_.add_frame(index, frame);
+  }
 
   // True when every frame of the layout was added.
-  bool complete() const { return added_count_ == layout_.frames.size(); }
+  bool complete() const { return stream_.complete(); }
 
   // Decodes all pixels (requires complete(); throws std::logic_error if not).
   // min_contrast is a fraction of full scale; see decode.hpp for the rules.
+  // Moves the pre-allocated maps out (a second call allocates new ones).
   RoundResult finish(double min_contrast, double min_bit_margin);
 
   const Layout& layout() const { return layout_; }
 
  private:
-  struct Copy {  // a waiting frame, copied in its own format (the host's memory is call-scoped)
-    std::vector<uint8_t> u8;
-    std::vector<uint16_t> u16;
-    std::vector<float> f32;
-    procam_image view{};
-  };
-  void fold(const FrameRole& role, const procam_image& plane, const procam_image* inverse);
-  void fold_waiting_planes();  // binarize "white": planes that arrived before W and B
-  void keep(uint32_t index, const procam_image& frame);
-  void to_float(const procam_image& frame, std::vector<float>& out) const;
+  void allocate_result();
 
   Layout layout_;
   StripeCode cols_, rows_;
   bool has_rows_ = false;
-  uint32_t width_, height_, threads_;
-  BitAccumulator col_acc_, row_acc_;
-  std::vector<float> white_, black_;        // float copies once added
-  std::vector<Copy> waiting_;               // per layout frame: copy while it waits (or empty)
-  std::vector<uint8_t> added_;
-  size_t added_count_ = 0;
-  bool have_format_ = false;
-  uint32_t pixel_type_ = 0, bit_depth_ = 0;
-  float full_scale_ = 0;
+  uint32_t width_, height_;
+  BitPlaneStream stream_;
+  RoundResult result_;
 };
+
+// The engine layout of a Layout (code 0 = columns, 1 = rows), with tolerable
+// planes for max_weak_error_px.
+StreamLayout stream_layout(const Layout& layout, const StripeCode& cols, const StripeCode* rows,
+                           uint32_t max_weak_error_px);
 
 }  // namespace procam::sl

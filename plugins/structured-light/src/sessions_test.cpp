@@ -169,6 +169,34 @@ TEST(Sessions, EnsembleDetectsErrorsAndStopsCorrectingWithoutCalibration) {
     for (uint32_t x = 50; x < 60; ++x) ASSERT_TRUE(std::isnan(c[size_t{y} * kW + x]));
 }
 
+TEST(Sessions, WeakFinestPlaneToleratedAndReported) {
+  // Columns 30..39: xor04's bit 0 (the stripe-width-2 Gray plane, error bound
+  // 1 column) and its inverse pushed to a 5% margin, right sign.
+  const Distort weak = [](uint32_t, const std::string& label, uint32_t x, uint32_t, double v) {
+    if (x >= 30 && x < 40 && label.rfind("xor04 bit 0", 0) == 0) return v > 110.0 ? 115.0 : 105.0;
+    return v;
+  };
+  const ScanRun tolerant = run("xor04", nlohmann::json::object(), weak);  // default: 1
+  const ScanRun strict = run("xor04", {{"max_weak_error_px", 0}}, weak);
+  EXPECT_EQ(tolerant.report["max_weak_error_px"], 1);
+  EXPECT_EQ(strict.report["max_weak_error_px"], 0);
+  const nlohmann::json& code = tolerant.report["codes"][0];
+  EXPECT_EQ(code["error_bound_px"][0], 1);
+  EXPECT_EQ(code["tolerated_weak_bits"], nlohmann::json::array({0}));
+  EXPECT_EQ(code["weak_plane_pixels"], 10u * kH);
+  EXPECT_EQ(strict.report["codes"][0]["weak_plane_pixels"], 0u);
+  const auto& ct = tolerant.maps.at("proj_col_px");
+  const auto& cs = strict.maps.at("proj_col_px");
+  const auto& conf = tolerant.maps.at("confidence");
+  for (uint32_t y = 0; y < kH; ++y)
+    for (uint32_t x = 30; x < 40; ++x) {
+      const size_t i = size_t{y} * kW + x;
+      ASSERT_EQ(ct[i], static_cast<float>(x)) << x;
+      ASSERT_TRUE(std::isnan(cs[i])) << x;
+      ASSERT_NEAR(conf[i], 0.05f, 0.01f);
+    }
+}
+
 TEST(Sessions, BadParamsAreRejected) {
   std::unique_ptr<sdk::Session> s;
   EXPECT_FALSE(create_codes_session({"ensemble", {{"agree_px", -1}}, rig_json()}, s).ok());

@@ -2,8 +2,13 @@
 // Ensemble vote and classification (thesis §3.3.3, §3.4; see vote.hpp).
 #include "vote.hpp"
 
+#include "binarize.hpp"
+
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+
+#include "simd.hpp"
 
 namespace procam::sl {
 
@@ -71,6 +76,187 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
     confidence[i] = static_cast<float>(best + 1) / 4.0f;
     cls[i] = c;
   }
+}
+
+int32_t agree_key_threshold(float agree_px) {
+  return static_cast<int32_t>(std::floor(2.0f * agree_px));
+}
+
+namespace {
+
+void vote_keys_scalar(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t b,
+                      size_t n, int32_t agree2, float* coord, uint8_t* valid, float* confidence,
+                      uint8_t* cls) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const int32_t* k0 = key[kGray];
+  const int32_t* k1 = key[kXor02];
+  const int32_t* k2 = key[kXor04];
+  const int32_t* k3 = key[kMinsw];
+  for (size_t i = b; i < n; ++i) {
+    const int32_t a0 = k0[i], a1 = k1[i], a2 = k2[i], a3 = k3[i];
+    auto agree = [agree2](int32_t x, int32_t y) -> int32_t {
+      const int32_t d = x - y;
+      return static_cast<int32_t>((x >= 0) & (y >= 0) & ((d < 0 ? -d : d) <= agree2));
+    };
+    const int32_t p01 = agree(a0, a1), p02 = agree(a0, a2), p03 = agree(a0, a3);
+    const int32_t p12 = agree(a1, a2), p13 = agree(a1, a3), p23 = agree(a2, a3);
+    const int32_t s0 = p01 + p02 + p03, s1 = p01 + p12 + p13, s2 = p02 + p12 + p23,
+                  s3 = p03 + p13 + p23;
+    const int32_t pairs = p01 + p02 + p03 + p12 + p13 + p23;
+    int32_t best = s0 > s1 ? s0 : s1;
+    best = best > s2 ? best : s2;
+    best = best > s3 ? best : s3;
+    const bool sub = pairs == 1 && p03 != 0, inter = pairs == 1 && p12 != 0;
+    // First of gray, xor04, xor02, minsw with the largest support; {gray,
+    // minsw} alone -> minsw (thesis rule); {xor02, xor04} alone -> xor04.
+    const int32_t general = s0 == best ? a0 : s2 == best ? a2 : s1 == best ? a1 : a3;
+    const int32_t pick = sub ? a3 : general;
+    const auto c = static_cast<uint8_t>(sub ? kSubsurface : inter ? kInterreflection : pairs == 6 ? kAllAgree : kPartial);
+    const bool is_lit = lit[i] != 0;
+    const bool ok = best > 0 && is_lit;
+    coord[i] = ok ? static_cast<float>(pick) * 0.5f : nan;
+    valid[i] = ok ? 255 : 0;
+    confidence[i] = ok ? static_cast<float>(best + 1) * 0.25f : 0.0f;
+    cls[i] = ok ? c : static_cast<uint8_t>(is_lit ? kError : kUnlit);
+  }
+}
+
+#ifdef PROCAM_SL_X86
+#define PROCAM_AVX2 __attribute__((target("avx2"), always_inline)) inline
+PROCAM_AVX2 __m256i agree8(__m256i a, __m256i b, __m256i limit) {
+  const __m256i minus1 = _mm256_set1_epi32(-1);
+  const __m256i both = _mm256_and_si256(_mm256_cmpgt_epi32(a, minus1), _mm256_cmpgt_epi32(b, minus1));
+  return _mm256_and_si256(both, _mm256_cmpgt_epi32(limit, _mm256_abs_epi32(_mm256_sub_epi32(a, b))));
+}
+PROCAM_AVX2 __m256i pick8(__m256i mask, __m256i yes, __m256i no) {
+  return _mm256_blendv_epi8(no, yes, mask);
+}
+PROCAM_AVX2 void store8(uint8_t* dst, __m256i v) {  // 8 x int32 in 0..255 -> 8 bytes
+  const __m128i w16 = _mm_packs_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+  _mm_storel_epi64(reinterpret_cast<__m128i*>(dst), _mm_packus_epi16(w16, w16));
+}
+
+// 8 pixels per step, the same integer rule as vote_keys_scalar (masks are
+// -1/0, so sums of masks are minus counts).
+__attribute__((target("avx2"))) void vote_keys_avx2(const int32_t* const key[kEnsembleCodes],
+                                                   const uint8_t* lit, size_t n, int32_t agree2,
+                                                   float* coord, uint8_t* valid,
+                                                   float* confidence, uint8_t* cls) {
+  const __m256i zero = _mm256_setzero_si256();
+  const __m256i limit = _mm256_set1_epi32(agree2 + 1);  // |d| <= agree2 <=> agree2 + 1 > |d|
+  const __m256i one = _mm256_set1_epi32(1), six = _mm256_set1_epi32(6);
+  const __m256 half = _mm256_set1_ps(0.5f), quarter = _mm256_set1_ps(0.25f);
+  const __m256 nan = _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN());
+  size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256i a0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(key[kGray] + i));
+    const __m256i a1 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(key[kXor02] + i));
+    const __m256i a2 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(key[kXor04] + i));
+    const __m256i a3 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(key[kMinsw] + i));
+    const __m256i p01 = agree8(a0, a1, limit), p02 = agree8(a0, a2, limit), p03 = agree8(a0, a3, limit);
+    const __m256i p12 = agree8(a1, a2, limit), p13 = agree8(a1, a3, limit), p23 = agree8(a2, a3, limit);
+    const __m256i s0 = _mm256_sub_epi32(zero, _mm256_add_epi32(_mm256_add_epi32(p01, p02), p03));
+    const __m256i s1 = _mm256_sub_epi32(zero, _mm256_add_epi32(_mm256_add_epi32(p01, p12), p13));
+    const __m256i s2 = _mm256_sub_epi32(zero, _mm256_add_epi32(_mm256_add_epi32(p02, p12), p23));
+    const __m256i s3 = _mm256_sub_epi32(zero, _mm256_add_epi32(_mm256_add_epi32(p03, p13), p23));
+    const __m256i pairs = _mm256_srli_epi32(_mm256_add_epi32(_mm256_add_epi32(s0, s1), _mm256_add_epi32(s2, s3)), 1);
+    const __m256i best = _mm256_max_epi32(_mm256_max_epi32(s0, s1), _mm256_max_epi32(s2, s3));
+    const __m256i single = _mm256_cmpeq_epi32(pairs, one);
+    const __m256i sub = _mm256_and_si256(single, p03), inter = _mm256_and_si256(single, p12);
+    __m256i v = a3;  // preference gray, xor04, xor02, minsw: apply in reverse
+    v = pick8(_mm256_cmpeq_epi32(s1, best), a1, v);
+    v = pick8(_mm256_cmpeq_epi32(s2, best), a2, v);
+    v = pick8(_mm256_cmpeq_epi32(s0, best), a0, v);
+    v = pick8(sub, a3, v);
+    __m256i c = _mm256_set1_epi32(kPartial);
+    c = pick8(_mm256_cmpeq_epi32(pairs, six), _mm256_set1_epi32(kAllAgree), c);
+    c = pick8(inter, _mm256_set1_epi32(kInterreflection), c);
+    c = pick8(sub, _mm256_set1_epi32(kSubsurface), c);
+    const __m256i is_lit = _mm256_cmpgt_epi32(
+        _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(lit + i))), zero);
+    const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(best, zero), is_lit);
+    c = pick8(ok, c, pick8(is_lit, _mm256_set1_epi32(kError), _mm256_set1_epi32(kUnlit)));
+    const __m256 okf = _mm256_castsi256_ps(ok);
+    _mm256_storeu_ps(coord + i, _mm256_blendv_ps(nan, _mm256_mul_ps(_mm256_cvtepi32_ps(v), half), okf));
+    _mm256_storeu_ps(confidence + i,
+                     _mm256_and_ps(okf, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(best, one)), quarter)));
+    store8(valid + i, _mm256_and_si256(ok, _mm256_set1_epi32(255)));
+    store8(cls + i, c);
+  }
+  if (i < n) vote_keys_scalar(key, lit, i, n, agree2, coord, valid, confidence, cls);
+}
+
+#define PROCAM_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl"), always_inline)) inline
+PROCAM_AVX512 __mmask16 agree16(__m512i a, __m512i b, __mmask16 both, __m512i limit) {
+  return static_cast<__mmask16>(
+      both & _mm512_cmpgt_epi32_mask(limit, _mm512_abs_epi32(_mm512_sub_epi32(a, b))));
+}
+PROCAM_AVX512 __m512i count16(__mmask16 x, __mmask16 y, __mmask16 z) {  // x + y + z per lane
+  const __m512i one = _mm512_set1_epi32(1);
+  return _mm512_add_epi32(_mm512_add_epi32(_mm512_maskz_mov_epi32(x, one), _mm512_maskz_mov_epi32(y, one)),
+                          _mm512_maskz_mov_epi32(z, one));
+}
+
+// vote_keys_avx2, 16 pixels per step: agreements as mask registers, supports
+// as counts (the same integer rule as vote_keys_scalar).
+__attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
+    const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n, int32_t agree2,
+    float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
+  const __m512i zero = _mm512_setzero_si512(), minus1 = _mm512_set1_epi32(-1);
+  const __m512i limit = _mm512_set1_epi32(agree2 + 1);  // |d| <= agree2 <=> agree2 + 1 > |d|
+  const __m512i one = _mm512_set1_epi32(1), six = _mm512_set1_epi32(6);
+  const __m512 half = _mm512_set1_ps(0.5f), quarter = _mm512_set1_ps(0.25f);
+  const __m512 nan = _mm512_set1_ps(std::numeric_limits<float>::quiet_NaN());
+  size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    const __m512i a0 = _mm512_loadu_si512(key[kGray] + i);
+    const __m512i a1 = _mm512_loadu_si512(key[kXor02] + i);
+    const __m512i a2 = _mm512_loadu_si512(key[kXor04] + i);
+    const __m512i a3 = _mm512_loadu_si512(key[kMinsw] + i);
+    const __mmask16 v0 = _mm512_cmpgt_epi32_mask(a0, minus1), v1 = _mm512_cmpgt_epi32_mask(a1, minus1);
+    const __mmask16 v2 = _mm512_cmpgt_epi32_mask(a2, minus1), v3 = _mm512_cmpgt_epi32_mask(a3, minus1);
+    const __mmask16 p01 = agree16(a0, a1, v0 & v1, limit), p02 = agree16(a0, a2, v0 & v2, limit);
+    const __mmask16 p03 = agree16(a0, a3, v0 & v3, limit), p12 = agree16(a1, a2, v1 & v2, limit);
+    const __mmask16 p13 = agree16(a1, a3, v1 & v3, limit), p23 = agree16(a2, a3, v2 & v3, limit);
+    const __m512i s0 = count16(p01, p02, p03), s1 = count16(p01, p12, p13);
+    const __m512i s2 = count16(p02, p12, p23), s3 = count16(p03, p13, p23);
+    const __m512i pairs = _mm512_srli_epi32(_mm512_add_epi32(_mm512_add_epi32(s0, s1), _mm512_add_epi32(s2, s3)), 1);
+    const __m512i best = _mm512_max_epi32(_mm512_max_epi32(s0, s1), _mm512_max_epi32(s2, s3));
+    const __mmask16 single = _mm512_cmpeq_epi32_mask(pairs, one);
+    const __mmask16 sub = single & p03, inter = single & p12;
+    __m512i v = a3;  // preference gray, xor04, xor02, minsw: apply in reverse
+    v = _mm512_mask_mov_epi32(v, _mm512_cmpeq_epi32_mask(s1, best), a1);
+    v = _mm512_mask_mov_epi32(v, _mm512_cmpeq_epi32_mask(s2, best), a2);
+    v = _mm512_mask_mov_epi32(v, _mm512_cmpeq_epi32_mask(s0, best), a0);
+    v = _mm512_mask_mov_epi32(v, sub, a3);
+    __m512i c = _mm512_set1_epi32(kPartial);
+    c = _mm512_mask_mov_epi32(c, _mm512_cmpeq_epi32_mask(pairs, six), _mm512_set1_epi32(kAllAgree));
+    c = _mm512_mask_mov_epi32(c, inter, _mm512_set1_epi32(kInterreflection));
+    c = _mm512_mask_mov_epi32(c, sub, _mm512_set1_epi32(kSubsurface));
+    const __m128i lit16 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(lit + i));
+    const __mmask16 is_lit = _mm_test_epi8_mask(lit16, lit16);
+    const __mmask16 ok = _mm512_cmpgt_epi32_mask(best, zero) & is_lit;
+    c = _mm512_mask_mov_epi32(
+        _mm512_mask_mov_epi32(_mm512_set1_epi32(kUnlit), is_lit, _mm512_set1_epi32(kError)), ok, c);
+    _mm512_storeu_ps(coord + i, _mm512_mask_mov_ps(nan, ok, _mm512_mul_ps(_mm512_cvtepi32_ps(v), half)));
+    _mm512_storeu_ps(confidence + i,
+                     _mm512_maskz_mov_ps(ok, _mm512_mul_ps(_mm512_cvtepi32_ps(_mm512_add_epi32(best, one)), quarter)));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(valid + i), _mm_maskz_set1_epi8(ok, static_cast<char>(255)));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(cls + i), _mm512_cvtepi32_epi8(c));
+  }
+  if (i < n) vote_keys_scalar(key, lit, i, n, agree2, coord, valid, confidence, cls);
+}
+#endif
+
+}  // namespace
+
+void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n,
+               int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
+#ifdef PROCAM_SL_X86
+  if (avx512_active()) return vote_keys_avx512(key, lit, n, agree2, coord, valid, confidence, cls);
+  if (simd_active()) return vote_keys_avx2(key, lit, n, agree2, coord, valid, confidence, cls);
+#endif
+  vote_keys_scalar(key, lit, 0, n, agree2, coord, valid, confidence, cls);
 }
 
 }  // namespace procam::sl

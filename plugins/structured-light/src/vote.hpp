@@ -24,6 +24,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 namespace procam::sl {
 
@@ -40,9 +41,28 @@ const char* transport_class_name(uint8_t c);
 
 enum EnsembleCode : uint32_t { kGray = 0, kXor02 = 1, kXor04 = 2, kMinsw = 3, kEnsembleCodes = 4 };
 
+// Ensemble outputs of one round (width * height, row-major).
+struct VoteMaps {
+  std::vector<float> coord;       // voted projector column, NaN where invalid
+  std::vector<uint8_t> valid;     // 255 / 0
+  std::vector<float> confidence;  // (max support + 1) / 4, 0 where invalid
+  std::vector<uint8_t> cls;       // TransportClass
+};
+
 // Votes pixels [begin, end). code[k] points at code k's column map.
 void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, size_t begin,
                  size_t end, float agree_px, float* coord, uint8_t* valid, float* confidence,
                  uint8_t* cls);
+
+// The same vote on integer keys, branch-free: key = 2 x projector column
+// (columns are integers or span centres, i.e. multiples of 0.5), -1 = invalid.
+// Two codes agree when both keys are >= 0 and |a - b| <= agree2, with
+// agree2 = floor(2 * agree_px) — exactly |a/2 - b/2| <= agree_px, so the
+// outputs equal vote_pixels' on the columns key / 2 (vote_test in
+// ensemble_test.cpp). Pixels [0, n) of the given pointers. AVX-512 / AVX2
+// kernels where active (binarize.hpp), identical outputs (kernels_test.cpp).
+void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n,
+               int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls);
+int32_t agree_key_threshold(float agree_px);  // floor(2 * agree_px), agree_px >= 0
 
 }  // namespace procam::sl

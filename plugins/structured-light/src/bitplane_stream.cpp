@@ -1,0 +1,343 @@
+// SPDX-License-Identifier: MIT
+// Streaming bit-plane engine (thesis §3.2, Eq. 3.5; see bitplane_stream.hpp).
+#include "bitplane_stream.hpp"
+
+#include <sys/mman.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <unordered_map>
+#include <new>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+namespace procam::sl {
+
+namespace {
+constexpr size_t kHugePage = size_t{2} << 20;
+constexpr uint32_t kCopyAheadRows = 3;  // keep(): rows prefetched ahead of the copy
+}
+
+// Process-wide cache of released huge-page buffers: a scan's decoder state
+// (~35 MB at 1920x1200) would otherwise be fresh memory every round, which the
+// kernel zeroes page by page. Buffers are reused by exact (2 MiB-rounded)
+// size; at most kCacheBytes stay cached while no decoder holds them.
+namespace {
+constexpr size_t kCacheBytes = size_t{96} << 20;
+struct BufferCache {
+  std::mutex mutex;
+  std::vector<std::pair<size_t, void*>> free;  // (rounded bytes, pointer)
+  size_t cached = 0;
+  std::unordered_map<void*, size_t> sizes;     // live huge buffers: pointer -> rounded bytes
+};
+BufferCache& cache() {
+  static BufferCache* c = new BufferCache;  // never destroyed: buffers may be freed at exit
+  return *c;
+}
+}  // namespace
+
+void FreeDeleter::operator()(void* p) const noexcept {
+  if (p == nullptr) return;
+  BufferCache& c = cache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  const auto it = c.sizes.find(p);
+  if (it == c.sizes.end()) {
+    std::free(p);
+    return;
+  }
+  const size_t bytes = it->second;
+  if (c.cached + bytes <= kCacheBytes) {
+    c.free.emplace_back(bytes, p);
+    c.cached += bytes;
+    return;
+  }
+  c.sizes.erase(it);
+  std::free(p);
+}
+
+void* allocate_pixels(size_t bytes) {
+  if (bytes >= kHugePage / 2) {
+    const size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+    BufferCache& c = cache();
+    {
+      std::lock_guard<std::mutex> lock(c.mutex);
+      for (size_t i = 0; i < c.free.size(); ++i)
+        if (c.free[i].first == rounded) {
+          void* p = c.free[i].second;
+          c.free[i] = c.free.back();
+          c.free.pop_back();
+          c.cached -= rounded;
+          return p;
+        }
+    }
+    void* p = std::aligned_alloc(kHugePage, rounded);
+    if (p == nullptr) throw std::bad_alloc();
+    advise_huge_pages(p, rounded);
+    std::lock_guard<std::mutex> lock(c.mutex);
+    c.sizes.emplace(p, rounded);
+    return p;
+  }
+  void* p = std::malloc(bytes > 0 ? bytes : 1);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+
+void advise_huge_pages(const void* p, size_t bytes) {
+#ifdef MADV_HUGEPAGE
+  const auto a = reinterpret_cast<uintptr_t>(p);
+  const uintptr_t begin = (a + kHugePage - 1) / kHugePage * kHugePage;
+  const uintptr_t end = (a + bytes) / kHugePage * kHugePage;
+  if (end > begin)  // a hint: failure only means 4 KiB pages
+    (void)madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
+
+BitPlaneStream::BitPlaneStream(StreamLayout layout, uint32_t width, uint32_t height,
+                               uint32_t threads)
+    : layout_(std::move(layout)),
+      width_(width),
+      height_(height),
+      pool_(std::make_unique<WorkPool>(std::max(1u, threads))) {
+  codes_.resize(layout_.bits.size());
+  for (size_t c = 0; c < codes_.size(); ++c) {
+    CodeState& s = codes_[c];
+    s.bits = layout_.bits[c];
+    s.tolerable.assign(s.bits, 0);
+    if (c < layout_.tolerable.size())
+      for (uint32_t p = 0; p < s.bits && p < layout_.tolerable[c].size(); ++p)
+        s.tolerable[p] = layout_.tolerable[c][p] != 0 ? 1 : 0;
+    s.has_weak = std::any_of(s.tolerable.begin(), s.tolerable.end(), [](uint8_t t) { return t; });
+    s.plane_done.assign(s.bits, 0);
+  }
+  waiting_.resize(layout_.frames.size());
+  added_.assign(layout_.frames.size(), 0);
+}
+
+sdk::Error BitPlaneStream::check(uint32_t index, const procam_image& frame) const {
+  if (index >= layout_.frames.size())
+    return sdk::invalid_argument("frame index " + std::to_string(index) + " is out of range (" +
+                                 std::to_string(layout_.frames.size()) + " frames)");
+  const std::string what = "frame " + std::to_string(index) + " (" + layout_.frames[index].label + ")";
+  if (added_[index]) return sdk::state_error(what + " was already added");
+  if (sdk::Error e = sdk::check_frame(&frame, width_, height_, 1, what); !e.ok()) return e;
+  if (have_format_ && (frame.pixel_type != pixel_type_ ||
+                       (pixel_type_ != PROCAM_PIXEL_F32 && frame.bit_depth != bit_depth_))) {
+    const procam_image first{.width = width_, .height = height_, .channels = 1,
+                             .pixel_type = pixel_type_, .bit_depth = bit_depth_, .reserved = 0,
+                             .stride_bytes = 0, .data = nullptr};
+    return sdk::bad_frame(what + " is " + sdk::describe_image(frame) +
+                          " but earlier frames of this round are " + sdk::describe_image(first) +
+                          "; all frames of a round must share one format");
+  }
+  return sdk::ok();
+}
+
+// The first frame fixes the format and with it the state's representation.
+void BitPlaneStream::set_format(const procam_image& frame) {
+  pixel_type_ = frame.pixel_type;
+  bit_depth_ = frame.bit_depth;
+  full_scale_ = static_cast<float>(sdk::full_scale(frame));
+  u8_ = frame.pixel_type == PROCAM_PIXEL_U8 && frame.bit_depth == 8;
+  have_format_ = true;
+  const size_t n = size_t{width_} * height_;
+  for (CodeState& s : codes_) {
+    const int margins = s.has_weak ? 2 : 1;
+    if (u8_) {  // written (not OR-ed / min-ed) by the first plane: no initialisation
+      s.wbyte[0] = make_pixel_array<uint8_t>(n);
+      if (s.bits > 8) s.wbyte[1] = make_pixel_array<uint8_t>(n);
+      for (int k = 0; k < margins; ++k) s.m8[k] = make_pixel_array<uint8_t>(n);
+    } else {
+      s.word = make_pixel_array<uint16_t>(n);
+      std::fill_n(s.word.get(), n, uint16_t{0});
+      s.flags = make_pixel_array<uint8_t>(n);
+      std::fill_n(s.flags.get(), n, uint8_t{0});
+      for (int k = 0; k < margins; ++k) {
+        s.mf[k] = make_pixel_array<float>(n);
+        std::fill_n(s.mf[k].get(), n, std::numeric_limits<float>::infinity());
+      }
+    }
+  }
+}
+
+void BitPlaneStream::keep(uint32_t index, const procam_image& frame) {
+  Copy& c = waiting_[index];
+  const size_t row_bytes = size_t{width_} * sdk::bytes_per_sample(frame.pixel_type);
+  if (!spare_.empty()) {
+    c.bytes = std::move(spare_.back());
+    spare_.pop_back();
+  } else {
+    c.bytes = make_pixel_array<uint8_t>(row_bytes * height_);
+  }
+  uint8_t* dst = c.bytes.get();
+  pool_->run(height_, [&](uint32_t y0, uint32_t y1) {
+    for (uint32_t y = y0; y < y1; ++y) {
+      // The frame comes from DRAM: prefetch a few rows ahead (a hint).
+      if (y + kCopyAheadRows < y1) {
+        const uint8_t* ahead = sdk::row_bytes(frame, y + kCopyAheadRows);
+        for (size_t x = 0; x < row_bytes; x += 64) __builtin_prefetch(ahead + x);
+      }
+      std::memcpy(dst + y * row_bytes, sdk::row_bytes(frame, y), row_bytes);
+    }
+  });
+  c.view = frame;
+  c.view.data = dst;
+  c.view.stride_bytes = row_bytes;
+}
+
+void BitPlaneStream::release(uint32_t index) {
+  Copy& c = waiting_[index];
+  if (c.bytes) spare_.push_back(std::move(c.bytes));
+  c = Copy{};
+}
+
+void BitPlaneStream::store_reference(const procam_image& frame, PixelArray<uint8_t>& r8,
+                                     PixelArray<float>& rf) {
+  const size_t w = width_;
+  const bool white = &r8 == &white8_;
+  float* intensity = white ? intensity_out_ : nullptr;
+  const float inv_scale = 1.0f / full_scale_;
+  if (u8_) {
+    r8 = make_pixel_array<uint8_t>(w * height_);
+    uint8_t* dst = r8.get();
+    pool_->run(height_, [&](uint32_t y0, uint32_t y1) {
+      for (uint32_t y = y0; y < y1; ++y) {
+        const uint8_t* src = sdk::row_bytes(frame, y);
+        std::memcpy(dst + y * w, src, w);
+        if (intensity != nullptr) intensity_u8(src, w, inv_scale, intensity + y * w);
+      }
+    });
+  } else {
+    rf = make_pixel_array<float>(w * height_);
+    float* dst = rf.get();
+    pool_->run(height_, [&](uint32_t y0, uint32_t y1) {
+      for (uint32_t y = y0; y < y1; ++y) {
+        sdk::read_row(frame, y, dst + y * w);
+        if (intensity != nullptr)
+          for (size_t x = 0; x < w; ++x) {
+            const float v = dst[y * w + x] * inv_scale;
+            intensity[y * w + x] = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
+          }
+      }
+    });
+  }
+  if (intensity != nullptr) intensity_written_ = intensity;
+}
+
+bool BitPlaneStream::have_reference() const {
+  return added_[static_cast<size_t>(layout_.white)] != 0 &&
+         (layout_.black < 0 || added_[static_cast<size_t>(layout_.black)] != 0);
+}
+
+void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
+                          const procam_image* inverse) {
+  CodeState& s = codes_[role.code];
+  const uint32_t position = s.bits - 1 - role.plane;
+  const int which = s.tolerable[role.plane] != 0 ? 1 : 0;
+  const bool first = s.folded[which] == 0;
+  const uint32_t byte = u8_ ? position / 8 : 0;
+  const bool first_word = s.bytes_folded[byte] == 0;
+  const size_t w = width_;
+  if (u8_) {
+    uint8_t* word = s.wbyte[byte].get();
+    const uint32_t bit = position % 8;
+    uint8_t* margin = s.m8[which].get();
+    const uint8_t* white = white8_.get();
+    const uint8_t* black = black8();
+    pool_->run(height_, [&](uint32_t y0, uint32_t y1) {
+      for (uint32_t y = y0; y < y1; ++y) {
+        const size_t off = size_t{y} * w;
+        if (inverse != nullptr)
+          fold_u8_inverse(sdk::row_bytes(plane, y), sdk::row_bytes(*inverse, y), w, bit, first,
+                          first_word, word + off, margin + off);
+        else  // binarize "white": footnote 2, generalised (binarize.hpp)
+          fold_u8_synthetic(sdk::row_bytes(plane, y), white + off,
+                            black != nullptr ? black + off : nullptr, w, bit, first,
+                            first_word, word + off, margin + off);
+      }
+    });
+  } else {
+    uint16_t* word = s.word.get();
+    float* margin = s.mf[which].get();
+    uint8_t* flags = s.flags.get();
+    const float* white = white_f_.get();
+    const float* black = black_f();
+    pool_->run(height_, [&](uint32_t y0, uint32_t y1) {
+      std::vector<float> row_l(w), row_lb(w);
+      for (uint32_t y = y0; y < y1; ++y) {
+        const size_t off = size_t{y} * w;
+        sdk::read_row(plane, y, row_l.data());
+        if (inverse != nullptr)
+          sdk::read_row(*inverse, y, row_lb.data());
+        else
+          synthesize_inverse(row_l.data(), white + off, black != nullptr ? black + off : nullptr,
+                             w, row_lb.data());
+        fold_plane(row_l.data(), row_lb.data(), w, position, full_scale_, word + off,
+                   margin + off, flags + off);
+      }
+    });
+  }
+  ++s.folded[which];
+  ++s.bytes_folded[byte];
+  s.plane_done[role.plane] = 1;
+}
+
+void BitPlaneStream::fold_waiting_planes() {
+  for (size_t i = 0; i < layout_.frames.size(); ++i) {
+    const StreamFrame& role = layout_.frames[i];
+    if (role.kind != FrameKind::plane || waiting_[i].view.data == nullptr) continue;
+    fold(role, waiting_[i].view, nullptr);
+    release(static_cast<uint32_t>(i));
+  }
+}
+
+sdk::Error BitPlaneStream::add_frame(uint32_t index, const procam_image& frame) {
+  if (sdk::Error e = check(index, frame); !e.ok()) return e;
+  if (!have_format_) set_format(frame);
+  const StreamFrame& role = layout_.frames[index];
+  switch (role.kind) {
+    case FrameKind::white: store_reference(frame, white8_, white_f_); break;
+    case FrameKind::black: store_reference(frame, black8_, black_f_); break;
+    case FrameKind::plane:
+    case FrameKind::inverse:
+      if (layout_.inverse) {
+        const auto partner = static_cast<uint32_t>(role.partner);
+        if (added_[partner]) {
+          const procam_image& other = waiting_[partner].view;
+          if (role.kind == FrameKind::plane)
+            fold(role, frame, &other);
+          else
+            fold(layout_.frames[partner], other, &frame);
+          release(partner);
+        } else {
+          keep(index, frame);
+        }
+      } else if (have_reference()) {
+        fold(role, frame, nullptr);
+      } else {
+        keep(index, frame);
+      }
+      break;
+  }
+  added_[index] = 1;
+  ++added_count_;
+  if (!layout_.inverse && (role.kind == FrameKind::white || role.kind == FrameKind::black) &&
+      have_reference())
+    fold_waiting_planes();
+  return sdk::ok();
+}
+
+void BitPlaneStream::require_complete(const char* who) const {
+  if (!complete()) throw std::logic_error(std::string(who) + ": finish before all frames added");
+  for (const CodeState& s : codes_)
+    for (uint8_t done : s.plane_done)
+      if (!done) throw std::logic_error(std::string(who) + ": a plane was never folded");
+}
+
+}  // namespace procam::sl

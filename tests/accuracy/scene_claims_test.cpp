@@ -1,0 +1,189 @@
+// SPDX-License-Identifier: MIT
+// The structured-light claims of thesis ch. 3, checked on every scene of the
+// sim library against its ground truth. Each test runs
+//   procam bench --only-listed 1 --scene <scene> --method ... --out <tmp>
+// (in process: sim rig -> plugin session -> engine::run_scan -> evaluation)
+// and reads bench.json. Terms, all over the truth's lit pixels:
+//   ok(m)    = decoded within one projector column (within_1col_fraction);
+//   wrong(m) = decoded with |column error| > 1 (gross errors over decoded ×
+//              decoded fraction) — a wrong depth the user would get;
+//   failed(m) = 1 − ok(m): wrong or not decoded.
+// Every bound is a claim of the thesis or a goal of issue 4, written as an
+// inequality between methods or against a fixed tolerance; none is a copy of
+// a measured output. The numbers seen are printed for the report.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <unistd.h>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+namespace fs = std::filesystem;
+
+struct Eval {
+  double decoded = 0, gross = 0, ok = 0;
+  double wrong() const { return gross * decoded; }
+  double failed() const { return 1.0 - ok; }
+};
+
+using Runs = std::map<std::string, Eval>;
+
+// Runs the bench for one scene and the given methods (labels as in bench.md).
+Runs run(const std::string& scene, const std::vector<std::string>& methods) {
+  const fs::path out = fs::temp_directory_path() / ("procam-claims-" + scene + "-" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  std::string cmd = std::string(PROCAM_BINARY_DIR) + "/bin/procam bench --only-listed 1 --threads 2 --scene " + scene +
+                    " --plugins " + PROCAM_PLUGIN_DIR + " --out " + out.string();
+  for (const auto& m : methods) cmd += " --method " + m;
+  cmd += " 2>" + (out.string() + ".log");
+  const int rc = std::system(cmd.c_str());
+  Runs runs;
+  std::ifstream in(out / "bench.json");
+  if (rc != 0 || !in) {
+    std::ifstream log(out.string() + ".log");
+    std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+    ADD_FAILURE() << "procam bench failed (rc " << rc << "): " << cmd << "\n" << text;
+    return runs;
+  }
+  const auto doc = nlohmann::json::parse(in, nullptr, false);
+  for (const auto& r : doc.value("runs", nlohmann::json::array())) {
+    if (!r.value("ok", false)) {
+      ADD_FAILURE() << scene << " / " << r.value("method", "?") << ": " << r.value("error", "");
+      continue;
+    }
+    const auto& e = r["evaluation"];
+    Eval v{e.value("decoded_fraction", 0.0), e.value("gross_error_fraction", 0.0), e.value("within_1col_fraction", 0.0)};
+    runs[r.value("method", "")] = v;
+    std::printf("%-15s %-22s ok %6.2f%%  decoded %6.2f%%  wrong %6.3f%%  (gross %.3f%% of decoded)\n", scene.c_str(),
+                r.value("method", "").c_str(), 100 * v.ok, 100 * v.decoded, 100 * v.wrong(), 100 * v.gross);
+  }
+  for (const auto& m : methods) EXPECT_TRUE(runs.count(m)) << scene << ": no run for " << m;
+  fs::remove_all(out);
+  fs::remove(out.string() + ".log");
+  return runs;
+}
+
+const std::vector<std::string> kBinary = {"gray", "xor02", "xor04", "minsw"};
+
+double best_single_wrong(Runs& r) {
+  double best = 1;
+  for (const auto& m : kBinary) best = std::min(best, r[m].wrong());
+  return best;
+}
+
+// Direct light only: every method is right almost everywhere.
+void expect_direct_scene(const std::string& scene) {
+  auto r = run(scene, {"gray", "xor02", "xor04", "minsw", "ensemble", "phase-shift"});
+  for (auto& [m, e] : r) {
+    EXPECT_GE(e.ok, 0.85) << scene << " / " << m;
+    EXPECT_LE(e.wrong(), 0.005) << scene << " / " << m;
+  }
+}
+
+TEST(SceneClaims, Plane) { expect_direct_scene("plane"); }
+TEST(SceneClaims, TiltedBox) { expect_direct_scene("tilted-box"); }
+TEST(SceneClaims, Sphere) { expect_direct_scene("sphere"); }
+
+// §3.2–3.3: long-range inter-reflections in a concavity break the
+// low-frequency planes of conventional Gray codes (and phase shifting); the
+// logical XOR codes keep every plane high-frequency and survive.
+TEST(SceneClaims, VGrooveInterreflections) {
+  auto r = run("v-groove", {"gray", "xor02", "xor04", "ensemble", "phase-shift"});
+  for (const char* m : {"xor02", "xor04", "ensemble"}) {
+    EXPECT_GE(r[m].ok, 0.98) << m;
+    EXPECT_LE(r[m].wrong(), 0.005) << m;
+  }
+  EXPECT_GE(r["gray"].failed(), 0.02) << "Gray should fail in the concavity";
+  EXPECT_GE(r["gray"].failed(), 4 * r["xor04"].failed());
+  EXPECT_GE(r["phase-shift"].failed(), 4 * r["xor04"].failed());
+}
+
+// Fig. 3.11: light diffuses through the curtain to the wall and back — long
+// range. Gray and phase shifting err; the logical codes and min-SW do not;
+// modulated phase shifting (Chen et al.) removes phase shifting's errors.
+TEST(SceneClaims, ShowerCurtain) {
+  auto r = run("shower-curtain", {"gray", "xor02", "xor04", "minsw", "ensemble", "phase-shift", "modulated-phase-shift"});
+  for (const char* m : {"xor02", "xor04", "ensemble"}) {
+    EXPECT_GE(r[m].ok, 0.95) << m;
+    EXPECT_LE(r[m].wrong(), 0.005) << m;
+  }
+  EXPECT_GE(r["gray"].failed(), 0.05);
+  EXPECT_GE(r["phase-shift"].wrong(), 0.05) << "phase shifting should give wrong depths on the curtain";
+  EXPECT_LE(r["modulated-phase-shift"].wrong(), r["phase-shift"].wrong() / 5);
+}
+
+// Fig. 3.3: sub-surface scattering blurs the high-frequency planes. XOR-02,
+// whose base plane is the finest, cannot be decoded; min-SW (finest stripe
+// 8 px) and Gray (only its finest plane is lost, ±1 column) can.
+TEST(SceneClaims, MarbleSlabSubsurface) {
+  auto r = run("marble-slab", {"gray", "xor02", "xor04", "minsw", "ensemble"});
+  EXPECT_GE(r["minsw"].ok, 0.9);
+  EXPECT_GE(r["gray"].ok, 0.9);
+  EXPECT_LE(r["minsw"].wrong(), 0.005);
+  EXPECT_GE(r["xor02"].failed(), r["minsw"].failed() + 0.15) << "XOR-02 should fail on the slab";
+  EXPECT_GE(r["xor02"].wrong(), 3 * r["minsw"].wrong()) << "and give wrong columns, not only gaps";
+  EXPECT_GE(r["ensemble"].ok, r["xor02"].ok);
+}
+
+// Fig. 2.5 candle: wax scatters more than marble; same ordering.
+TEST(SceneClaims, WaxCandleSubsurface) {
+  auto r = run("wax-candle", {"gray", "xor02", "minsw", "ensemble-nocorr", "ensemble"});
+  EXPECT_GE(r["minsw"].ok, 0.85);
+  EXPECT_GE(r["xor02"].failed(), 2 * r["minsw"].failed());
+  EXPECT_GE(r["ensemble"].ok, r["xor02"].ok);
+  // Correction rounds only take values whose projector pixel is still lit
+  // (codes_session.cpp): they must not add wrong pixels.
+  EXPECT_LE(r["ensemble"].wrong(), r["ensemble-nocorr"].wrong() + 0.0002);
+}
+
+// Fig. 3.1 bowl on marble: both effects in one scene. What holds in the sim:
+// the ensemble gives fewer wrong pixels than every single code that decodes
+// most of the scene, and decodes more than the logical codes, which fail on
+// the marble. Not asserted, because the sim's physics does not produce it:
+// issue 4's goal "ensemble ≤ 1/5 of the best single code" — the inside of a
+// spherical bowl gets the same inter-reflected light from any pattern half
+// (the form factor between two points of a sphere is constant), so Gray does
+// not fail there (docs/report/README.md).
+TEST(SceneClaims, BowlOnMarbleEnsemble) {
+  auto r = run("bowl-on-marble", {"gray", "xor02", "xor04", "minsw", "ensemble"});
+  std::printf("bowl-on-marble: ensemble wrong %.3f%%, best single code %.3f%%\n", 100 * r["ensemble"].wrong(),
+              100 * best_single_wrong(r));
+  for (const auto& m : kBinary) {
+    if (r[m].decoded >= 0.9) {
+      EXPECT_LT(r["ensemble"].wrong(), r[m].wrong()) << m;
+    }
+  }
+  EXPECT_GE(r["ensemble"].ok, r["xor02"].ok + 0.5);
+  EXPECT_GE(r["ensemble"].ok, r["xor04"].ok + 0.05);
+}
+
+// Fig. 3.12 lamp: glossy inter-reflections, the failure case of every code.
+// The ensemble's vote cuts the errors; correction rounds (§3.4) do not add
+// errors, and the result stays within issue 4's 0.5 % goal.
+TEST(SceneClaims, MetalLampEnsembleAndCorrection) {
+  auto r = run("metal-lamp", {"gray", "xor02", "xor04", "minsw", "ensemble-nocorr", "ensemble"});
+  const double best = best_single_wrong(r);
+  EXPECT_LT(r["ensemble-nocorr"].wrong(), best);
+  EXPECT_LE(r["ensemble"].wrong(), r["ensemble-nocorr"].wrong());
+  EXPECT_LE(r["ensemble"].gross, 0.005);
+}
+
+// §2.5 / Fig. 3.4: beyond the depth of field defocus blurs the finest planes.
+// min-SW (long minimum stripe) keeps decoding, without errors, where XOR-02
+// (finest base plane) cannot. (Gray keeps decoding too, but only through its
+// tolerated finest plane: ±1 column, max_weak_error_px.)
+TEST(SceneClaims, DeepSceneDefocus) {
+  auto r = run("deep-scene", {"gray", "xor02", "minsw"});
+  EXPECT_GE(r["minsw"].ok, r["xor02"].ok + 0.2);
+  EXPECT_LE(r["minsw"].wrong(), 0.005);
+  EXPECT_GE(r["xor02"].wrong(), 0.01);
+}
+
+}  // namespace
