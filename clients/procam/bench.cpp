@@ -132,7 +132,8 @@ void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, 
     cv::drawMarker(img, {W - R + 8, legend_y}, c, cv::MARKER_DIAMOND, 10, 2);
     legend_y += 22;
   }
-  cv::putText(img, "o: one scene   <>: median over scenes", {W - R + 8, legend_y + 15}, cv::FONT_HERSHEY_SIMPLEX, 0.42, black);
+  cv::putText(img, "o: one scene", {W - R + 8, legend_y + 15}, cv::FONT_HERSHEY_SIMPLEX, 0.42, black);
+  cv::putText(img, "<>: median over scenes", {W - R + 8, legend_y + 33}, cv::FONT_HERSHEY_SIMPLEX, 0.42, black);
   cv::imwrite(path, img);
 }
 
