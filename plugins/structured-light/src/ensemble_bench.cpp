@@ -42,17 +42,7 @@ constexpr uint32_t kCamW = 1920, kCamH = 1200, kProjW = 1024, kProjH = 768;
 uint32_t cam_col(uint32_t x, uint32_t y) { return (x * 9 / 10 + y / 20 + 10) * kProjW / kCamW; }
 uint32_t cam_row(uint32_t x, uint32_t y) { return (y * 9 / 10 + x / 40 + 10) * kProjH / kCamH; }
 
-procam_image view_of(const std::vector<uint8_t>& px) {
-  procam_image img{};
-  img.width = kCamW;
-  img.height = kCamH;
-  img.channels = 1;
-  img.pixel_type = PROCAM_PIXEL_U8;
-  img.bit_depth = 8;
-  img.stride_bytes = kCamW;
-  img.data = px.data();
-  return img;
-}
+procam_image view_of(const std::vector<uint8_t>& px) { return sdk::gray_view(px.data(), kCamW, kCamH); }
 
 // Camera frame of a projector pattern (U8 projector image): 220 lit, 15 dark.
 std::vector<uint8_t> capture(const uint8_t* pattern) {

@@ -105,17 +105,7 @@ std::vector<std::vector<float>> render(const MultiLayout& l, const std::vector<P
   return frames;
 }
 
-procam_image view(const std::vector<float>& f) {
-  procam_image v{};
-  v.width = kCamW;
-  v.height = kCamH;
-  v.channels = 1;
-  v.pixel_type = PROCAM_PIXEL_F32;
-  v.bit_depth = 32;
-  v.stride_bytes = size_t{kCamW} * 4;
-  v.data = f.data();
-  return v;
-}
+procam_image view(const std::vector<float>& f) { return sdk::gray_view(f.data(), kCamW, kCamH); }
 
 // Frames in [0, 255] float -> integer frames of `bits` (scaled), or F32 /255.
 struct Quantized {
@@ -128,32 +118,23 @@ Quantized quantize(const std::vector<std::vector<float>>& frames, procam_pixel_t
   Quantized q;
   const double scale = type == PROCAM_PIXEL_F32 ? 1.0 / 255.0 : (std::ldexp(1.0, static_cast<int>(bits)) - 1) / 255.0;
   const double top = type == PROCAM_PIXEL_F32 ? 1.0 : std::ldexp(1.0, static_cast<int>(bits)) - 1;
+  // Inner buffers keep their address when the outer vectors grow, so the
+  // views can point at them right away.
   for (const auto& f : frames) {
-    procam_image v{};
-    v.width = kCamW;
-    v.height = kCamH;
-    v.channels = 1;
-    v.pixel_type = type;
-    v.bit_depth = type == PROCAM_PIXEL_F32 ? 32 : bits;
     if (type == PROCAM_PIXEL_U8) {
       auto& b = q.u8.emplace_back(f.size());
       for (size_t i = 0; i < f.size(); ++i) b[i] = static_cast<uint8_t>(std::clamp(std::round(static_cast<double>(f[i]) * scale), 0.0, top));
-      v.stride_bytes = kCamW;
+      q.views.push_back(sdk::gray_view(b.data(), kCamW, kCamH, bits));
     } else if (type == PROCAM_PIXEL_U16) {
       auto& b = q.u16.emplace_back(f.size());
       for (size_t i = 0; i < f.size(); ++i) b[i] = static_cast<uint16_t>(std::clamp(std::round(static_cast<double>(f[i]) * scale), 0.0, top));
-      v.stride_bytes = size_t{kCamW} * 2;
+      q.views.push_back(sdk::gray_view(b.data(), kCamW, kCamH, bits));
     } else {
       auto& b = q.f32.emplace_back(f.size());
       for (size_t i = 0; i < f.size(); ++i) b[i] = static_cast<float>(std::min(static_cast<double>(f[i]) * scale, top));
-      v.stride_bytes = size_t{kCamW} * 4;
+      q.views.push_back(sdk::gray_view(b.data(), kCamW, kCamH));
     }
-    q.views.push_back(v);
   }
-  for (size_t i = 0; i < q.views.size(); ++i)
-    q.views[i].data = type == PROCAM_PIXEL_U8 ? static_cast<const void*>(q.u8[i].data())
-                      : type == PROCAM_PIXEL_U16 ? static_cast<const void*>(q.u16[i].data())
-                                                 : static_cast<const void*>(q.f32[i].data());
   return q;
 }
 

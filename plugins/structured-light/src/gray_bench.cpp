@@ -41,15 +41,7 @@ struct Data {
           px[size_t{y} * kW + x] = static_cast<uint8_t>(lit ? 220 : 15);
         }
       pixels.push_back(std::move(px));
-      procam_image img{};
-      img.width = kW;
-      img.height = kH;
-      img.channels = 1;
-      img.pixel_type = PROCAM_PIXEL_U8;
-      img.bit_depth = 8;
-      img.stride_bytes = kW;
-      img.data = pixels.back().data();
-      views.push_back(img);
+      views.push_back(sdk::gray_view(pixels.back().data(), kW, kH));
     }
   }
 };

@@ -140,33 +140,23 @@ Frames random_frames(size_t count, uint32_t w, uint32_t h, procam_pixel_type typ
              : r < 0.1 ? 0.5 * (white[i] + black[i])  // near tie
              : r < 0.55 ? white[i] - u(rng) * 0.05 : black[i] + u(rng) * 0.05;
     }
-    procam_image img{};
-    img.width = w;
-    img.height = h;
-    img.channels = 1;
-    img.pixel_type = type;
-    img.bit_depth = type == PROCAM_PIXEL_F32 ? 32 : bits;
+    // Inner buffers keep their address when the outer vectors grow.
     if (type == PROCAM_PIXEL_U8) {
       auto& b = f.u8.emplace_back(n);
       for (size_t i = 0; i < n; ++i) b[i] = static_cast<uint8_t>(std::lround(v[i] * top));
-      img.stride_bytes = w;
+      f.views.push_back(sdk::gray_view(b.data(), w, h, bits));
     } else if (type == PROCAM_PIXEL_U16) {
       auto& b = f.u16.emplace_back(n);
       for (size_t i = 0; i < n; ++i) b[i] = static_cast<uint16_t>(std::lround(v[i] * top));
-      img.stride_bytes = size_t{w} * 2;
+      f.views.push_back(sdk::gray_view(b.data(), w, h, bits));
     } else {
       auto& b = f.f32.emplace_back(n);
       for (size_t i = 0; i < n; ++i) b[i] = static_cast<float>(v[i]);
       if (k == 3) b[5] = std::numeric_limits<float>::quiet_NaN();
       if (k == 4) b[6] = std::numeric_limits<float>::infinity();
-      img.stride_bytes = size_t{w} * 4;
+      f.views.push_back(sdk::gray_view(b.data(), w, h));
     }
-    f.views.push_back(img);
   }
-  for (size_t k = 0; k < count; ++k)
-    f.views[k].data = type == PROCAM_PIXEL_U8    ? static_cast<const void*>(f.u8[k].data())
-                      : type == PROCAM_PIXEL_U16 ? static_cast<const void*>(f.u16[k].data())
-                                                 : static_cast<const void*>(f.f32[k].data());
   return f;
 }
 

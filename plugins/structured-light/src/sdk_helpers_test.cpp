@@ -21,6 +21,25 @@ namespace {
 
 // ---- errors ---------------------------------------------------------------
 
+TEST(SdkImage, GrayViewDescribesTheBufferAndPassesTheFrameCheck) {
+  const std::vector<uint16_t> px(6, 4095);
+  const procam_image v = sdk::gray_view(px.data(), 3, 2, 12);
+  EXPECT_EQ(v.pixel_type, PROCAM_PIXEL_U16);
+  EXPECT_EQ(v.bit_depth, 12u);
+  EXPECT_EQ(v.stride_bytes, 6u);
+  EXPECT_EQ(v.channels, 1u);
+  EXPECT_TRUE(sdk::check_frame(&v, 3, 2, 1, "frame").ok());
+  EXPECT_EQ(sdk::full_scale(v), 4095.0);
+  EXPECT_EQ(sdk::pixel_value(v, 2, 1), 4095.0f);
+  const std::vector<float> f(6, 0.5f);
+  const procam_image g = sdk::gray_view(f.data(), 3, 2);
+  EXPECT_EQ(g.pixel_type, PROCAM_PIXEL_F32);
+  EXPECT_EQ(g.stride_bytes, 12u);
+  EXPECT_EQ(sdk::pixel_value(g, 1, 1), 0.5f);
+  const std::vector<uint8_t> b(6, 7);
+  EXPECT_EQ(sdk::gray_view(b.data(), 3, 2).stride_bytes, 3u);
+}
+
 TEST(SdkError, WriteErrorTruncatesAtCharacterBoundary) {
   procam_error err;
   sdk::write_error(&err, "short");

@@ -66,15 +66,7 @@ ScanRun run(const std::string& method, nlohmann::json params, const Distort& dis
           if (distort) v = distort(r.rounds, cp->frames[i].label, x, y, v);
           px[size_t{y} * kW + x] = static_cast<uint8_t>(std::lround(std::clamp(v, 0.0, 255.0)));
         }
-      procam_image img{};
-      img.width = kW;
-      img.height = kH;
-      img.channels = 1;
-      img.pixel_type = PROCAM_PIXEL_U8;
-      img.bit_depth = 8;
-      img.stride_bytes = kW;
-      img.data = px.data();
-      const sdk::Error fe = s->add_frame(i, img);
+      const sdk::Error fe = s->add_frame(i, sdk::gray_view(px.data(), kW, kH));
       EXPECT_TRUE(fe.ok()) << fe.message;
     }
     EXPECT_TRUE(s->end_round().ok());

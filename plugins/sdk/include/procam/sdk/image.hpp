@@ -19,6 +19,36 @@
 
 namespace procam::sdk {
 
+// A one-channel, tightly packed view of width × height samples at `data`
+// (borrowed: the caller keeps the buffer alive while the view is used).
+// bit_depth: significant bits of U8/U16 samples (default: all); F32 views
+// report 32.
+inline procam_image gray_view(const uint8_t* data, uint32_t width, uint32_t height, uint32_t bit_depth = 8) noexcept {
+  procam_image v{};
+  v.width = width;
+  v.height = height;
+  v.channels = 1;
+  v.pixel_type = PROCAM_PIXEL_U8;
+  v.bit_depth = bit_depth;
+  v.stride_bytes = width;
+  v.data = data;
+  return v;
+}
+inline procam_image gray_view(const uint16_t* data, uint32_t width, uint32_t height, uint32_t bit_depth = 16) noexcept {
+  procam_image v = gray_view(static_cast<const uint8_t*>(nullptr), width, height, bit_depth);
+  v.pixel_type = PROCAM_PIXEL_U16;
+  v.stride_bytes = size_t{width} * 2;
+  v.data = data;
+  return v;
+}
+inline procam_image gray_view(const float* data, uint32_t width, uint32_t height) noexcept {
+  procam_image v = gray_view(static_cast<const uint8_t*>(nullptr), width, height, 32);
+  v.pixel_type = PROCAM_PIXEL_F32;
+  v.stride_bytes = size_t{width} * 4;
+  v.data = data;
+  return v;
+}
+
 // Bytes of one sample of `pixel_type`; 0 for an unknown type.
 inline size_t bytes_per_sample(uint32_t pixel_type) noexcept {
   switch (pixel_type) {
