@@ -36,13 +36,14 @@ struct Eval {
 using Runs = std::map<std::string, Eval>;
 
 // Runs the bench for one scene and the given methods (labels as in bench.md).
-Runs run(const std::string& scene, const std::vector<std::string>& methods) {
+// extra: more bench arguments (e.g. --param M.key=value).
+Runs run(const std::string& scene, const std::vector<std::string>& methods, const std::string& extra = "") {
   const fs::path out = fs::temp_directory_path() / ("procam-claims-" + scene + "-" + std::to_string(::getpid()));
   fs::remove_all(out);
   std::string cmd = std::string(PROCAM_BINARY_DIR) + "/bin/procam bench --only-listed 1 --threads 2 --scene " + scene +
                     " --plugins " + PROCAM_PLUGIN_DIR + " --out " + out.string();
   for (const auto& m : methods) cmd += " --method " + m;
-  cmd += " 2>" + (out.string() + ".log");
+  cmd += extra + " 2>" + (out.string() + ".log");
   const int rc = std::system(cmd.c_str());
   Runs runs;
   std::ifstream in(out / "bench.json");
@@ -143,21 +144,43 @@ TEST(SceneClaims, WaxCandleSubsurface) {
   EXPECT_LE(r["ensemble"].wrong(), r["ensemble-nocorr"].wrong() + 0.0002);
 }
 
-// Fig. 3.1 bowl on marble: both effects in one scene. What holds in the sim:
-// the ensemble gives fewer wrong pixels than every single code that decodes
-// most of the scene, and decodes more than the logical codes, which fail on
-// the marble. Not asserted, because the sim's physics does not produce it:
-// issue 4's goal "ensemble ≤ 1/5 of the best single code" — the inside of a
-// spherical bowl gets the same inter-reflected light from any pattern half
-// (the form factor between two points of a sphere is constant), so Gray does
-// not fail there (docs/report/README.md).
-TEST(SceneClaims, BowlOnMarbleEnsemble) {
+// Fig. 3.1, the mixed scene: inter-reflections in the bowl break Gray's and
+// min-SW's low-frequency planes, sub-surface scattering in the marble breaks
+// XOR-02's (and some of XOR-04's) finest base plane; the ensemble's vote
+// takes whichever pair of codes still agrees. Issue 4's goal: the ensemble's
+// gross errors <= 1/5 of the best single code's.
+//
+// Thesis setting: every code binarizes by L > L̄ alone (Eq. 3.5, no rejection
+// margin: min_bit_margin = 0), so each code decodes every lit pixel and its
+// failures show up as wrong columns — the comparison the thesis makes.
+TEST(SceneClaims, BowlOnMarbleEnsembleThesisSetting) {
+  const std::vector<std::string> methods = {"gray", "xor02", "xor04", "minsw", "ensemble-nocorr"};
+  std::string hard;
+  for (const auto& m : methods) hard += " --param " + m + ".min_bit_margin=0";
+  auto r = run("bowl-on-marble", methods, hard);
+  const double best = best_single_wrong(r);
+  std::printf("bowl-on-marble, margin 0: ensemble wrong %.4f%%, best single code %.4f%%, ratio %.3f\n",
+              100 * r["ensemble-nocorr"].wrong(), 100 * best, r["ensemble-nocorr"].wrong() / best);
+  EXPECT_LE(r["ensemble-nocorr"].wrong(), 0.2 * best);  // issue 4's goal
+  for (const auto& m : kBinary) {
+    EXPECT_LT(r["ensemble-nocorr"].wrong(), r[m].wrong()) << m;
+    EXPECT_GE(r["ensemble-nocorr"].ok, r[m].ok) << m;  // beats every code on coverage too
+  }
+  EXPECT_GE(r["xor02"].wrong(), 0.01);  // the marble breaks XOR-02 (§3.3.1)
+}
+
+// Product defaults (min_bit_margin 0.1): the single codes reject pixels whose
+// planes lost their margin instead of guessing, so XOR-02/04 have almost no
+// wrong pixels but lose most (XOR-02) or a sixth (XOR-04) of the marble. The
+// ensemble keeps the goal against every code that decodes >= 90 % of the lit
+// pixels, and decodes far more than the XOR codes. (It decodes ~2 % less than
+// Gray here: Gray keeps marble pixels through its tolerated finest plane that
+// no second code confirms.)
+TEST(SceneClaims, BowlOnMarbleEnsembleDefaults) {
   auto r = run("bowl-on-marble", {"gray", "xor02", "xor04", "minsw", "ensemble"});
-  std::printf("bowl-on-marble: ensemble wrong %.3f%%, best single code %.3f%%\n", 100 * r["ensemble"].wrong(),
-              100 * best_single_wrong(r));
   for (const auto& m : kBinary) {
     if (r[m].decoded >= 0.9) {
-      EXPECT_LT(r["ensemble"].wrong(), r[m].wrong()) << m;
+      EXPECT_LE(r["ensemble"].wrong(), 0.2 * r[m].wrong()) << m;
     }
   }
   EXPECT_GE(r["ensemble"].ok, r["xor02"].ok + 0.5);
@@ -171,7 +194,8 @@ TEST(SceneClaims, MetalLampEnsembleAndCorrection) {
   auto r = run("metal-lamp", {"gray", "xor02", "xor04", "minsw", "ensemble-nocorr", "ensemble"});
   const double best = best_single_wrong(r);
   EXPECT_LT(r["ensemble-nocorr"].wrong(), best);
-  EXPECT_LE(r["ensemble"].wrong(), r["ensemble-nocorr"].wrong());
+  // (+1e-6, about half a pixel of the ~5e5 lit: the fractions are rounded)
+  EXPECT_LE(r["ensemble"].wrong(), r["ensemble-nocorr"].wrong() + 1e-6);
   EXPECT_LE(r["ensemble"].gross, 0.005);
 }
 

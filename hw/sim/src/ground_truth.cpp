@@ -17,17 +17,21 @@ hw::GroundTruth ground_truth_from_view(const PreparedView& v) {
   gt.proj_col = Image(v.width, v.height, PixelType::f32);
   gt.proj_row = Image(v.width, v.height, PixelType::f32);
   gt.lit = Image(v.width, v.height, PixelType::u8);
+  gt.object = Image(v.width, v.height, PixelType::u8);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   float* depth = gt.depth_mm.ptr<float>();
   float* col = gt.proj_col.ptr<float>();
   float* row = gt.proj_row.ptr<float>();
   uint8_t* lit = gt.lit.ptr<uint8_t>();
+  uint8_t* object = gt.object.ptr<uint8_t>();
   for (size_t i = 0; i < v.pixel_count(); ++i) {
     depth[i] = v.depth_mm[i];
     const bool l = v.lit[i] != 0;
     col[i] = l ? v.proj_x[i] : nan;
     row[i] = l ? v.proj_y[i] : nan;
     lit[i] = l ? 255 : 0;
+    const int32_t o = v.object[i];  // scenes hold at most 254 objects here; more share 255
+    object[i] = o < 0 ? 0 : static_cast<uint8_t>(std::min<int32_t>(o + 1, 255));
   }
   return gt;
 }
@@ -43,8 +47,10 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
   const Item items[] = {{"depth_mm.exr", &truth.depth_mm, "mm"},
                         {"proj_col.exr", &truth.proj_col, "px"},
                         {"proj_row.exr", &truth.proj_row, "px"},
-                        {"lit.png", &truth.lit, ""}};
+                        {"lit.png", &truth.lit, ""},
+                        {"object.png", &truth.object, ""}};
   for (const Item& it : items) {
+    if (it.image->empty() && it.image == &truth.object) continue;  // optional map
     if (it.image->empty())
       return Error(Code::invalid_argument, std::string("ground truth map for '") + it.file + "' is empty");
     std::map<std::string, std::string> attrs = attributes;

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Analytic ray intersections with planes, oriented boxes (slab test), spheres,
-// finite cylinders (lateral surface + optional caps) and hemispherical bowls.
+// finite cylinders (lateral surface + optional caps) and bowls (half-ellipsoids; hemispheres by default).
 #include "procam/hw/sim/raycast.hpp"
 
 #include <algorithm>
@@ -137,13 +137,23 @@ bool hit_cylinder(const Cylinder& c, const Vec3& o, const Vec3& d, double t_min,
 }
 
 bool hit_bowl(const Bowl& b, const Vec3& o, const Vec3& d, double t_min, double t_best, double& t, Vec3& n) {
+  // Half-ellipsoid |p⊥|²/r² + (p·a)²/h² = 1 with p·a <= 0 (a = opening, h =
+  // depth, p relative to the centre). Scaling the axial component by r/h
+  // maps it onto the sphere of radius r (t is unchanged by the linear map);
+  // h = r is the hemisphere. Normal = gradient p⊥/r² + a (p·a)/h².
   const Vec3 oc = o - b.center_mm;
+  const double s = b.radius_mm / b.depth_mm;
+  const double oa = dot(oc, b.opening), da = dot(d, b.opening);
+  const Vec3 os = oc + b.opening * (oa * (s - 1.0)), ds = d + b.opening * (da * (s - 1.0));
   double tb = 0;
-  if (!quadratic_hit(dot(d, d), dot(oc, d), dot(oc, oc) - b.radius_mm * b.radius_mm, t_min, t_best, tb,
-                     [&](double r) { return dot(oc + d * r, b.opening) <= 0; }))
+  if (!quadratic_hit(dot(ds, ds), dot(os, ds), dot(os, os) - b.radius_mm * b.radius_mm, t_min, t_best, tb,
+                     [&](double r) { return oa + da * r <= 0; }))
     return false;
   t = tb;
-  n = normalized(oc + d * tb);
+  const Vec3 p = oc + d * tb;
+  const double pa = dot(p, b.opening);
+  const Vec3 radial = p - b.opening * pa;
+  n = normalized(radial * (1.0 / (b.radius_mm * b.radius_mm)) + b.opening * (pa / (b.depth_mm * b.depth_mm)));
   return true;
 }
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Ray casting (through prepare_view) against analytic depths computed
-// independently: planes, spheres, rotated boxes.
+// independently: planes, spheres, rotated boxes, half-ellipsoid bowls.
 #include "procam/hw/sim/raycast.hpp"
 
 #include <gtest/gtest.h>
@@ -159,6 +159,43 @@ TEST(Raycast, FinitePlaneAndTracerDirect) {
   SceneTracer t2(s2);
   ASSERT_TRUE(t2.first_hit({0, 0, 0}, {1, 0, 0}, 1e-9, h));
   EXPECT_NEAR(h.t, 10, 1e-12);
+}
+
+// Bowl with depth_mm != radius_mm: a half-ellipsoid. Rays from the origin
+// aimed at points of the analytic surface x = r sinθ, z = c + h cosθ enter
+// through the opening and stop there, with the normal of the gradient
+// (x / r², 0, (z − c) / h²); the outer half (z < c) is not part of the bowl;
+// depth = radius is the hemisphere (sphere distance).
+TEST(Raycast, HalfEllipsoidBowlMatchesImplicitSurface) {
+  const double r = 80, depth = 120, cz = 700;
+  Bowl b;
+  b.center_mm = {0, 0, cz};
+  b.radius_mm = r;
+  b.depth_mm = depth;
+  b.opening = {0, 0, -1};
+  Scene scene;
+  scene.objects.push_back(make(b));
+  SceneTracer tracer(scene);
+  for (double theta_deg : {0.0, 15.0, 40.0, 65.0, 80.0}) {
+    const double th = theta_deg * M_PI / 180.0;
+    const Vec3 q{r * std::sin(th), 0, cz + depth * std::cos(th)};
+    Hit h;
+    ASSERT_TRUE(tracer.first_hit({0, 0, 0}, q, 1e-9, h)) << theta_deg;
+    EXPECT_NEAR(h.t, 1.0, 1e-9) << theta_deg;  // dir = q: the hit is q itself
+    const Vec3 g = normalized(Vec3{q.x / (r * r), 0, (q.z - cz) / (depth * depth)});
+    EXPECT_NEAR(std::abs(dot(h.normal, g)), 1.0, 1e-9) << theta_deg;
+  }
+  // A ray that only crosses the closed (outer) half misses: from the side,
+  // above the rim plane (z < c).
+  Hit h;
+  EXPECT_FALSE(tracer.first_hit({-500, 0, cz - 10}, {1, 0, 0}, 1e-9, h));
+  // Hemisphere: depth = radius gives the sphere's distance.
+  b.depth_mm = r;
+  Scene s2;
+  s2.objects.push_back(make(b));
+  SceneTracer t2(s2);
+  ASSERT_TRUE(t2.first_hit({0, 0, 0}, {0.05, 0.02, 1}, 1e-9, h));
+  EXPECT_NEAR(std::sqrt(dot(h.point_mm - b.center_mm, h.point_mm - b.center_mm)), r, 1e-9);
 }
 
 }  // namespace

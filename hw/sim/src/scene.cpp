@@ -112,10 +112,11 @@ Cylinder parse_cylinder(FieldReader& r) {
 }
 
 Bowl parse_bowl(FieldReader& r) {
-  r.only({"type", "name", "material", "center_mm", "radius_mm", "opening"});
+  r.only({"type", "name", "material", "center_mm", "radius_mm", "depth_mm", "opening"});
   Bowl b;
-  b.center_mm = r.vec3("center_mm", std::nullopt, "centre of the sphere, mm");
+  b.center_mm = r.vec3("center_mm", std::nullopt, "centre of the rim disc, mm");
   b.radius_mm = r.positive("radius_mm", std::nullopt, "mm");
+  b.depth_mm = r.positive("depth_mm", b.radius_mm, "mm (default: radius_mm, a hemisphere)");
   b.opening = unit_vec(r, "opening", Vec3{0, 0, -1});
   return b;
 }

@@ -109,14 +109,16 @@ TEST(SceneParse, ValuesAndDefaults) {
       {"type":"plane","point_mm":[1,2,900],"normal":[0,0,-2],"size_mm":[300,200],"u_axis":[1,0,0.5],
        "material":{"albedo":0.3}},
       {"type":"box","name":"b","center_mm":[0,0,700],"size_mm":[10,20,30],"euler_deg":[10,20,30]},
-      {"type":"sphere","center_mm":[5,6,7],"radius_mm":8}]})");
+      {"type":"sphere","center_mm":[5,6,7],"radius_mm":8},
+      {"type":"bowl","center_mm":[0,0,800],"radius_mm":50},
+      {"type":"bowl","center_mm":[0,0,800],"radius_mm":50,"depth_mm":70}]})");
   auto r = load_scene_file(path);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
   const Scene& s = *r;
   EXPECT_EQ(s.name, "v");  // file stem when "name" is absent
   EXPECT_EQ(s.description, "d");
   EXPECT_DOUBLE_EQ(s.ambient, 0.25);
-  ASSERT_EQ(s.objects.size(), 3u);
+  ASSERT_EQ(s.objects.size(), 5u);
   const Plane& p = std::get<Plane>(s.objects[0].shape);
   EXPECT_NEAR(p.normal.z, -1.0, 1e-15);
   EXPECT_TRUE(p.finite);
@@ -137,6 +139,8 @@ TEST(SceneParse, ValuesAndDefaults) {
   EXPECT_NEAR(b.rotation(1, 0), sz * cy, 1e-12);
   EXPECT_NEAR(b.rotation(2, 0), -sy, 1e-12);
   EXPECT_DOUBLE_EQ(std::get<Sphere>(s.objects[2].shape).radius_mm, 8);
+  EXPECT_DOUBLE_EQ(std::get<Bowl>(s.objects[3].shape).depth_mm, 50);  // default: hemisphere
+  EXPECT_DOUBLE_EQ(std::get<Bowl>(s.objects[4].shape).depth_mm, 70);
 }
 
 TEST(SceneLookup, ByNameAndNotFoundListsScenes) {

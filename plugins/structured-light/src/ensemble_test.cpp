@@ -263,8 +263,11 @@ TEST(Vote, Rules) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   struct Case { float g, x2, x4, m; uint8_t lit; uint8_t cls; float value; float conf; };
   const Case cases[] = {
-      {100, 100, 100, 100.5f, 255, kAllAgree, 100, 1.0f},
-      {300, 100, 100.5f, 700, 255, kInterreflection, 100.5f, 0.5f},  // only logical codes
+      {100, 100, 100, 100.5f, 255, kAllAgree, 100, 1.0f},             // median of the agreeing codes
+      {300, 100, 100.5f, 700, 255, kInterreflection, 100.5f, 0.5f},   // only logical codes -> xor04
+      {1115, 1116, 1116, 1115.5f, 255, kAllAgree, 1115.75f, 1.0f},   // straddling pixel (vote.hpp)
+      {40, 44, 39, 40.5f, 255, kPartial, 40, 0.75f},                  // 39 agrees with 40 only: no pull
+      {100, 101, 102, nan, 255, kPartial, 101, 0.75f},                // pick xor02 (support 2): mean of 100..102
       {100, 400, 700, 100.5f, 255, kSubsurface, 100.5f, 0.5f},        // only Gray codes -> minsw
       {100, 400, 700, 900, 255, kError, nan, 0.0f},                   // no two agree
       {nan, nan, nan, nan, 255, kError, nan, 0.0f},

@@ -4,6 +4,7 @@
 
 #include "binarize.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -57,21 +58,32 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
     }
     uint32_t pick = kGray;
     uint8_t c = kPartial;
+    float value = 0.0f;
     if (pairs == 1 && gray_pair) {
-      pick = kMinsw;
+      value = v[kMinsw];
       c = kSubsurface;
-    } else if (pairs == 1 && logical_pair) {
-      pick = kXor04;
-      c = kInterreflection;
     } else {
       for (uint32_t k : kPreference)
         if (support[k] == best) {
           pick = k;
           break;
         }
-      c = pairs == 6 ? kAllAgree : kPartial;
+      c = pairs == 1 && logical_pair ? kInterreflection : pairs == 6 ? kAllAgree : kPartial;
+      // Median of the codes agreeing with the pick (sum minus the extremes;
+      // values are multiples of 0.5, every step is exact) when there are 3 or
+      // 4; with 2 the pick's own value.
+      float sum = 0.0f, lo = v[pick], hi = v[pick];
+      uint32_t count = 0;
+      for (uint32_t k = 0; k < kEnsembleCodes; ++k)
+        if (std::fabs(v[k] - v[pick]) <= agree_px) {
+          sum += v[k];
+          lo = std::min(lo, v[k]);
+          hi = std::max(hi, v[k]);
+          ++count;
+        }
+      value = count >= 3 ? (sum - lo - hi) / static_cast<float>(count - 2) : v[pick];
     }
-    coord[i] = v[pick];
+    coord[i] = value;
     valid[i] = 255;
     confidence[i] = static_cast<float>(best + 1) / 4.0f;
     cls[i] = c;
@@ -107,14 +119,25 @@ void vote_keys_scalar(const int32_t* const key[kEnsembleCodes], const uint8_t* l
     best = best > s2 ? best : s2;
     best = best > s3 ? best : s3;
     const bool sub = pairs == 1 && p03 != 0, inter = pairs == 1 && p12 != 0;
-    // First of gray, xor04, xor02, minsw with the largest support; {gray,
-    // minsw} alone -> minsw (thesis rule); {xor02, xor04} alone -> xor04.
-    const int32_t general = s0 == best ? a0 : s2 == best ? a2 : s1 == best ? a1 : a3;
-    const int32_t pick = sub ? a3 : general;
+    // Pick: first of gray, xor04, xor02, minsw with the largest support;
+    // value: median key of the codes agreeing with the pick, pick included;
+    // {gray, minsw} alone -> minsw's key (thesis rule).
+    const int32_t pick = s0 == best ? a0 : s2 == best ? a2 : s1 == best ? a1 : a3;
+    const int32_t m0 = agree(a0, pick), m1 = agree(a1, pick), m2 = agree(a2, pick), m3 = agree(a3, pick);
+    const int32_t members = m0 + m1 + m2 + m3;
+    // Median of the members: sum minus the extremes when there are 3 or 4;
+    // with 2 members the pick's key.
+    const int32_t big = std::numeric_limits<int32_t>::max();
+    const int32_t lo = std::min(std::min(m0 ? a0 : big, m1 ? a1 : big), std::min(m2 ? a2 : big, m3 ? a3 : big));
+    const int32_t hi = std::max(std::max(m0 ? a0 : -1, m1 ? a1 : -1), std::max(m2 ? a2 : -1, m3 ? a3 : -1));
+    const bool trim = members >= 3;
+    const int32_t sum = sub ? a3 : trim ? m0 * a0 + m1 * a1 + m2 * a2 + m3 * a3 - lo - hi : pick;
+    const int32_t count = trim && !sub ? members - 2 : 1;
     const auto c = static_cast<uint8_t>(sub ? kSubsurface : inter ? kInterreflection : pairs == 6 ? kAllAgree : kPartial);
     const bool is_lit = lit[i] != 0;
     const bool ok = best > 0 && is_lit;
-    coord[i] = ok ? static_cast<float>(pick) * 0.5f : nan;
+    // count is 1 or 2 (a median of 3 or 4): key / 2 / count, exact.
+    coord[i] = ok ? static_cast<float>(sum) * (count == 2 ? 0.25f : 0.5f) : nan;
     valid[i] = ok ? 255 : 0;
     confidence[i] = ok ? static_cast<float>(best + 1) * 0.25f : 0.0f;
     cls[i] = ok ? c : static_cast<uint8_t>(is_lit ? kError : kUnlit);
@@ -167,7 +190,25 @@ __attribute__((target("avx2"))) void vote_keys_avx2(const int32_t* const key[kEn
     v = pick8(_mm256_cmpeq_epi32(s1, best), a1, v);
     v = pick8(_mm256_cmpeq_epi32(s2, best), a2, v);
     v = pick8(_mm256_cmpeq_epi32(s0, best), a0, v);
-    v = pick8(sub, a3, v);
+    // Mean key of the codes agreeing with the pick; {gray, minsw} alone -> minsw.
+    const __m256i m0 = agree8(a0, v, limit), m1 = agree8(a1, v, limit);
+    const __m256i m2 = agree8(a2, v, limit), m3 = agree8(a3, v, limit);
+    __m256i sum = _mm256_add_epi32(_mm256_add_epi32(_mm256_and_si256(m0, a0), _mm256_and_si256(m1, a1)),
+                                   _mm256_add_epi32(_mm256_and_si256(m2, a2), _mm256_and_si256(m3, a3)));
+    __m256i count = _mm256_sub_epi32(zero, _mm256_add_epi32(_mm256_add_epi32(m0, m1), _mm256_add_epi32(m2, m3)));
+    // Median: drop the members' extremes when there are 3 or 4.
+    const __m256i big = _mm256_set1_epi32(std::numeric_limits<int32_t>::max()), neg = _mm256_set1_epi32(-1);
+    const __m256i lo = _mm256_min_epi32(_mm256_min_epi32(pick8(m0, a0, big), pick8(m1, a1, big)),
+                                        _mm256_min_epi32(pick8(m2, a2, big), pick8(m3, a3, big)));
+    const __m256i hi = _mm256_max_epi32(_mm256_max_epi32(pick8(m0, a0, neg), pick8(m1, a1, neg)),
+                                        _mm256_max_epi32(pick8(m2, a2, neg), pick8(m3, a3, neg)));
+    const __m256i trim = _mm256_cmpgt_epi32(count, _mm256_set1_epi32(2));
+    sum = pick8(trim, _mm256_sub_epi32(sum, _mm256_add_epi32(lo, hi)), v);  // 2 members: the pick
+    count = pick8(trim, _mm256_sub_epi32(count, _mm256_set1_epi32(2)), one);
+    sum = pick8(sub, a3, sum);
+    count = pick8(sub, one, count);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
+    const __m256 scale = _mm256_blendv_ps(half, quarter, _mm256_castsi256_ps(_mm256_cmpeq_epi32(count, _mm256_set1_epi32(2))));
+    const __m256 mean = _mm256_mul_ps(_mm256_cvtepi32_ps(sum), scale);
     __m256i c = _mm256_set1_epi32(kPartial);
     c = pick8(_mm256_cmpeq_epi32(pairs, six), _mm256_set1_epi32(kAllAgree), c);
     c = pick8(inter, _mm256_set1_epi32(kInterreflection), c);
@@ -177,7 +218,7 @@ __attribute__((target("avx2"))) void vote_keys_avx2(const int32_t* const key[kEn
     const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(best, zero), is_lit);
     c = pick8(ok, c, pick8(is_lit, _mm256_set1_epi32(kError), _mm256_set1_epi32(kUnlit)));
     const __m256 okf = _mm256_castsi256_ps(ok);
-    _mm256_storeu_ps(coord + i, _mm256_blendv_ps(nan, _mm256_mul_ps(_mm256_cvtepi32_ps(v), half), okf));
+    _mm256_storeu_ps(coord + i, _mm256_blendv_ps(nan, mean, okf));
     _mm256_storeu_ps(confidence + i,
                      _mm256_and_ps(okf, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(best, one)), quarter)));
     store8(valid + i, _mm256_and_si256(ok, _mm256_set1_epi32(255)));
@@ -228,7 +269,27 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
     v = _mm512_mask_mov_epi32(v, _mm512_cmpeq_epi32_mask(s1, best), a1);
     v = _mm512_mask_mov_epi32(v, _mm512_cmpeq_epi32_mask(s2, best), a2);
     v = _mm512_mask_mov_epi32(v, _mm512_cmpeq_epi32_mask(s0, best), a0);
-    v = _mm512_mask_mov_epi32(v, sub, a3);
+    // Mean key of the codes agreeing with the pick; {gray, minsw} alone -> minsw.
+    const __mmask16 vv = _mm512_cmpgt_epi32_mask(v, minus1);
+    const __mmask16 m0 = agree16(a0, v, v0 & vv, limit), m1 = agree16(a1, v, v1 & vv, limit);
+    const __mmask16 m2 = agree16(a2, v, v2 & vv, limit), m3 = agree16(a3, v, v3 & vv, limit);
+    __m512i sum = _mm512_add_epi32(_mm512_add_epi32(_mm512_maskz_mov_epi32(m0, a0), _mm512_maskz_mov_epi32(m1, a1)),
+                                   _mm512_add_epi32(_mm512_maskz_mov_epi32(m2, a2), _mm512_maskz_mov_epi32(m3, a3)));
+    __m512i count = _mm512_add_epi32(count16(m0, m1, m2), _mm512_maskz_mov_epi32(m3, one));
+    // Median: drop the members' extremes when there are 3 or 4.
+    const __m512i big = _mm512_set1_epi32(std::numeric_limits<int32_t>::max());
+    const __m512i lo = _mm512_min_epi32(_mm512_min_epi32(_mm512_mask_mov_epi32(big, m0, a0), _mm512_mask_mov_epi32(big, m1, a1)),
+                                        _mm512_min_epi32(_mm512_mask_mov_epi32(big, m2, a2), _mm512_mask_mov_epi32(big, m3, a3)));
+    const __m512i hi = _mm512_max_epi32(_mm512_max_epi32(_mm512_mask_mov_epi32(minus1, m0, a0), _mm512_mask_mov_epi32(minus1, m1, a1)),
+                                        _mm512_max_epi32(_mm512_mask_mov_epi32(minus1, m2, a2), _mm512_mask_mov_epi32(minus1, m3, a3)));
+    const __mmask16 trim = _mm512_cmpgt_epi32_mask(count, _mm512_set1_epi32(2));
+    sum = _mm512_mask_sub_epi32(v, trim, sum, _mm512_add_epi32(lo, hi));  // 2 members: the pick
+    count = _mm512_mask_sub_epi32(one, trim, count, _mm512_set1_epi32(2));
+    sum = _mm512_mask_mov_epi32(sum, sub, a3);
+    count = _mm512_mask_mov_epi32(count, sub, one);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
+    const __m512 mean = _mm512_mul_ps(
+        _mm512_cvtepi32_ps(sum),
+        _mm512_mask_mov_ps(half, _mm512_cmpeq_epi32_mask(count, _mm512_set1_epi32(2)), quarter));
     __m512i c = _mm512_set1_epi32(kPartial);
     c = _mm512_mask_mov_epi32(c, _mm512_cmpeq_epi32_mask(pairs, six), _mm512_set1_epi32(kAllAgree));
     c = _mm512_mask_mov_epi32(c, inter, _mm512_set1_epi32(kInterreflection));
@@ -238,7 +299,7 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
     const __mmask16 ok = _mm512_cmpgt_epi32_mask(best, zero) & is_lit;
     c = _mm512_mask_mov_epi32(
         _mm512_mask_mov_epi32(_mm512_set1_epi32(kUnlit), is_lit, _mm512_set1_epi32(kError)), ok, c);
-    _mm512_storeu_ps(coord + i, _mm512_mask_mov_ps(nan, ok, _mm512_mul_ps(_mm512_cvtepi32_ps(v), half)));
+    _mm512_storeu_ps(coord + i, _mm512_mask_mov_ps(nan, ok, mean));
     _mm512_storeu_ps(confidence + i,
                      _mm512_maskz_mov_ps(ok, _mm512_mul_ps(_mm512_cvtepi32_ps(_mm512_add_epi32(best, one)), quarter)));
     _mm_storeu_si128(reinterpret_cast<__m128i*>(valid + i), _mm_maskz_set1_epi8(ok, static_cast<char>(255)));

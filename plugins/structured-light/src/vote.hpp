@@ -11,10 +11,19 @@
 //     (or kUnlit when the pixel is not lit);
 //   - the only agreeing pair is {gray, minsw}  -> minsw's value, kSubsurface
 //     (thesis: "if only the two Gray codes agree, return min-SW's value");
-//   - the only agreeing pair is {xor02, xor04} -> xor04's value, kInterreflection;
-//   - otherwise the value of the first code, in the order gray, xor04, xor02,
-//     minsw, among those with the largest support; kAllAgree when all four
-//     agree pairwise, else kPartial.
+//   - otherwise the *pick* is the first code, in the order gray, xor04, xor02,
+//     minsw, among those with the largest support, and the value is the
+//     median of the pick and every code agreeing with it when they are 3 or
+//     4, else the pick's own value; kInterreflection when the
+//     only agreeing pair is {xor02, xor04}, kAllAgree when all four agree
+//     pairwise, else kPartial.
+//   Why the median: each code quantizes the column at its own stripe edges,
+//   so at a camera pixel straddling two projector columns the agreeing codes
+//   split between them (e.g. 1115, 1116, 1116, 1115.5 at a true 1116.2): the
+//   first code's value can be a column off, their median 1115.75 is not. A
+//   median, not a mean, so that a member agreeing with the pick only at the
+//   edge of agree_px (2 columns from the others) does not pull the value;
+//   two members give no majority, so the preferred code's value stands.
 // confidence = (max support + 1) / 4 for valid pixels (0.5, 0.75, 1), else 0.
 // Classification (C5): kAllAgree = direct light dominates; kInterreflection =
 // only the logical (XOR) codes agree, long-range effects; kSubsurface = only

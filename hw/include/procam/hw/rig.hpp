@@ -28,6 +28,7 @@ struct GroundTruth {
   Image proj_col;       // F32: continuous projector column seen at this pixel
   Image proj_row;       // F32: continuous projector row
   Image lit;            // U8: 255 where the projector lights the visible point
+  Image object;         // U8: 1 + index of the visible object in the scene (0 = none); may be empty
 };
 
 class Rig {

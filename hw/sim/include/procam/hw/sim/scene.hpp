@@ -93,7 +93,8 @@ struct Cylinder {
 // opening direction. Two-sided: inside and outside are both surfaces.
 struct Bowl {
   Vec3 center_mm;
-  double radius_mm = 100;
+  double radius_mm = 100;  // rim radius
+  double depth_mm = 100;   // centre of the rim disc to the bottom; = radius_mm: hemisphere
   Vec3 opening{0, 0, -1};  // unit, from the centre out through the rim's disc
 };
 
