@@ -31,9 +31,11 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "binarize.hpp"
+#include "map_cache.hpp"
 #include "plan_layout.hpp"
 #include "procam/plugin_sdk.hpp"
 #include "work_pool.hpp"
@@ -92,13 +94,19 @@ void allocate_map(std::vector<T>& v, size_t n) {
   v.assign(n, T{});
 }
 
-// Several allocate_map calls spread over a pool's threads (the first touch
-// of ~35 MB of output maps is a memset the threads can share).
+// Several map allocations spread over a pool's threads (the first touch
+// of ~35 MB of fresh output maps is a memset the threads can share).
 class MapBatch {
  public:
+  // F32 and U8 maps come from the map cache when it has storage of that
+  // size (stale contents: the decoders write every element; map_cache.hpp).
   template <class T>
   void add(std::vector<T>& v, size_t n) {
-    if (v.size() != n) jobs_.push_back([&v, n] { allocate_map(v, n); });
+    if (v.size() == n) return;
+    if constexpr (std::is_same_v<T, float> || std::is_same_v<T, uint8_t>)
+      jobs_.push_back([&v, n] { take_map(v, n); });
+    else
+      jobs_.push_back([&v, n] { allocate_map(v, n); });
   }
   void run(WorkPool& pool) {
     pool.run(static_cast<uint32_t>(jobs_.size()), [&](uint32_t a, uint32_t b) {

@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "codes.hpp"
+#include "map_cache.hpp"
 #include "multi_round.hpp"
 #include "streaming_session.hpp"
 #include "subpixel.hpp"
@@ -90,7 +91,10 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     valid_.assign(n, 0);
     confidence_.assign(n, 0.0f);
     cls_.assign(n, kUnlit);
-  }
+  }  ~CodesSession() override { recycle_members(); }
+  CodesSession(const CodesSession&) = delete;
+  CodesSession& operator=(const CodesSession&) = delete;
+
 
   sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
     has_round = false;
@@ -165,6 +169,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       valid_ = std::move(r.codes[0].valid);
       confidence_ = std::move(r.codes[0].confidence);
       for (size_t i = 0; i < n; ++i) cls_[i] = lit_[i] == 0 ? kUnlit : valid_[i] ? kAllAgree : kError;
+      recycle_maps(std::move(r));
     } else {
       // Full four-code view in one decode + vote pass (vote.hpp): this
       // round's codes, earlier first-pass rounds' maps (auto), NaN maps for
@@ -217,6 +222,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
             ++stats.resolved;
           }
       }
+      recycle_maps(std::move(r));  // what this round's result still holds
     }
     decoder_.reset();
     for (size_t i = 0; i < n; ++i) {
@@ -228,6 +234,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   }
 
   sdk::Error outputs(sdk::Outputs& out) override {
+    out.set_release(give_map, give_map);  // the next scan's decoder reuses the maps' pages
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
     std::optional<DepthResult> depth;
@@ -421,6 +428,12 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
           for (int64_t xx = std::max<int64_t>(0, cu - r); xx <= std::min<int64_t>(pw - 1, cu + r); ++xx)
             mask_[static_cast<size_t>(yy) * pw + static_cast<size_t>(xx)] = 0;
       }
+  }
+
+  // Maps not handed to the host go back to the map cache (map_cache.hpp).
+  void recycle_members() noexcept {
+    for (std::vector<float>* v : {&coord_, &confidence_, &intensity_}) give_map(std::move(*v));
+    for (std::vector<uint8_t>* v : {&valid_, &cls_, &lit_}) give_map(std::move(*v));
   }
 
   Config cfg_;

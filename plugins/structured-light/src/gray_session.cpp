@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "gray_code.hpp"
+#include "map_cache.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
 #include "streaming_session.hpp"
@@ -47,6 +48,10 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
     // row bands only add start-up cost.
     rig_.threads = std::clamp(rig_.threads, 1u, 64u);
   }
+  // Maps the host did not take (intensity) go back to the map cache.
+  ~GraySession() override { recycle_maps(std::move(result_)); }
+  GraySession(const GraySession&) = delete;
+  GraySession& operator=(const GraySession&) = delete;
 
   sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
     if (round_started_) {  // single-round method
@@ -83,6 +88,7 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
 
   // Called once per decoded round (SDK contract): moves the maps out.
   sdk::Error outputs(sdk::Outputs& out) override {
+    out.set_release(give_map, give_map);  // the next scan's decoder reuses the maps' pages
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
     size_t valid = 0;

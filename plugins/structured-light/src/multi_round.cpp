@@ -101,9 +101,25 @@ MultiCodeDecoder::MultiCodeDecoder(MultiLayout layout, const std::vector<Project
     for (size_t i = 0; i < key.size(); ++i)
       key[i] = static_cast<int32_t>(std::lround(2.0 * static_cast<double>(c.coord_of[i])));
     key_map_.push_back(word_map(c.code, &key));
+    all_on_index_.push_back(index_map_.back().table.back());  // table: 2^bits words
+    all_on_key_.push_back(key_map_.back().table.back());
   }
   allocate_result(output);
   stream_.set_intensity_output(result_.intensity.data());
+}
+
+void recycle_maps(MultiResult&& r) noexcept {
+  for (AxisMaps& m : r.codes) {
+    give_map(std::move(m.coord));
+    give_map(std::move(m.valid));
+    give_map(std::move(m.confidence));
+  }
+  give_map(std::move(r.vote.coord));
+  give_map(std::move(r.vote.valid));
+  give_map(std::move(r.vote.confidence));
+  give_map(std::move(r.vote.cls));
+  give_map(std::move(r.lit));
+  give_map(std::move(r.intensity));
 }
 
 void MultiCodeDecoder::allocate_result(Output output) {
@@ -162,6 +178,35 @@ MultiResult& MultiCodeDecoder::finish(double min_contrast, double min_bit_margin
                     valid[k] = ok ? 255 : 0;
                   }
                 }
+                if (layout_.black || codes_.size() < 2) return;
+                // Shadow rule (multi_round.hpp), in chunks: one flag pass per
+                // code (vectorizable), then clear the few flagged pixels.
+                constexpr size_t kChunk = 1024;
+                uint8_t flag[kChunk];
+                for (size_t k0 = b; k0 < e; k0 += kChunk) {
+                  const size_t m = std::min(kChunk, e - k0);
+                  std::fill(flag, flag + m, uint8_t{1});
+                  for (size_t c = 0; c < codes_.size(); ++c) {
+                    const int32_t on = all_on_index_[c];
+                    if (on < 0) {  // the all-ones word is no code word: that code is invalid there
+                      const uint8_t* va = r.codes[c].valid.data() + k0;
+                      for (size_t k = 0; k < m; ++k) flag[k] &= static_cast<uint8_t>(va[k] == 0);
+                    } else {
+                      const float want = codes_[c].coord_of[static_cast<size_t>(on)];
+                      const float* co = r.codes[c].coord.data() + k0;
+                      for (size_t k = 0; k < m; ++k) flag[k] &= static_cast<uint8_t>(co[k] == want);
+                    }
+                  }
+                  for (size_t k = 0; k < m; ++k) {
+                    if (flag[k] == 0) continue;
+                    r.lit[k0 + k] = 0;
+                    for (AxisMaps& am : r.codes) {
+                      am.coord[k0 + k] = nan;
+                      am.valid[k0 + k] = 0;
+                      am.confidence[k0 + k] = 0.0f;
+                    }
+                  }
+                }
               });
   return r;
 }
@@ -199,6 +244,29 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
                     float* keep = spec.keep[k] + b;
                     for (size_t i = 0; i < e - b; ++i)
                       keep[i] = key[i] >= 0 ? 0.5f * static_cast<float>(key[i]) : nan;
+                  }
+                }
+                if (!layout_.black && codes_.size() >= 2) {  // shadow rule (multi_round.hpp)
+                  // This round's codes (>= 2); unused slots repeat the first
+                  // so the loop is a fixed, branch-free 4-way compare.
+                  const int32_t* rows[kEnsembleCodes];
+                  int32_t on[kEnsembleCodes];
+                  size_t nr = 0;
+                  for (uint32_t k = 0; k < kEnsembleCodes; ++k)
+                    if (spec.round_code[k] >= 0) {
+                      rows[nr] = key_rows[k];
+                      on[nr++] = all_on_key_[static_cast<size_t>(spec.round_code[k])];
+                    }
+                  for (size_t j = nr; j < kEnsembleCodes; ++j) {
+                    rows[j] = rows[0];
+                    on[j] = on[0];
+                  }
+                  const int32_t *r0 = rows[0], *r1 = rows[1], *r2 = rows[2], *r3 = rows[3];
+                  const int32_t o0 = on[0], o1 = on[1], o2 = on[2], o3 = on[3];
+                  uint8_t* lit = r.lit.data() + b;
+                  for (size_t i = 0; i < e - b; ++i) {
+                    const int32_t all_on = (r0[i] == o0) & (r1[i] == o1) & (r2[i] == o2) & (r3[i] == o3);
+                    lit[i] = static_cast<uint8_t>(lit[i] & (all_on - 1));  // all_on: 0, else keep
                   }
                 }
                 vote_keys(key_rows, r.lit.data() + b, e - b, agree2, r.vote.coord.data() + b,

@@ -71,6 +71,10 @@ struct MultiResult {
   double full_scale = 0;
 };
 
+// Gives every map of `r` to the map cache (map_cache.hpp), as the session
+// does when it ends, so the next decoder of the same size reuses the pages.
+void recycle_maps(MultiResult&& r) noexcept;
+
 // What finish_vote() votes with, per ensemble slot (vote.hpp order gray,
 // xor02, xor04, minsw): this round's code `round_code[k]`, or, where that is
 // -1, an earlier round's column map `external[k]` (NaN = invalid).
@@ -105,6 +109,12 @@ class MultiCodeDecoder {
   // are still being captured), so the work after the last frame does not pay
   // for page faults. Callers may move the maps out; a later call re-allocates.
   MultiResult& finish(double min_contrast, double min_bit_margin);
+  // Shadow rule (both finish functions): without a black frame B = 0 is
+  // assumed, so a pixel lit only by ambient light reads "on" in every plane
+  // and each code decodes its all-ones word. With two or more codes no
+  // projector column is the all-ones word of every code at once, so such a
+  // pixel is marked unlit (lit = 0, every code invalid) instead of decoding
+  // to the columns where those words happen to agree.
 
   // Decode + ensemble vote in one pass (vote.hpp, vote_keys): no per-code
   // maps are written (except VoteSpec::keep); fills result.vote, lit,
@@ -121,6 +131,7 @@ class MultiCodeDecoder {
   std::vector<ProjectedCode> codes_;
   std::vector<WordMap> index_map_;  // per code: word -> code index (-1: none)
   std::vector<WordMap> key_map_;    // per code: word -> 2 x column (-1: none)
+  std::vector<int32_t> all_on_index_, all_on_key_;  // per code: the all-ones word's index / key
   uint32_t width_, height_;
   BitPlaneStream stream_;
   MultiResult result_;  // pre-allocated output maps

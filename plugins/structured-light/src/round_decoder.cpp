@@ -59,6 +59,15 @@ void BinaryRoundDecoder::allocate_result() {
   maps.run(stream_.pool());
 }
 
+void recycle_maps(RoundResult&& r) noexcept {
+  for (AxisMaps* m : {&r.cols, &r.rows}) {
+    give_map(std::move(m->coord));
+    give_map(std::move(m->valid));
+    give_map(std::move(m->confidence));
+  }
+  give_map(std::move(r.intensity));
+}
+
 RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margin) {
   stream_.require_complete("BinaryRoundDecoder");
   if (result_.intensity.size() != size_t{width_} * height_) allocate_result();

@@ -84,6 +84,10 @@ class BinaryRoundDecoder {
   RoundResult result_;
 };
 
+// Gives every map of `r` to the map cache (map_cache.hpp), as the session
+// does when it ends, so the next decoder of the same size reuses the pages.
+void recycle_maps(RoundResult&& r) noexcept;
+
 // The engine layout of a Layout (code 0 = columns, 1 = rows), with tolerable
 // planes for max_weak_error_px.
 StreamLayout stream_layout(const Layout& layout, const StripeCode& cols, const StripeCode* rows,

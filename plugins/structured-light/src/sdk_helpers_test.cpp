@@ -295,6 +295,42 @@ TEST(SdkOutputs, ValidatesAndViews) {
   EXPECT_STREQ(o[4].json, R"({"a":1})");
 }
 
+// set_release: each image's storage (the very buffer the view pointed at)
+// goes to the hooks when the Outputs is destroyed; points stay with it.
+std::vector<const void*> g_released;
+size_t g_released_f32 = 0, g_released_u8 = 0;
+void take_f32(std::vector<float>&& v) noexcept {
+  g_released.push_back(v.data());
+  g_released_f32 += v.size();
+}
+void take_u8(std::vector<uint8_t>&& v) noexcept {
+  g_released.push_back(v.data());
+  g_released_u8 += v.size();
+}
+
+TEST(SdkOutputs, ReleaseHooksGetEveryImageOnDestruction) {
+  const void* depth = nullptr;
+  const void* valid = nullptr;
+  {
+    sdk::Outputs out;
+    out.set_release(take_f32, take_u8);
+    out.add_image("depth_mm", "mm", "d", 2, 2, std::vector<float>{1, 2, 3, 4});
+    out.add_image("valid", "", "v", 2, 2, std::vector<uint8_t>{0, 255, 255, 0});
+    out.add_points("points", "p", "x,y,z", 3, std::vector<float>(9, 1.0f));
+    const procam_output* o = out.view();
+    depth = o[0].image.data;
+    valid = o[1].image.data;
+    EXPECT_TRUE(g_released.empty());  // nothing before destruction
+  }
+  ASSERT_EQ(g_released.size(), 2u);
+  EXPECT_EQ(g_released[0], depth);
+  EXPECT_EQ(g_released[1], valid);
+  EXPECT_EQ(g_released_f32, 4u);  // not the 9 point floats
+  EXPECT_EQ(g_released_u8, 4u);
+  { sdk::Outputs plain; plain.add_image("x", "", "", 1, 1, std::vector<float>{1}); }  // no hooks: freed
+  EXPECT_EQ(g_released.size(), 2u);
+}
+
 TEST(SdkParallel, CoversEveryRowOnceAndRethrows) {
   for (uint32_t rows = 0; rows < 9; ++rows)
     for (uint32_t threads = 1; threads < 6; ++threads) {

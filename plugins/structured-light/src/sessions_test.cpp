@@ -18,6 +18,8 @@
 #include <vector>
 
 #include "codes_session.hpp"
+#include "gray_session.hpp"
+#include "map_cache.hpp"
 #include "phase_session.hpp"
 
 namespace procam::sl {
@@ -33,6 +35,7 @@ nlohmann::json rig_json() {
 
 struct ScanRun {
   std::map<std::string, std::vector<float>> maps;
+  std::map<std::string, std::vector<uint8_t>> maps8;
   std::map<std::string, double> scalars;
   nlohmann::json report;
   uint32_t rounds = 0, patterns = 0;
@@ -45,6 +48,7 @@ ScanRun run(const std::string& method, nlohmann::json params, const Distort& dis
   sdk::CreateArgs args{method, std::move(params), rig_json()};
   std::unique_ptr<sdk::Session> s;
   sdk::Error e = method.find("phase") != std::string::npos ? create_phase_session(args, s)
+                 : method == "gray"                       ? create_gray_session(args, s)
                                                            : create_codes_session(args, s);
   EXPECT_TRUE(e.ok()) << e.message;
   ScanRun r;
@@ -81,6 +85,10 @@ ScanRun run(const std::string& method, nlohmann::json params, const Distort& dis
     if (o[i].kind == PROCAM_OUTPUT_IMAGE && o[i].image.pixel_type == PROCAM_PIXEL_F32) {
       const auto* f = static_cast<const float*>(o[i].image.data);
       r.maps[name].assign(f, f + size_t{kW} * kH);
+    }
+    if (o[i].kind == PROCAM_OUTPUT_IMAGE && o[i].image.pixel_type == PROCAM_PIXEL_U8) {
+      const auto* b = static_cast<const uint8_t*>(o[i].image.data);
+      r.maps8[name].assign(b, b + size_t{kW} * kH);
     }
     if (o[i].kind == PROCAM_OUTPUT_SCALAR) r.scalars[name] = o[i].scalar;
     if (o[i].kind == PROCAM_OUTPUT_JSON) r.report = nlohmann::json::parse(o[i].json);
@@ -195,6 +203,75 @@ TEST(Sessions, BadParamsAreRejected) {
   EXPECT_FALSE(create_codes_session({"xor04", {{"correction_rounds", 1}}, rig_json()}, s).ok());
   EXPECT_FALSE(create_phase_session({"phase-shift", {{"unwrap_tolerance", 0.9}}, rig_json()}, s).ok());
   EXPECT_FALSE(create_codes_session({"minsw", nlohmann::json::object(), nullptr}, s).ok());
+}
+
+// Output maps recycled through the map cache (map_cache.hpp) hold the last
+// scan's values until the decoder overwrites them. A scan after a different
+// one must give exactly the maps of the same scan with the cache off: scan A
+// is fully lit and valid everywhere; scan B has a shadowed band (unlit,
+// invalid), a band of near ties (invalid) and noise-free columns elsewhere,
+// so any pixel the decoder failed to write would keep A's valid value.
+TEST(MapCache, RecycledMapsGiveTheSameResults) {
+  const Distort scene_b = [](uint32_t, const std::string& label, uint32_t x, uint32_t, double v) {
+    if (x < 40) return 10.0;  // shadow under 10 DN of ambient light
+    if (x >= 100 && x < 120 && label.find("bit") != std::string::npos)
+      return v > 100 ? 113.0 : 107.0;  // near ties: |L - L̄| = 6 DN << 0.1 (W - B)
+    return v;
+  };
+  const Distort scene_a = [](uint32_t, const std::string&, uint32_t, uint32_t, double v) { return v + 5.0; };
+  const size_t limit = map_cache_limit();
+  for (const char* m : {"gray", "ensemble", "xor04"}) {
+    set_map_cache_limit(0);
+    const ScanRun ref = run(m, nlohmann::json::object(), scene_b);
+    EXPECT_EQ(map_cache_bytes(), 0u) << m;
+    set_map_cache_limit(limit);
+    (void)run(m, nlohmann::json::object(), scene_a);  // its maps go to the cache at session end
+    EXPECT_GT(map_cache_bytes(), size_t{kW} * kH * 4) << m;
+    const ScanRun got = run(m, nlohmann::json::object(), scene_b);
+    ASSERT_FALSE(ref.maps.empty()) << m;
+    for (const auto& [name, want] : ref.maps) {
+      const auto& have = got.maps.at(name);
+      size_t diff = 0;
+      for (size_t i = 0; i < want.size(); ++i)
+        diff += !(want[i] == have[i] || (std::isnan(want[i]) && std::isnan(have[i])));
+      EXPECT_EQ(diff, 0u) << m << " / " << name;
+    }
+    for (const auto& [name, want] : ref.maps8) EXPECT_EQ(got.maps8.at(name), want) << m << " / " << name;
+    // The scan really has invalid pixels (so stale values would show): the
+    // shadow and the near-tie band, 60 of 256 columns.
+    size_t invalid = 0;
+    for (float c : ref.maps.at("proj_col_px")) invalid += std::isnan(c) ? 1u : 0u;
+    EXPECT_EQ(invalid, size_t{60} * kH) << m;
+  }
+  set_map_cache_limit(limit);
+}
+
+// The ensemble's 41 patterns have no black frame (B = 0 assumed): a shadow
+// under ambient light reads "on" in every plane. Each code then decodes its
+// all-ones word; XOR-02's (column 1) and XOR-04's (column 2) agree within a
+// column, which used to be voted valid. The shadow rule (multi_round.hpp)
+// marks such pixels unlit; every lit pixel still decodes exactly, including
+// the columns whose word is all ones in one code (gray 170, xor02 1, xor04 2,
+// minsw 74 at 256 columns).
+TEST(Sessions, EnsembleWithoutBlackFrameRejectsAmbientShadow) {
+  const Distort shadow = [](uint32_t, const std::string&, uint32_t x, uint32_t y, double v) {
+    return x >= 200 && y < 10 ? 10.0 : v;  // a shadowed block; 10 DN > min_contrast's 7.65
+  };
+  for (const char* m : {"ensemble", "auto"}) {
+    const ScanRun r = run(m, nlohmann::json::object(), shadow);
+    const auto& col = r.maps.at("proj_col_px");
+    const auto& cls = r.maps8.at("transport_class");
+    for (uint32_t y = 0; y < kH; ++y)
+      for (uint32_t x = 0; x < kW; ++x) {
+        const size_t i = size_t{y} * kW + x;
+        if (x >= 200 && y < 10) {
+          ASSERT_TRUE(std::isnan(col[i])) << m << " " << x << "," << y << " decoded " << col[i];
+          ASSERT_EQ(cls[i], 0) << m << " " << x << "," << y;  // kUnlit
+        } else {
+          ASSERT_EQ(col[i], static_cast<float>(x)) << m << " " << x << "," << y;
+        }
+      }
+  }
 }
 
 }  // namespace

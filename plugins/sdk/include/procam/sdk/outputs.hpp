@@ -34,6 +34,30 @@ inline bool is_output_name(const std::string& name) noexcept {
 
 class Outputs {
  public:
+  Outputs() = default;
+  Outputs(const Outputs&) = delete;
+  Outputs& operator=(const Outputs&) = delete;
+  // Hands every image's storage to the release hooks, if set.
+  ~Outputs() {
+    for (Entry& e : entries_) {
+      if (e.out.kind != PROCAM_OUTPUT_IMAGE) continue;
+      if (release_f32_ != nullptr && !e.f32.empty()) release_f32_(std::move(e.f32));
+      if (release_u8_ != nullptr && !e.u8.empty()) release_u8_(std::move(e.u8));
+    }
+  }
+
+  // Optional: functions that take each F32 / U8 image's storage when this
+  // object is destroyed (session_destroy, once the host is done with the
+  // maps), so a plugin can reuse memory whose pages are already mapped in its
+  // next session instead of having the kernel fault and zero fresh pages.
+  // They run on the thread destroying the session and must not throw.
+  using ReleaseF32 = void (*)(std::vector<float>&&) noexcept;
+  using ReleaseU8 = void (*)(std::vector<uint8_t>&&) noexcept;
+  void set_release(ReleaseF32 f32, ReleaseU8 u8) noexcept {
+    release_f32_ = f32;
+    release_u8_ = u8;
+  }
+
   // A map of width x height single-channel pixels, row-major. F32 maps use
   // NaN where invalid (ABI rule). `pixels.size()` must be width*height.
   void add_image(std::string name, std::string unit, std::string description, uint32_t width,
@@ -158,6 +182,8 @@ class Outputs {
 
   std::deque<Entry> entries_;  // deque: entries never move once added
   std::vector<procam_output> view_;
+  ReleaseF32 release_f32_ = nullptr;
+  ReleaseU8 release_u8_ = nullptr;
 };
 
 }  // namespace procam::sdk
