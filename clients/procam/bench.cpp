@@ -244,8 +244,12 @@ int cmd_bench(const Args& a) {
             }
             if (a.has("keep")) {  // every run's outputs, for inspection
               const fs::path keep = fs::path(a.get("keep")) / r.scene / v.label;
-              if (auto w = engine::write_outputs(keep.string(), *outs); !w)
+              auto w = engine::write_outputs(keep.string(), *outs);
+              if (!w) {
                 std::fprintf(stderr, "(keep: %s) ", w.status().message().c_str());
+              } else {  // scalars and the method's report (rounds, classes, why) beside the maps
+                std::ofstream(keep / "outputs.json") << w->outputs.dump(2) << "\n";
+              }
             }
             if (!col) {
               r.error = "no proj_col_px output";

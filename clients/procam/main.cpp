@@ -42,7 +42,7 @@ const std::vector<Command> kCommands = {
      "                                image files sorted by name in plan order (later rounds in roundN/)"},
     {"bench", cmd_bench, {"rig", "scenes", "scene", "method", "param", "out", "keep", "plugins", "threads", "only-listed"},
      "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
-     "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs)\n"
+     "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs + outputs.json)\n"
      "                                offline: every method on every sim scene; speed-vs-error table + plot"},
     {"sim", cmd_sim, {"scene", "pattern", "out", "rig", "list"},
      "sim --scene S --pattern white|black|gray:BIT[:inv]|checker:SIZE:DX:DY|FILE --out DIR [--rig RIG.json]\n"
