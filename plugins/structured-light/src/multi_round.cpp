@@ -240,11 +240,6 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
                   }
                   const auto cu = static_cast<size_t>(c);
                   weak[cu] += decode_code(ctx, cu, key_map_[cu], b, e, base, key, nullptr);
-                  if (spec.keep[k] != nullptr) {
-                    float* keep = spec.keep[k] + b;
-                    for (size_t i = 0; i < e - b; ++i)
-                      keep[i] = key[i] >= 0 ? 0.5f * static_cast<float>(key[i]) : nan;
-                  }
                 }
                 if (!layout_.black && codes_.size() >= 2) {  // shadow rule (multi_round.hpp)
                   // This round's codes (>= 2); unused slots repeat the first
@@ -268,6 +263,14 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
                     const int32_t all_on = (r0[i] == o0) & (r1[i] == o1) & (r2[i] == o2) & (r3[i] == o3);
                     lit[i] = static_cast<uint8_t>(lit[i] & (all_on - 1));  // all_on: 0, else keep
                   }
+                }
+                for (uint32_t k = 0; k < kEnsembleCodes; ++k) {  // per-code maps, shadows invalid
+                  if (spec.round_code[k] < 0 || spec.keep[k] == nullptr) continue;
+                  const int32_t* key = key_rows[k];
+                  const uint8_t* lit = r.lit.data() + b;
+                  float* keep = spec.keep[k] + b;
+                  for (size_t i = 0; i < e - b; ++i)
+                    keep[i] = key[i] >= 0 && lit[i] != 0 ? 0.5f * static_cast<float>(key[i]) : nan;
                 }
                 vote_keys(key_rows, r.lit.data() + b, e - b, agree2, r.vote.coord.data() + b,
                           r.vote.valid.data() + b, r.vote.confidence.data() + b,

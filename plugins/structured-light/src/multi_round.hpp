@@ -78,7 +78,8 @@ void recycle_maps(MultiResult&& r) noexcept;
 // What finish_vote() votes with, per ensemble slot (vote.hpp order gray,
 // xor02, xor04, minsw): this round's code `round_code[k]`, or, where that is
 // -1, an earlier round's column map `external[k]` (NaN = invalid).
-// keep[k] (optional): also write this round's code's own column map there.
+// keep[k] (optional): also write this round's code's own column map there (NaN where that
+// code is invalid or the pixel is unlit, shadow rule included).
 struct VoteSpec {
   int32_t round_code[kEnsembleCodes] = {-1, -1, -1, -1};
   const float* external[kEnsembleCodes] = {nullptr, nullptr, nullptr, nullptr};

@@ -272,6 +272,13 @@ TEST(Sessions, EnsembleWithoutBlackFrameRejectsAmbientShadow) {
         }
       }
   }
+  // The per-code maps (code_maps) mark the shadow invalid too.
+  const ScanRun r = run("ensemble", {{"code_maps", true}}, shadow);
+  for (const char* code : {"gray", "xor02", "xor04", "minsw"}) {
+    const auto& c = r.maps.at(std::string("proj_col_px_") + code);
+    EXPECT_TRUE(std::isnan(c[size_t{5} * kW + 220])) << code;
+    EXPECT_EQ(c[size_t{20} * kW + 220], 220.0f) << code;
+  }
 }
 
 }  // namespace
