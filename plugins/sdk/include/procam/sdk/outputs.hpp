@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "procam/plugin_abi.h"
+#include "procam/sdk/image.hpp"
 
 namespace procam::sdk {
 
@@ -65,21 +66,21 @@ class Outputs {
     check_size(name, pixels.size(), width, height);
     Entry& e = add(std::move(name), PROCAM_OUTPUT_IMAGE, std::move(unit), std::move(description));
     e.f32 = std::move(pixels);
-    e.out.image = image_view(width, height, PROCAM_PIXEL_F32, 32, size_t{width} * 4);
+    e.out.image = gray_view(static_cast<const float*>(nullptr), width, height);  // data: view()
   }
   void add_image(std::string name, std::string unit, std::string description, uint32_t width,
                  uint32_t height, std::vector<uint8_t> pixels) {
     check_size(name, pixels.size(), width, height);
     Entry& e = add(std::move(name), PROCAM_OUTPUT_IMAGE, std::move(unit), std::move(description));
     e.u8 = std::move(pixels);
-    e.out.image = image_view(width, height, PROCAM_PIXEL_U8, 8, width);
+    e.out.image = gray_view(static_cast<const uint8_t*>(nullptr), width, height);
   }
   void add_image(std::string name, std::string unit, std::string description, uint32_t width,
                  uint32_t height, std::vector<uint16_t> pixels, uint32_t bit_depth = 16) {
     check_size(name, pixels.size(), width, height);
     Entry& e = add(std::move(name), PROCAM_OUTPUT_IMAGE, std::move(unit), std::move(description));
     e.u16 = std::move(pixels);
-    e.out.image = image_view(width, height, PROCAM_PIXEL_U16, bit_depth, size_t{width} * 2);
+    e.out.image = gray_view(static_cast<const uint16_t*>(nullptr), width, height, bit_depth);
   }
 
   void add_scalar(std::string name, std::string unit, std::string description, double value) {
@@ -167,17 +168,6 @@ class Outputs {
     if (width == 0 || height == 0 || n != size_t{width} * height)
       throw std::invalid_argument("output '" + name + "': pixel count does not match " +
                                   std::to_string(width) + "x" + std::to_string(height));
-  }
-  static procam_image image_view(uint32_t w, uint32_t h, procam_pixel_type t, uint32_t bits,
-                                 size_t stride) {
-    procam_image img{};
-    img.width = w;
-    img.height = h;
-    img.channels = 1;
-    img.pixel_type = t;
-    img.bit_depth = bits;
-    img.stride_bytes = stride;
-    return img;
   }
 
   std::deque<Entry> entries_;  // deque: entries never move once added
