@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 #include "procam/core/image.hpp"
 #include "procam/core/image_io.hpp"
 #include "procam/core/log.hpp"

@@ -19,7 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procam/core/geometry.hpp"
+#include "procam/base/geometry.hpp"
 #include "procam/core/status.hpp"
 
 namespace procam::sim::detail {

@@ -14,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procam/core/geometry.hpp"
+#include "procam/base/geometry.hpp"
 
 namespace procam::sim::test {
 

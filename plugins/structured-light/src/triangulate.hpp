@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 
 namespace procam::sl {
 

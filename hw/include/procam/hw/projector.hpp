@@ -9,9 +9,9 @@
 #include <cstdint>
 #include <string>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 #include "procam/core/status.hpp"
-#include "procam/plugin_abi.h"
+#include "procam/pixel.h"
 
 namespace procam::hw {
 

@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 #include "procam/core/image.hpp"
 #include "procam/core/status.hpp"
 #include "procam/hw/camera.hpp"

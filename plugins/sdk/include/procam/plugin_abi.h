@@ -66,6 +66,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "procam/pixel.h" /* procam_pixel_type, procam_image: the bottom layer's image view */
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -103,27 +105,6 @@ typedef struct procam_plugin_info {
   char version[32];          /* plugin version, e.g. "0.1.0" */
   char methods[1024];        /* comma-separated method names, e.g. "gray,xor02" */
 } procam_plugin_info;
-
-/* Pixel storage. Integer data carries `bit_depth` significant bits
- * (8, 10, 12, 14 or 16), right-aligned: a 12-bit frame in U16 ranges 0..4095. */
-typedef enum procam_pixel_type {
-  PROCAM_PIXEL_U8 = 1,
-  PROCAM_PIXEL_U16 = 2,
-  PROCAM_PIXEL_F32 = 3
-} procam_pixel_type;
-
-/* A view of an image; never owns its pixels. Row r starts at
- * (const uint8_t*)data + r * stride_bytes. Channels are interleaved. */
-typedef struct procam_image {
-  uint32_t width;
-  uint32_t height;
-  uint32_t channels;      /* 1 = grey */
-  uint32_t pixel_type;    /* procam_pixel_type */
-  uint32_t bit_depth;     /* significant bits of integer data; 32 for F32 */
-  uint32_t reserved;
-  size_t stride_bytes;
-  const void* data;
-} procam_image;
 
 /* Per-frame capture settings. Fields set to their "unset" value keep the
  * rig's configured value. Extended by appending fields (struct_size tells). */

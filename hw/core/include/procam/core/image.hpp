@@ -12,7 +12,7 @@
 #include <cstring>
 #include <vector>
 
-#include "procam/plugin_abi.h"
+#include "procam/pixel.h"
 
 namespace procam {
 

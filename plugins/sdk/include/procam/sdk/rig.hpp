@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // The rig description a host passes to session_create, parsed into procam
-// calibration types (procam/core/calibration.hpp).
+// calibration types (procam/base/calibration.hpp).
 //
 // Format (fixed; proto/PROTOCOL.md "Rig description"):
 //   {"projector": {"width": 1280, "height": 800,
@@ -25,7 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 #include "procam/sdk/error.hpp"
 #include "procam/sdk/params.hpp"
 

@@ -21,8 +21,8 @@
 #include <utility>
 #include <vector>
 
-#include "procam/core/calibration.hpp"
-#include "procam/core/geometry.hpp"
+#include "procam/base/calibration.hpp"
+#include "procam/base/geometry.hpp"
 #include "procam/core/status.hpp"
 #include "procam/hw/sim/models.hpp"
 #include "procam/hw/sim/renderer.hpp"

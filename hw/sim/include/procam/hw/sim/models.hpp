@@ -16,7 +16,7 @@
 #include <cstdint>
 #include <string>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 
 namespace procam::sim {
 

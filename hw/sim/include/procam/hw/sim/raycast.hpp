@@ -10,7 +10,7 @@
 #include <limits>
 #include <vector>
 
-#include "procam/core/geometry.hpp"
+#include "procam/base/geometry.hpp"
 #include "procam/hw/sim/scene.hpp"
 
 namespace procam::sim {

@@ -34,12 +34,12 @@
 #include <string>
 #include <vector>
 
-#include "procam/core/calibration.hpp"
+#include "procam/base/calibration.hpp"
 #include "procam/core/image.hpp"
 #include "procam/core/status.hpp"
 #include "procam/hw/sim/models.hpp"
 #include "procam/hw/sim/scene.hpp"
-#include "procam/plugin_abi.h"
+#include "procam/pixel.h"
 
 namespace procam::sim {
 

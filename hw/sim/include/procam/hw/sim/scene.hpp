@@ -20,7 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procam/core/geometry.hpp"
+#include "procam/base/geometry.hpp"
 #include "procam/core/status.hpp"
 
 namespace procam::sim {

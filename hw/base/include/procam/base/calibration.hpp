@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "procam/core/geometry.hpp"
+#include "procam/base/geometry.hpp"
 
 namespace procam {
 
