@@ -203,7 +203,8 @@ public:
     const nlohmann::json* v = get(key);
     if (v == nullptr) return def;
     if (v->is_string()) return v->get<std::string>();
-    if (v->is_number_unsigned()) return std::to_string(v->get<uint64_t>());
+    if (v->is_number_integer() && (v->is_number_unsigned() || v->get<int64_t>() >= 0))
+      return std::to_string(v->get<uint64_t>());
     fail(key, std::string("must be a name or a non-negative index, got ") + v->dump());
     return def;
   }
