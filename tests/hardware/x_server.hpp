@@ -4,11 +4,8 @@
 // with the test process if it crashes. Sets DISPLAY while it runs.
 #pragma once
 
-#include <fcntl.h>
 #include <signal.h>
-#include <sys/prctl.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -17,6 +14,8 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "../../hw/core/testing/child_process.hpp"
 
 namespace procam::testing {
 
@@ -60,18 +59,16 @@ public:
     return x;
   }
   XServer() = default;
-  XServer(XServer&& o) noexcept : pid_(o.pid_), display_(std::move(o.display_)), old_display_(std::move(o.old_display_)) { o.pid_ = -1; }
+  XServer(XServer&& o) noexcept
+      : child_(std::move(o.child_)), display_(std::move(o.display_)), old_display_(std::move(o.old_display_)) {}
   XServer& operator=(XServer&&) = delete;
   ~XServer() { stop(); }
 
-  bool ok() const { return pid_ > 0; }
+  bool ok() const { return child_.pid() > 0; }
   const std::string& display() const { return display_; }
   void stop() {
-    if (pid_ > 0) {
-      kill(pid_, SIGTERM);
-      int st = 0;
-      waitpid(pid_, &st, 0);
-      pid_ = -1;
+    if (child_.pid() > 0) {
+      child_.stop();
       if (old_display_.empty()) unsetenv("DISPLAY");
       else setenv("DISPLAY", old_display_.c_str(), 1);
     }
@@ -81,50 +78,34 @@ public:
   void start(ArgsFn args_for) {
     if (const char* d = std::getenv("DISPLAY")) old_display_ = d;
     // A display number unlikely to collide with parallel test processes.
-    for (int attempt = 0; attempt < 20 && pid_ <= 0; ++attempt) {
+    for (int attempt = 0; attempt < 20 && child_.pid() <= 0; ++attempt) {
       const int n = 300 + static_cast<int>((getpid() * 7 + attempt * 13) % 600);
       const std::string lock = "/tmp/.X" + std::to_string(n) + "-lock";
       struct stat sb{};
       if (stat(lock.c_str(), &sb) == 0) continue;
       const std::string disp = ":" + std::to_string(n);
-      std::vector<std::string> argv = args_for(disp);
-      pid_t pid = fork();
-      if (pid == 0) {
-        prctl(PR_SET_PDEATHSIG, SIGKILL);
-        int devnull = ::open("/dev/null", O_WRONLY);
-        if (devnull >= 0) {
-          dup2(devnull, 1);
-          dup2(devnull, 2);
-        }
-        std::vector<char*> a;
-        for (auto& s : argv) a.push_back(s.data());
-        a.push_back(nullptr);
-        execvp(a[0], a.data());
-        _exit(127);
-      }
+      ChildProcess child = ChildProcess::spawn(args_for(disp));
       // Ready when the server has written its lock file and still runs.
       const std::string sock = "/tmp/.X11-unix/X" + std::to_string(n);
       bool up = false;
       for (int i = 0; i < 100 && !up; ++i) {
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        int st = 0;
-        if (waitpid(pid, &st, WNOHANG) == pid) break;  // exited: display taken or failed
+        if (!child.running()) break;  // exited: display taken or failed
         up = stat(lock.c_str(), &sb) == 0;
       }
       if (up) {
         std::this_thread::sleep_for(std::chrono::milliseconds(200));
-        pid_ = pid;
+        child_ = std::move(child);
         display_ = disp;
         setenv("DISPLAY", disp.c_str(), 1);
       } else {
-        kill(pid, SIGKILL);
-        waitpid(pid, nullptr, 0);
+        child.stop(SIGKILL);
       }
     }
   }
 
 private:
-  pid_t pid_ = -1;
+  ChildProcess child_;
   std::string display_, old_display_;
 };
 

@@ -39,7 +39,10 @@ Result<hw::Frame> capture_one(hw::Rig& rig, SyncEngine& sync, const host::Planne
     return Error(Code::plugin_error,
                  "pattern is " + std::to_string(f.pattern.width) + "x" + std::to_string(f.pattern.height) +
                      " but the projector is " + std::to_string(pinfo.width) + "x" + std::to_string(pinfo.height));
+  // Every field of procam_frame_settings reaches a device or fails the scan:
+  // a backend that cannot honour a value refuses it (failed_precondition).
   PROCAM_TRY(rig.projector().set_focus_mm(s.projector_focus_mm));
+  PROCAM_TRY(rig.projector().set_polarizer_deg(s.projector_polarizer_deg));
   hw::Camera& cam = rig.camera(static_cast<size_t>(s.camera_index));
   hw::CameraSettings cs;
   cs.exposure_us = s.exposure_us;

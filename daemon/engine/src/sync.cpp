@@ -7,6 +7,7 @@
 #include <ctime>
 #include <thread>
 
+#include "procam/base/clock.hpp"
 #include "procam/core/image.hpp"
 #include "procam/core/log.hpp"
 
@@ -14,12 +15,6 @@ namespace procam::engine {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1000000000 + ts.tv_nsec;
-}
 
 void sleep_until_ns(int64_t t) {
   const int64_t now = mono_ns();

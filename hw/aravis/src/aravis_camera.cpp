@@ -12,6 +12,7 @@
 #include <mutex>
 #include <set>
 
+#include "procam/core/json_fields.hpp"
 #include "procam/core/log.hpp"
 
 namespace procam::aravis {
@@ -125,72 +126,48 @@ void on_control_lost(ArvDevice* /*device*/, gpointer data) {
 Result<AravisCameraConfig> parse_aravis_camera_config(const nlohmann::json& j, const std::string& field,
                                                       const std::vector<std::string>& extra_keys) {
   AravisCameraConfig c;
-  if (!j.is_object()) return Error(Code::invalid_argument, "rig config: " + field + ": must be an object");
-  static const std::set<std::string> known = {"backend", "device", "id", "pixel_format", "roi", "exposure_us",
-                                              "gain_db", "trigger", "trigger_line", "frame_rate",
-                                              "fake_trigger_hz", "buffers", "packet_size", "reconnect",
-                                              "bit_depth"};
-  std::string key;
-  try {
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      if (known.count(it.key()) == 0 &&
-          std::find(extra_keys.begin(), extra_keys.end(), it.key()) == extra_keys.end())
-        return Error(Code::invalid_argument, "rig config: " + field + "." + it.key() + ": unknown key",
-                     "aravis camera keys: device, id, pixel_format, roi {x,y,width,height}, exposure_us, "
-                     "gain_db, trigger (software|hardware|free_run), trigger_line, frame_rate, buffers, "
-                     "packet_size, reconnect, bit_depth, fake_trigger_hz");
-    }
-    key = "device";
-    c.device = j.value("device", "");
-    key = "id";
-    c.id = j.value("id", "");
-    key = "pixel_format";
-    c.pixel_format = j.value("pixel_format", "Mono8");
-    static const std::set<std::string> fmts = {"Mono8", "Mono16", "BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8"};
-    if (fmts.count(c.pixel_format) == 0)
-      return Error(Code::invalid_argument, "rig config: " + field + ".pixel_format: unsupported '" + c.pixel_format + "'",
-                   "supported: Mono8, Mono16, BayerRG8, BayerGB8, BayerGR8, BayerBG8");
-    if (j.contains("roi")) {
-      key = "roi";
-      const auto& r = j["roi"];
-      c.roi_x = r.value("x", 0);
-      c.roi_y = r.value("y", 0);
-      c.roi_width = r.value("width", 0);
-      c.roi_height = r.value("height", 0);
-      if (c.roi_x < 0 || c.roi_y < 0 || c.roi_width < 0 || c.roi_height < 0)
-        return Error(Code::invalid_argument, "rig config: " + field + ".roi: values must be >= 0");
-    }
-    key = "exposure_us";
-    c.exposure_us = j.value("exposure_us", 0.0);
-    key = "gain_db";
-    c.gain_db = j.value("gain_db", -1.0);
-    key = "trigger";
-    const std::string t = j.value("trigger", "software");
-    if (t == "software") c.trigger = hw::TriggerMode::software;
-    else if (t == "hardware") c.trigger = hw::TriggerMode::hardware;
-    else if (t == "free_run") c.trigger = hw::TriggerMode::free_run;
-    else
-      return Error(Code::invalid_argument, "rig config: " + field + ".trigger: unknown mode '" + t + "'",
-                   "one of: software, hardware, free_run");
-    key = "trigger_line";
-    c.trigger_line = j.value("trigger_line", "Line0");
-    key = "frame_rate";
-    c.frame_rate = j.value("frame_rate", 0.0);
-    key = "fake_trigger_hz";
-    c.fake_trigger_hz = j.value("fake_trigger_hz", 1000.0);
-    key = "buffers";
-    c.buffers = j.value("buffers", 8);
-    if (c.buffers < 2 || c.buffers > 256)
-      return Error(Code::invalid_argument, "rig config: " + field + ".buffers: must be in [2, 256]");
-    key = "packet_size";
-    c.packet_size = j.value("packet_size", 0);
-    key = "reconnect";
-    c.reconnect = j.value("reconnect", true);
-    key = "bit_depth";
-    c.bit_depth = j.value("bit_depth", 0);
-  } catch (const nlohmann::json::exception& e) {
-    return Error(Code::invalid_argument, "rig config: " + field + "." + key + ": " + e.what());
+  ParseErrors errors{"rig config", {}};
+  FieldReader r(j, field, errors);
+  if (!errors.ok()) return errors.first;
+  std::vector<std::string> known = {"backend", "device", "id", "pixel_format", "roi", "exposure_us",
+                                    "gain_db", "trigger", "trigger_line", "frame_rate",
+                                    "fake_trigger_hz", "buffers", "packet_size", "reconnect",
+                                    "bit_depth"};
+  known.insert(known.end(), extra_keys.begin(), extra_keys.end());
+  r.only(known, "aravis camera keys: device, id, pixel_format, roi {x,y,width,height}, exposure_us, "
+                "gain_db, trigger (software|hardware|free_run), trigger_line, frame_rate, buffers, "
+                "packet_size, reconnect, bit_depth, fake_trigger_hz");
+  c.device = r.string("device", std::string());
+  c.id = r.string("id", std::string());
+  c.pixel_format = r.string("pixel_format", std::string("Mono8"));
+  static const std::set<std::string> fmts = {"Mono8", "Mono16", "BayerRG8", "BayerGB8", "BayerGR8", "BayerBG8"};
+  if (errors.ok() && fmts.count(c.pixel_format) == 0)
+    r.fail("pixel_format", "unsupported '" + c.pixel_format + "'",
+           "supported: Mono8, Mono16, BayerRG8, BayerGB8, BayerGR8, BayerBG8");
+  if (const nlohmann::json* rj = r.object("roi", false)) {
+    FieldReader roi(*rj, r.field("roi"), errors);
+    roi.only({"x", "y", "width", "height"});
+    constexpr uint64_t kMax = INT32_MAX;
+    c.roi_x = static_cast<int32_t>(roi.integer("x", 0, 0, kMax));  // values must be >= 0
+    c.roi_y = static_cast<int32_t>(roi.integer("y", 0, 0, kMax));
+    c.roi_width = static_cast<int32_t>(roi.integer("width", 0, 0, kMax));
+    c.roi_height = static_cast<int32_t>(roi.integer("height", 0, 0, kMax));
   }
+  c.exposure_us = r.number("exposure_us", 0.0, "µs; <= 0 keeps the camera's value");
+  c.gain_db = r.number("gain_db", -1.0, "dB; < 0 keeps the camera's value");
+  const std::string t = r.string("trigger", std::string("software"));
+  if (t == "software") c.trigger = hw::TriggerMode::software;
+  else if (t == "hardware") c.trigger = hw::TriggerMode::hardware;
+  else if (t == "free_run") c.trigger = hw::TriggerMode::free_run;
+  else if (errors.ok()) r.fail("trigger", "unknown mode '" + t + "'", "one of: software, hardware, free_run");
+  c.trigger_line = r.string("trigger_line", std::string("Line0"));
+  c.frame_rate = r.number("frame_rate", 0.0, "Hz; <= 0 keeps the camera's value");
+  c.fake_trigger_hz = r.number("fake_trigger_hz", 1000.0, "Hz");
+  c.buffers = static_cast<int>(r.integer("buffers", 8, 2, 256));
+  c.packet_size = static_cast<int>(r.integer("packet_size", 0, 0, 65535));
+  c.reconnect = r.boolean("reconnect", true);
+  c.bit_depth = static_cast<int>(r.integer("bit_depth", 0, 0, 16));
+  if (!errors.ok()) return errors.first;
   return c;
 }
 

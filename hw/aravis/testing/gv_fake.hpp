@@ -5,16 +5,16 @@
 #pragma once
 
 #include <fcntl.h>
-#include <signal.h>
 #include <sys/file.h>
-#include <sys/prctl.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
 #include <string>
 #include <thread>
+#include <vector>
+
+#include "../../core/testing/child_process.hpp"
 
 namespace procam::testing {
 
@@ -38,43 +38,18 @@ public:
     }
   }
   void start(int lost_per_thousand) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      prctl(PR_SET_PDEATHSIG, SIGKILL);  // never outlive a crashed test
-      int devnull = ::open("/dev/null", O_WRONLY);
-      if (devnull >= 0) {
-        dup2(devnull, 1);
-        dup2(devnull, 2);
-      }
-      std::string r = std::to_string(lost_per_thousand);
-      if (lost_per_thousand > 0)
-        execlp("arv-fake-gv-camera-0.8", "arv-fake-gv-camera-0.8", "-i", "127.0.0.1", "-s", serial_.c_str(), "-r",
-               r.c_str(), static_cast<char*>(nullptr));
-      else
-        execlp("arv-fake-gv-camera-0.8", "arv-fake-gv-camera-0.8", "-i", "127.0.0.1", "-s", serial_.c_str(),
-               static_cast<char*>(nullptr));
-      _exit(127);
-    }
+    std::vector<std::string> argv = {"arv-fake-gv-camera-0.8", "-i", "127.0.0.1", "-s", serial_};
+    if (lost_per_thousand > 0) argv.insert(argv.end(), {"-r", std::to_string(lost_per_thousand)});
+    child_ = ChildProcess::spawn(std::move(argv));
     std::this_thread::sleep_for(300ms);  // socket bind
   }
-  void stop() {
-    if (pid_ > 0) {
-      kill(pid_, SIGTERM);
-      int st = 0;
-      waitpid(pid_, &st, 0);
-      pid_ = -1;
-    }
-  }
-  bool running() {
-    if (pid_ <= 0) return false;
-    int st = 0;
-    return waitpid(pid_, &st, WNOHANG) == 0;
-  }
+  void stop() { child_.stop(); }
+  bool running() { return child_.running(); }
 
 private:
   std::string serial_;
   int lock_fd_ = -1;
-  pid_t pid_ = -1;
+  ChildProcess child_;
 };
 
 inline bool have_fake_binary() { return std::system("command -v arv-fake-gv-camera-0.8 >/dev/null 2>&1") == 0; }

@@ -13,17 +13,13 @@
 #include <set>
 #include <thread>
 
+#include "procam/base/clock.hpp"
 #include "procam/core/image.hpp"
+#include "procam/core/json_fields.hpp"
 #include "procam/core/log.hpp"
 
 namespace procam::glfw {
 namespace {
-
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1000000000 + ts.tv_nsec;
-}
 
 std::mutex g_error_mu;
 std::string g_last_error;  // last GLFW error message (GLFW reports through a callback)
@@ -86,47 +82,37 @@ Status init_glfw() {
 
 Result<GlfwProjectorConfig> parse_glfw_projector_config(const nlohmann::json& j, const std::vector<std::string>& extra_keys) {
   GlfwProjectorConfig c;
-  std::string key;
-  try {
-    static const std::set<std::string> known = {"backend", "monitor", "name", "width", "height", "gamma", "lut", "keep_backbuffer"};
-    for (auto it = j.begin(); it != j.end(); ++it)
-      if (known.count(it.key()) == 0 && std::find(extra_keys.begin(), extra_keys.end(), it.key()) == extra_keys.end())
-        return Error(Code::invalid_argument, "rig config: projector." + it.key() + ": unknown key",
-                     "glfw projector keys: monitor (name or index), name, width, height, gamma | lut, keep_backbuffer");
-    key = "monitor";
-    if (j.contains("monitor")) c.monitor = j["monitor"].is_number() ? std::to_string(j["monitor"].get<int>()) : j["monitor"].get<std::string>();
-    key = "name";
-    c.name = j.value("name", "");
-    key = "width";
-    c.width = j.value("width", 0u);
-    key = "height";
-    c.height = j.value("height", 0u);
-    key = "keep_backbuffer";
-    c.keep_backbuffer = j.value("keep_backbuffer", false);
-    if (j.contains("gamma") && j.contains("lut"))
-      return Error(Code::invalid_argument, "rig config: projector: give either gamma or lut, not both");
-    if (j.contains("gamma")) {
-      key = "gamma";
-      const double g = j["gamma"].get<double>();
-      if (!(g > 0.1 && g < 10)) return Error(Code::invalid_argument, "rig config: projector.gamma: must be in (0.1, 10)");
-      for (int v = 0; v < 256; ++v)
-        c.lut[static_cast<size_t>(v)] = static_cast<uint8_t>(std::lround(255.0 * std::pow(v / 255.0, 1.0 / g)));
-      c.has_lut = g != 1.0;
+  ParseErrors errors{"rig config", {}};
+  FieldReader r(j, "projector", errors);
+  std::vector<std::string> known = {"backend", "monitor", "name", "width", "height", "gamma", "lut", "keep_backbuffer"};
+  known.insert(known.end(), extra_keys.begin(), extra_keys.end());
+  r.only(known, "glfw projector keys: monitor (name or index), name, width, height, gamma | lut, keep_backbuffer");
+  c.monitor = r.name_or_index("monitor", "");
+  c.name = r.string("name", std::string());
+  c.width = static_cast<uint32_t>(r.integer("width", 0, 0, 65536));
+  c.height = static_cast<uint32_t>(r.integer("height", 0, 0, 65536));
+  c.keep_backbuffer = r.boolean("keep_backbuffer", false);
+  if (!errors.ok()) return errors.first;
+  if (r.has("gamma") && r.has("lut"))
+    return Error(Code::invalid_argument, "rig config: projector: give either gamma or lut, not both");
+  if (r.has("gamma")) {
+    const double g = r.number("gamma", std::nullopt);
+    if (!errors.ok()) return errors.first;
+    if (!(g > 0.1 && g < 10)) return Error(Code::invalid_argument, "rig config: projector.gamma: must be in (0.1, 10)");
+    for (int v = 0; v < 256; ++v)
+      c.lut[static_cast<size_t>(v)] = static_cast<uint8_t>(std::lround(255.0 * std::pow(v / 255.0, 1.0 / g)));
+    c.has_lut = g != 1.0;
+  }
+  if (const nlohmann::json* l = r.get("lut")) {
+    if (!l->is_array() || l->size() != 256)
+      return Error(Code::invalid_argument, "rig config: projector.lut: must be an array of 256 values in [0, 255]");
+    for (size_t v = 0; v < 256; ++v) {
+      const auto& e = (*l)[v];
+      if (!e.is_number_integer() || e.get<int64_t>() < 0 || e.get<int64_t>() > 255)
+        return Error(Code::invalid_argument, "rig config: projector.lut[" + std::to_string(v) + "]: must be in [0, 255]");
+      c.lut[v] = static_cast<uint8_t>(e.get<int64_t>());
     }
-    if (j.contains("lut")) {
-      key = "lut";
-      const auto& l = j["lut"];
-      if (!l.is_array() || l.size() != 256)
-        return Error(Code::invalid_argument, "rig config: projector.lut: must be an array of 256 values in [0, 255]");
-      for (size_t v = 0; v < 256; ++v) {
-        const int x = l[v].get<int>();
-        if (x < 0 || x > 255) return Error(Code::invalid_argument, "rig config: projector.lut[" + std::to_string(v) + "]: must be in [0, 255]");
-        c.lut[v] = static_cast<uint8_t>(x);
-      }
-      c.has_lut = true;
-    }
-  } catch (const nlohmann::json::exception& e) {
-    return Error(Code::invalid_argument, "rig config: projector." + key + ": " + e.what());
+    c.has_lut = true;
   }
   return c;
 }
@@ -389,6 +375,14 @@ Status GlfwProjector::set_focus_mm(double focus_mm) {
   if (std::isnan(focus_mm) || focus_mm <= 0) return Status::Ok();
   return Error(Code::failed_precondition, "glfw projector: fixed focus (a display cannot refocus)",
                "remove projector_focus_mm from the plan");
+}
+
+Status GlfwProjector::set_polarizer_deg(double deg) {
+  if (std::isnan(deg)) return Status::Ok();
+  return Error(Code::failed_precondition,
+               "glfw projector: no motorised polariser (the plan asks for projector_polarizer_deg " +
+                   std::to_string(deg) + ")",
+               "remove projector_polarizer_deg from the plan or use a rig with a motorised polariser");
 }
 
 std::vector<uint8_t> GlfwProjector::last_backbuffer() const {

@@ -14,14 +14,11 @@
 
 #include <libcamera/libcamera.h>
 
+#include "procam/base/clock.hpp"
+#include "procam/core/json_fields.hpp"
+
 namespace procam::libcam {
 namespace {
-
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1000000000 + ts.tv_nsec;
-}
 
 std::string errno_text(int ret) { return std::string(std::strerror(-ret)) + " (" + std::to_string(ret) + ")"; }
 
@@ -34,37 +31,24 @@ const char* kNoCameraHint =
 Result<LibcameraCameraConfig> parse_libcamera_camera_config(const nlohmann::json& j, const std::string& field,
                                                             const std::vector<std::string>& extra_keys) {
   LibcameraCameraConfig c;
-  std::string key;
-  try {
-    static const std::set<std::string> known = {"backend", "camera", "id", "width", "height", "pixel_format",
-                                                "exposure_us", "gain", "buffers"};
-    for (auto it = j.begin(); it != j.end(); ++it)
-      if (known.count(it.key()) == 0 && std::find(extra_keys.begin(), extra_keys.end(), it.key()) == extra_keys.end())
-        return Error(Code::invalid_argument, "rig config: " + field + "." + it.key() + ": unknown key",
-                     "libcamera camera keys: camera (id or index), id, width, height, pixel_format (R8|R16|YUV420), "
-                     "exposure_us, gain, buffers");
-    key = "camera";
-    if (j.contains("camera")) c.camera = j["camera"].is_number() ? std::to_string(j["camera"].get<int>()) : j["camera"].get<std::string>();
-    key = "id";
-    c.id = j.value("id", "");
-    key = "width";
-    c.width = j.value("width", 0u);
-    key = "height";
-    c.height = j.value("height", 0u);
-    key = "pixel_format";
-    c.pixel_format = j.value("pixel_format", "R8");
-    if (c.pixel_format != "R8" && c.pixel_format != "R16" && c.pixel_format != "YUV420")
-      return Error(Code::invalid_argument, "rig config: " + field + ".pixel_format: unsupported '" + c.pixel_format + "'",
-                   "one of: R8, R16, YUV420");
-    key = "exposure_us";
-    c.exposure_us = j.value("exposure_us", 0.0);
-    key = "gain";
-    c.gain = j.value("gain", 0.0);
-    key = "buffers";
-    c.buffers = j.value("buffers", 4);
-  } catch (const nlohmann::json::exception& e) {
-    return Error(Code::invalid_argument, "rig config: " + field + "." + key + ": " + e.what());
-  }
+  ParseErrors errors{"rig config", {}};
+  FieldReader r(j, field, errors);
+  std::vector<std::string> known = {"backend", "camera", "id", "width", "height", "pixel_format",
+                                    "exposure_us", "gain", "buffers"};
+  known.insert(known.end(), extra_keys.begin(), extra_keys.end());
+  r.only(known, "libcamera camera keys: camera (id or index), id, width, height, pixel_format (R8|R16|YUV420), "
+                "exposure_us, gain, buffers");
+  c.camera = r.name_or_index("camera", "");
+  c.id = r.string("id", std::string());
+  c.width = static_cast<uint32_t>(r.integer("width", 0, 0, 65536));
+  c.height = static_cast<uint32_t>(r.integer("height", 0, 0, 65536));
+  c.pixel_format = r.string("pixel_format", std::string("R8"));
+  if (errors.ok() && c.pixel_format != "R8" && c.pixel_format != "R16" && c.pixel_format != "YUV420")
+    r.fail("pixel_format", "unsupported '" + c.pixel_format + "'", "one of: R8, R16, YUV420");
+  c.exposure_us = r.number("exposure_us", 0.0, "µs; <= 0: auto/default");
+  c.gain = r.number("gain", 0.0, "analogue gain factor; <= 0: default");
+  c.buffers = static_cast<int>(r.integer("buffers", 4, 1, 64));
+  if (!errors.ok()) return errors.first;
   return c;
 }
 

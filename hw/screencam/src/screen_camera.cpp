@@ -11,14 +11,9 @@
 #include <cstdlib>
 #include <ctime>
 
+#include "procam/base/clock.hpp"
+
 namespace procam::screencam {
-namespace {
-int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return int64_t{ts.tv_sec} * 1000000000 + ts.tv_nsec;
-}
-}  // namespace
 
 struct ScreenCamera::Impl {
   Display* dpy = nullptr;

@@ -8,12 +8,10 @@
 #include <set>
 #include <sstream>
 
-#include "json_fields.hpp"
+#include "procam/core/json_fields.hpp"
 
 namespace procam::sim {
 namespace fs = std::filesystem;
-using detail::FieldReader;
-using detail::ParseErrors;
 
 namespace {
 

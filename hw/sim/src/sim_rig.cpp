@@ -2,14 +2,13 @@
 // Sim backend: rig config parsing and the Projector / Camera / Rig adapters.
 #include "procam/hw/sim/sim_rig.hpp"
 
-#include <time.h>
-
 #include <cassert>
 #include <cmath>
 #include <filesystem>
 
-#include "json_fields.hpp"
 #include "parallel.hpp"
+#include "procam/base/clock.hpp"
+#include "procam/core/json_fields.hpp"
 #include "procam/core/log.hpp"
 #include "procam/hw/sim/global.hpp"
 #include "procam/hw/sim/ground_truth.hpp"
@@ -17,16 +16,8 @@
 
 namespace procam::sim {
 namespace fs = std::filesystem;
-using detail::FieldReader;
-using detail::ParseErrors;
 
 namespace {
-
-int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000000LL + static_cast<int64_t>(ts.tv_nsec);
-}
 
 Intrinsics parse_intrinsics(FieldReader& parent, const char* key) {
   Intrinsics k;
@@ -222,7 +213,7 @@ Result<hw::Presentation> SimProjector::wait_presented(uint64_t pattern_id, std::
                                     " was dropped by the display (fault injection: projector.faults.drop_every)",
                  "show the pattern again");
   const auto late_ns = rig_.pattern_late_ ? static_cast<int64_t>(rig_.config_.projector_faults.late_ms * 1e6) : 0;
-  return hw::Presentation{pattern_id, monotonic_ns() + late_ns};
+  return hw::Presentation{pattern_id, mono_ns() + late_ns};
 }
 
 Status SimProjector::set_focus_mm(double focus_mm) {
@@ -230,6 +221,15 @@ Status SimProjector::set_focus_mm(double focus_mm) {
     return Error(Code::invalid_argument, "sim projector: focus_mm must be finite",
                  "give the focal-plane distance in mm, or <= 0 for the rig default");
   rig_.focus_mm_ = (std::isnan(focus_mm) || focus_mm <= 0) ? 0.0 : focus_mm;
+  return Status::Ok();
+}
+
+Status SimProjector::set_polarizer_deg(double deg) {
+  if (std::isinf(deg))
+    return Error(Code::invalid_argument, "sim projector: projector_polarizer_deg must be finite or NaN (none)");
+  // Recorded only: the renderer does not model polarisation yet, so the
+  // radiance does not depend on this angle (a later issue adds the model).
+  polarizer_deg_ = deg;
   return Status::Ok();
 }
 
@@ -275,7 +275,7 @@ Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds timeout) {
   f.frame_id = next_frame_id_++;
   f.image = expose(radiance_.data(), ren.width(), ren.height(), s, exposure_us_, gain_db_,
                    frame_noise_seed(rig_.config_.seed, index_, f.frame_id), rig_.config_.threads);
-  f.timestamp_ns = monotonic_ns() + (late ? static_cast<int64_t>(fc.late_ms * 1e6) : 0);
+  f.timestamp_ns = mono_ns() + (late ? static_cast<int64_t>(fc.late_ms * 1e6) : 0);
   f.camera_index = index_;
   return f;
 }

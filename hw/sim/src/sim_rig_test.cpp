@@ -8,6 +8,7 @@
 #include <time.h>
 
 #include <cmath>
+#include <cstring>
 
 #include "procam/core/image_io.hpp"
 #include "procam/hw/sim/ground_truth.hpp"
@@ -253,6 +254,36 @@ TEST(SimRig, ExposureGainAndFocusSettings) {
   EXPECT_LT(blurred, 0.1);  // σ ≈ 20·1600·(1/400 − 1/800)/4 = 10 px ≫ stripe width 4 px
   EXPECT_DOUBLE_EQ(restored, sharp);
   EXPECT_EQ(rig->describe()["state"]["projector_focus_mm"].get<double>(), 800.0);
+}
+
+// The projector polariser angle (procam_frame_settings.projector_polarizer_deg)
+// is accepted and recorded, not dropped; it does not change the image yet
+// because polarisation is not modelled in the radiance (later issue).
+TEST(SimRig, ProjectorPolarizerIsRecordedNotYetModelled) {
+  nlohmann::json j = rig_json();
+  j["cameras"][0]["shot_noise"] = false;  // noise-free: two captures of one pattern are equal
+  j["cameras"][0]["read_noise_e"] = 0;
+  auto rig = make_rig(j);
+  ASSERT_TRUE(rig);
+  auto& proj = dynamic_cast<SimProjector&>(rig->projector());
+  EXPECT_TRUE(std::isnan(proj.polarizer_deg()));
+  Image pattern = constant_pattern(*rig, 180);
+  ASSERT_TRUE(rig->projector().show(pattern.view(), 1).ok());
+  auto without = rig->camera(0).capture(100ms);
+  ASSERT_TRUE(without.ok());
+
+  ASSERT_TRUE(rig->projector().set_polarizer_deg(37.5).ok());
+  EXPECT_DOUBLE_EQ(proj.polarizer_deg(), 37.5);
+  auto with = rig->camera(0).capture(100ms);
+  ASSERT_TRUE(with.ok());
+  ASSERT_EQ(with->image.size_bytes(), without->image.size_bytes());
+  EXPECT_EQ(std::memcmp(with->image.data(), without->image.data(), with->image.size_bytes()), 0);
+
+  Status st = rig->projector().set_polarizer_deg(-INFINITY);
+  EXPECT_EQ(st.code(), Code::invalid_argument) << st.to_string();
+  EXPECT_DOUBLE_EQ(proj.polarizer_deg(), 37.5) << "a refused value leaves the angle unchanged";
+  ASSERT_TRUE(rig->projector().set_polarizer_deg(std::nan("")).ok());
+  EXPECT_TRUE(std::isnan(proj.polarizer_deg()));
 }
 
 TEST(SimRig, DeterministicForSeed) {

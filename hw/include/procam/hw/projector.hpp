@@ -6,6 +6,7 @@
 #pragma once
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <string>
 
@@ -48,6 +49,23 @@ public:
   // Focal-plane distance in mm (<= 0: the configured default). Backends with a
   // fixed lens return failed_precondition for any other value.
   virtual Status set_focus_mm(double focus_mm) = 0;
+
+  // --- additive (issue 11) ---
+  // Angle in degrees of a motorised polariser in front of the projector lens
+  // (procam_frame_settings.projector_polarizer_deg), applied to the patterns
+  // shown from now on. NaN: no polariser requested (always accepted). A finite
+  // angle that the backend cannot realise is refused with failed_precondition,
+  // never silently dropped; the default does exactly that, so a backend must
+  // opt in by overriding. Non-finite other than NaN: invalid_argument.
+  virtual Status set_polarizer_deg(double deg) {
+    if (std::isnan(deg)) return Status::Ok();
+    if (std::isinf(deg))
+      return Error(Code::invalid_argument, "projector_polarizer_deg must be finite or NaN (none)");
+    return Error(Code::failed_precondition,
+                 "projector '" + info().backend + "' has no motorised polariser (asked for " +
+                     std::to_string(deg) + " deg)",
+                 "remove projector_polarizer_deg from the plan or use a rig with a motorised polariser");
+  }
 };
 
 }  // namespace procam::hw

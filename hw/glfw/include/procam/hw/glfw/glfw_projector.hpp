@@ -57,6 +57,9 @@ public:
   Result<hw::Presentation> wait_presented(uint64_t pattern_id, std::chrono::milliseconds timeout) override;
   // Fixed lens: <= 0 / NaN accepted, anything else failed_precondition.
   Status set_focus_mm(double focus_mm) override;
+  // A display has no motorised polariser: NaN accepted, any angle
+  // failed_precondition ("remove projector_polarizer_deg from the plan ...").
+  Status set_polarizer_deg(double deg) override;
 
   // The back buffer read just before the last swap (keep_backbuffer only):
   // width*height grey bytes, top row first.

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -83,11 +84,18 @@ public:
   Result<hw::Presentation> wait_presented(uint64_t pattern_id, std::chrono::milliseconds timeout) override;
   // <= 0 or NaN: the configured focus_mm. Takes effect for the next capture.
   Status set_focus_mm(double focus_mm) override;
+  // Accepts any finite angle or NaN (no polariser) and records it for the
+  // next patterns; invalid_argument for ±inf. Recorded only: polarisation is
+  // not modelled in the rendered radiance yet (a later issue adds the model).
+  Status set_polarizer_deg(double deg) override;
+  // The angle last set (NaN: none), as the scan runner delivered it.
+  double polarizer_deg() const { return polarizer_deg_; }
 
 private:
   friend class SimRig;
   SimRig& rig_;
   hw::ProjectorInfo info_;
+  double polarizer_deg_ = std::numeric_limits<double>::quiet_NaN();
 };
 
 class SimCamera final : public hw::Camera {

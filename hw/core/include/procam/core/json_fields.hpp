@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
-// Internal: strict reading of JSON config fields with errors that name the file
-// and the field path ("scenes/x.json: objects[2].radius_mm: must be > 0").
+// Strict reading of JSON config fields with errors that name the source and
+// the field path ("scenes/x.json: objects[2].radius_mm: must be > 0"); shared
+// by every config parser of the hardware layer (sim scenes and rigs, device backends).
 //
 // Usage: construct a FieldReader per JSON object, read fields, then check
 // `error()`. The first error is latched; later reads return defaults and do
@@ -16,13 +17,14 @@
 #include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "procam/base/geometry.hpp"
 #include "procam/core/status.hpp"
 
-namespace procam::sim::detail {
+namespace procam {
 
 // Shared error latch for one parse (one file).
 struct ParseErrors {
@@ -177,17 +179,34 @@ public:
   }
   // Reject keys not in `known` (catches typos such as "radius" for "radius_mm").
   void only(std::initializer_list<const char*> known) {
+    only(std::vector<std::string>(known.begin(), known.end()));
+  }
+  // The same for a key list built at run time (e.g. a backend's keys plus the
+  // calibration keys its caller handles); `hint` replaces the default
+  // "known fields here: ..." hint when given.
+  void only(const std::vector<std::string>& known, const std::string& hint = {}) {
     if (!obj_.is_object()) return;
     for (auto it = obj_.begin(); it != obj_.end(); ++it) {
       bool found = false;
-      for (const char* k : known) found = found || it.key() == k;
+      for (const std::string& k : known) found = found || it.key() == k;
       if (!found) {
         std::string list;
-        for (const char* k : known) list += (list.empty() ? "" : ", ") + std::string(k);
-        fail(it.key().c_str(), "unknown field", "known fields here: " + list);
+        for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+        fail(it.key().c_str(), "unknown field", hint.empty() ? "known fields here: " + list : hint);
         return;
       }
     }
+  }
+  // A device chosen by name or index ("monitor": "HDMI-1" or 0): the string,
+  // or the index written in decimal; `def` when absent.
+  std::string name_or_index(const char* key, const std::string& def) {
+    const nlohmann::json* v = get(key);
+    if (v == nullptr) return def;
+    if (v->is_string()) return v->get<std::string>();
+    if (v->is_number_integer() && (v->is_number_unsigned() || v->get<int64_t>() >= 0))
+      return std::to_string(v->get<uint64_t>());
+    fail(key, std::string("must be a name or a non-negative index, got ") + v->dump());
+    return def;
   }
 
   static std::string num_str(double x) {
@@ -202,4 +221,4 @@ private:
   ParseErrors& errors_;
 };
 
-}  // namespace procam::sim::detail
+}  // namespace procam
