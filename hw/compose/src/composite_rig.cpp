@@ -7,11 +7,20 @@
 #include <set>
 #include <vector>
 
-#include "procam/hw/aravis/aravis_camera.hpp"
-#include "procam/hw/glfw/glfw_projector.hpp"
-#include "procam/hw/libcamera/libcamera_camera.hpp"
-#include "procam/hw/screencam/screen_camera.hpp"
 #include "procam/hw/sim/sim_rig.hpp"
+// Device backends are optional (hw/CMakeLists.txt PROCAM_WITH_*): each is
+// compiled in only when PROCAM_HAVE_<B> is 1; a config naming a missing one
+// fails with not_built().
+#if PROCAM_HAVE_ARAVIS
+#include "procam/hw/aravis/aravis_camera.hpp"
+#endif
+#if PROCAM_HAVE_GLFW
+#include "procam/hw/glfw/glfw_projector.hpp"
+#include "procam/hw/screencam/screen_camera.hpp"
+#endif
+#if PROCAM_HAVE_LIBCAMERA
+#include "procam/hw/libcamera/libcamera_camera.hpp"
+#endif
 
 namespace procam::compose {
 namespace {
@@ -130,7 +139,7 @@ public:
   std::vector<size_t> sim_index_;       // index of the feeding sim camera
 };
 
-Result<CameraCalibration> parse_calibration(const nlohmann::json& cam, const std::string& field) {
+[[maybe_unused]] Result<CameraCalibration> parse_calibration(const nlohmann::json& cam, const std::string& field) {
   CameraCalibration c;
   try {
     if (!cam.contains("intrinsics") || !cam.contains("cam_from_proj"))
@@ -144,6 +153,14 @@ Result<CameraCalibration> parse_calibration(const nlohmann::json& cam, const std
   return c;
 }
 
+// A backend this build left out (its PROCAM_WITH_<option> was OFF or its
+// packages were missing at configure time).
+[[maybe_unused]] Status not_built(const std::string& field, const std::string& backend, const char* option) {
+  return Error(Code::unavailable, "rig config: " + field + ".backend: '" + backend + "' is not built into this procam",
+               std::string("reconfigure with -D") + option + "=ON (and its packages installed)");
+}
+
+#if PROCAM_HAVE_ARAVIS
 // Copies a rendered sim frame into an Aravis Fake buffer.
 Status copy_sim_frame(const hw::Frame& f, uint32_t w, uint32_t h, uint32_t bpp, uint8_t* dst) {
   const Image& im = f.image;
@@ -164,6 +181,7 @@ Status copy_sim_frame(const hw::Frame& f, uint32_t w, uint32_t h, uint32_t bpp, 
   }
   return Status::Ok();
 }
+#endif  // PROCAM_HAVE_ARAVIS
 
 }  // namespace
 
@@ -214,6 +232,9 @@ Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& conf
       rig->projector_ = std::make_unique<LockedProjector>(rig->sim_->projector(), rig->mu_);
       rig->projector_intrinsics_ = rig->sim_->projector_intrinsics();
     } else if (pbackend == "glfw") {
+#if !PROCAM_HAVE_GLFW
+      return not_built("projector", pbackend, "PROCAM_WITH_GLFW");
+#else
       auto pc = glfw::parse_glfw_projector_config(pj, {"intrinsics"});
       if (!pc) return pc.status();
       if (!pj.contains("intrinsics"))
@@ -225,6 +246,7 @@ Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& conf
       auto p = glfw::GlfwProjector::open(*pc);
       if (!p) return p.status().with_context("rig config: projector");
       rig->projector_ = std::move(*p);
+#endif
     } else {
       return Error(Code::invalid_argument, "rig config: projector.backend: '" + pbackend + "' is not built into this composite rig",
                    "projector backends: sim, glfw");
@@ -238,6 +260,9 @@ Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& conf
       const std::string cb = c.value("backend", "");
       const bool fed = c.contains("feed");
       if (cb == "aravis") {
+#if !PROCAM_HAVE_ARAVIS
+        return not_built(field, cb, "PROCAM_WITH_ARAVIS");
+#else
         auto cfg = aravis::parse_aravis_camera_config(c, field, {"intrinsics", "cam_from_proj", "feed"});
         if (!cfg) return cfg.status();
         auto cal = parse_calibration(c, field);
@@ -271,7 +296,11 @@ Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& conf
                        "set roi.width/height or fix the intrinsics");
         rig->cameras_.push_back(std::move(*cam));
         rig->calibrations_.push_back(fed ? rig->sim_->camera_calibrations()[sim_i] : *cal);
+#endif
       } else if (cb == "screencam") {
+#if !PROCAM_HAVE_GLFW
+        return not_built(field, cb, "PROCAM_WITH_GLFW");
+#else
         static const std::set<std::string> known = {"backend", "id", "display", "region", "intrinsics", "cam_from_proj"};
         for (auto it = c.begin(); it != c.end(); ++it)
           if (known.count(it.key()) == 0)
@@ -298,7 +327,11 @@ Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& conf
         if (!cam) return cam.status().with_context("rig config: " + field);
         rig->cameras_.push_back(std::move(*cam));
         rig->calibrations_.push_back(*cal);
+#endif
       } else if (cb == "libcamera") {
+#if !PROCAM_HAVE_LIBCAMERA
+        return not_built(field, cb, "PROCAM_WITH_LIBCAMERA");
+#else
         auto cfg = libcam::parse_libcamera_camera_config(c, field, {"intrinsics", "cam_from_proj"});
         if (!cfg) return cfg.status();
         auto cal = parse_calibration(c, field);
@@ -309,6 +342,7 @@ Result<std::unique_ptr<hw::Rig>> create_composite_rig(const nlohmann::json& conf
         if (!cam) return cam.status().with_context("rig config: " + field);
         rig->cameras_.push_back(std::move(*cam));
         rig->calibrations_.push_back(*cal);
+#endif
       } else {
         return Error(Code::invalid_argument, "rig config: " + field + ".backend: '" + cb + "' is not a camera backend here",
                      "camera backends: aravis, screencam, libcamera");
