@@ -3,7 +3,7 @@
 // every loaded plugin (plus listed variants) on every sim scene, in process:
 // sim rig library (hw::create_rig) -> plugin host session -> engine::run_scan
 // (plan -> sim capture -> streaming decode, all rounds) -> outputs ->
-// engine::evaluate_correspondence against the sim ground truth. No procamd.
+// engine::evaluate_outputs against the sim ground truth. No procamd.
 // Writes bench.md (table), bench.json (all numbers) and bench.png (plot of
 // gross-error rate vs capture time) to --out.
 #include <algorithm>
@@ -236,10 +236,9 @@ int cmd_bench(const Args& a) {
           if (!outs) {
             r.error = outs.status().message();
           } else {
-            std::optional<Image> col, depth;
+            std::optional<Image> col;
             for (const auto& o : *outs) {
               if (o.kind == PROCAM_OUTPUT_IMAGE && o.name == "proj_col_px") col = Image::copy_of(o.image);
-              if (o.kind == PROCAM_OUTPUT_IMAGE && o.name == "depth_mm") depth = Image::copy_of(o.image);
               if (o.kind == PROCAM_OUTPUT_SCALAR && o.name == "decode_ms") r.decode_ms = o.scalar;
             }
             if (a.has("keep")) {  // every run's outputs, for inspection
@@ -256,17 +255,12 @@ int cmd_bench(const Args& a) {
             } else if (!truth) {
               r.error = "no ground truth: " + truth.status().message();
             } else {
-              r.eval = engine::evaluate_correspondence(*col, depth ? &*depth : nullptr, *truth);
+              // correspondence (+ per-code maps, sub-pixel), depth, ...: the evaluators the outputs select
+              r.eval = engine::evaluate_outputs(*outs, *truth);
               r.ok = true;
-              for (const auto& o : *outs) {
-                if (o.kind != PROCAM_OUTPUT_IMAGE) continue;
-                if (o.name.rfind("proj_col_px_", 0) == 0)  // per-code maps of the ensemble
-                  r.eval["codes"][o.name.substr(12)] =
-                      engine::evaluate_correspondence(Image::copy_of(o.image), nullptr, *truth);
-                if (o.name == "proj_col_subpx")  // sub-pixel refinement, reported separately
-                  r.eval["subpx"] = engine::evaluate_correspondence(Image::copy_of(o.image), nullptr, *truth);
-                if (o.name == "transport_class") r.eval["gross_by_class"] = gross_by_class(*col, Image::copy_of(o.image), *truth);
-              }
+              for (const auto& o : *outs)  // this report's own breakdown by light-transport class
+                if (o.kind == PROCAM_OUTPUT_IMAGE && o.name == "transport_class")
+                  r.eval["gross_by_class"] = gross_by_class(*col, Image::copy_of(o.image), *truth);
             }
           }
         }

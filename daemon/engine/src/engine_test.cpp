@@ -102,8 +102,11 @@ TEST_F(TempDir, WriteOutputsMakesFilesPreviewsAndManifestEntries) {
 }
 
 hw::GroundTruth make_truth(uint32_t w, uint32_t h) {
-  hw::GroundTruth t{Image(w, h, PixelType::f32), Image(w, h, PixelType::f32), Image(w, h, PixelType::f32),
-                    Image(w, h, PixelType::u8), Image()};
+  hw::GroundTruth t;
+  t.depth_mm = Image(w, h, PixelType::f32);
+  t.proj_col = Image(w, h, PixelType::f32);
+  t.proj_row = Image(w, h, PixelType::f32);
+  t.lit = Image(w, h, PixelType::u8);
   for (uint32_t y = 0; y < h; ++y)
     for (uint32_t x = 0; x < w; ++x) {
       t.depth_mm.at<float>(x, y) = 800.0f;

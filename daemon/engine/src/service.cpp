@@ -457,21 +457,13 @@ void ScanService::run_one(Record& rec) {
   }
   manifest["outputs"] = written->outputs;
   manifest["previews"] = written->previews;
-  if (cfg_.evaluate) {
+  if (cfg_.evaluate) {  // evaluators chosen by the outputs (evaluate.hpp); none apply: no "evaluation"
     auto truth = rig_->ground_truth(0);
     if (truth) {
-      const host::Output* col = nullptr;
-      const host::Output* depth = nullptr;
-      for (const auto& o : *outs) {
-        if (o.kind != PROCAM_OUTPUT_IMAGE) continue;
-        if (o.name == "proj_col_px") col = &o;
-        if (o.name == "depth_mm") depth = &o;
-      }
-      if (col) {
-        Image c = Image::copy_of(col->image);
-        Image d = depth ? Image::copy_of(depth->image) : Image();
-        manifest["evaluation"] = evaluate_correspondence(c, depth ? &d : nullptr, *truth);
-        manifest["evaluation"]["truth"] = "simulated rig ground truth, camera 0";
+      nlohmann::json e = evaluate_outputs(*outs, *truth);
+      if (!e["evaluators"].empty()) {
+        e["truth"] = "simulated rig ground truth, camera 0";
+        manifest["evaluation"] = std::move(e);
       }
     }
   }

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "procam/core/image_io.hpp"
+#include "procam/hw/sim/sensor.hpp"
 
 namespace procam::sim {
 
@@ -80,6 +81,28 @@ Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern
   float* r = t.global_direct_ratio_white.ptr<float>();
   for (size_t i = 0; i < d.size(); ++i) r[i] = d[i] > 0.f ? g[i] / d[i] : std::numeric_limits<float>::quiet_NaN();
   return t;
+}
+
+Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, const ProjectorModel& projector,
+                            const SensorModel& sensor, double exposure_us, double gain_db) {
+  const uint32_t w = renderer.width(), h = renderer.height();
+  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
+  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
+  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  if (!pw.ok()) return pw.status();
+  Image direct(w, h, PixelType::f32), global(w, h, PixelType::f32);
+  Status st = renderer.render_radiance_parts(*pw, direct.ptr<float>(), false, Renderer::Parts::direct_only);
+  if (st.ok()) st = renderer.render_radiance_parts(*pw, global.ptr<float>(), false, Renderer::Parts::global_only);
+  if (!st.ok()) return st;
+  // expected_dn is linear in radiance: one factor per frame.
+  const double dn_per_ru = expected_dn(sensor, 1.0, exposure_us, gain_db);
+  for (Image* im : {&direct, &global}) {
+    float* p = im->ptr<float>();
+    for (size_t i = 0; i < im->pixel_count(); ++i) p[i] = static_cast<float>(double(p[i]) * dn_per_ru);
+  }
+  truth.direct = std::move(direct);
+  truth.global = std::move(global);
+  return Status::Ok();
 }
 
 }  // namespace procam::sim

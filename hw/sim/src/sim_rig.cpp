@@ -436,7 +436,14 @@ Result<hw::GroundTruth> SimRig::ground_truth(size_t index) {
   if (index >= renderers_.size())
     return Error(Code::not_found, "sim rig: no camera " + std::to_string(index) + " (the rig has " +
                                       std::to_string(renderers_.size()) + ")");
-  return ground_truth_from_view(renderers_[index]->view());
+  Renderer& ren = *renderers_[index];
+  ren.set_focus_mm(current_focus_mm());  // the focus the next capture renders with
+  hw::GroundTruth gt = ground_truth_from_view(ren.view());
+  const SimCamera& cam = *cameras_[index];
+  Status st = add_white_components(gt, ren, config_.projector, config_.cameras[index].sensor, cam.exposure_us(),
+                                   cam.gain_db());
+  if (!st.ok()) return st.with_context("sim rig: ground truth of camera " + std::to_string(index));
+  return gt;
 }
 
 Result<std::unique_ptr<hw::Rig>> create_sim_rig(const nlohmann::json& config, const hw::RigContext& ctx) {

@@ -594,7 +594,9 @@ nlohmann::json describe_codes_method(const std::string& method) {
   if (method == "ensemble" || method == "auto") outputs.push_back("transport_class");
   return {{"name", method},
           {"description", description},
-          {"patterns", patterns},
+          // integer or null (proto/PROTOCOL.md); only minsw's count is independent of the projector
+          {"patterns", method == "minsw" ? nlohmann::json(22) : nlohmann::json()},
+          {"patterns_formula", patterns},
           {"rounds", method == "ensemble" ? "1 + up to correction_rounds" : method == "auto" ? "1-2 + up to correction_rounds" : "1"},
           {"outputs", outputs},
           {"params", sdk::describe_params(codes_param_specs(method))}};

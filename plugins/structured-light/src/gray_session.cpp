@@ -186,8 +186,9 @@ nlohmann::json describe_gray() {
        "Conventional binary-reflected Gray code (thesis §3.2): white, black, then ceil(log2 W) "
        "column bit planes from the most significant, each with its inverse; optional row "
        "codes. Direct-illumination model: no global-light handling."},
-      {"patterns", "2 + 2*bits (binarize=inverse) or 2 + bits (binarize=white), bits = "
-                   "ceil(log2 projector width); rows add 2*row_bits or row_bits"},
+      {"patterns", nullptr},  // depends on the projector width (proto/PROTOCOL.md: integer or null)
+      {"patterns_formula", "2 + 2*bits (binarize=inverse) or 2 + bits (binarize=white), bits = "
+                           "ceil(log2 projector width); rows add 2*row_bits or row_bits"},
       {"rounds", 1},
       {"outputs", {"proj_col_px", "proj_col_subpx", "proj_row_px", "valid", "confidence", "depth_mm", "points",
                    "valid_fraction", "decode_ms", "pattern_count", "report"}},

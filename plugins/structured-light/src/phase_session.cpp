@@ -291,7 +291,7 @@ nlohmann::json describe_phase_method(const std::string& method) {
                                 "patterns each modulated by 9 high-frequency masks, direct component by max - min."
                               : "Phase shifting (thesis §3.3.3 baseline): 3 frequencies (periods W, W/8, W/64) x 6 "
                                 "shifts, temporal unwrapping; continuous columns."},
-          {"patterns", mod ? "162" : "18"},
+          {"patterns", mod ? 162 : 18},
           {"rounds", 1},
           {"outputs", {"proj_col_px", "valid", "confidence", "depth_mm", "points", "valid_fraction", "decode_ms",
                        "pattern_count", "report"}},

@@ -29,6 +29,19 @@ struct GroundTruth {
   Image proj_row;       // F32: continuous projector row
   Image lit;            // U8: 255 where the projector lights the visible point
   Image object;         // U8: 1 + index of the visible object in the scene (0 = none); may be empty
+  // Light transport split of the frame under a full-white pattern (thesis
+  // §2.5): the projector light reaching the pixel straight from the visible
+  // point (direct) and by every other path (global: inter-reflection,
+  // sub-surface scattering, ...). F32, camera-sized, in the camera's digital
+  // numbers at its current exposure and gain, noise-free, before rounding and
+  // clamping, without ambient light: direct + global + ambient = the expected
+  // white frame. Empty when the rig cannot separate them.
+  Image direct;
+  Image global;
+  // Truth of a participating medium's parameters (e.g. {"extinction_per_mm":
+  // 0.002}), keyed by the name a plugin's output carries after "medium_";
+  // null when the scene has none or the rig does not know it.
+  nlohmann::json medium;
 };
 
 class Rig {

@@ -10,6 +10,7 @@
 
 #include "procam/core/status.hpp"
 #include "procam/hw/rig.hpp"
+#include "procam/hw/sim/models.hpp"
 #include "procam/hw/sim/renderer.hpp"
 
 namespace procam::sim {
@@ -36,6 +37,13 @@ struct ComponentTruth {
 // twice. invalid_argument as Renderer::render_radiance.
 Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern& pattern,
                                        const ProjectorModel& projector);
+
+// Fills truth.direct / truth.global (see hw::GroundTruth) for the camera of
+// `renderer` at its current focus: the white pattern rendered direct-only and
+// global-only (no ambient), each converted to DN with expected_dn() at
+// `exposure_us` / `gain_db`. invalid_argument as Renderer::render_radiance.
+Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, const ProjectorModel& projector,
+                            const SensorModel& sensor, double exposure_us, double gain_db);
 
 Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folder,
                           const std::map<std::string, std::string>& attributes = {});

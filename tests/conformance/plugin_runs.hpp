@@ -1,0 +1,113 @@
+// SPDX-License-Identifier: MIT
+// Shared by the conformance and accuracy suites: every plugin method found at
+// run time in PROCAM_PLUGIN_DIR, and one scan of a method on the sim rig
+// through the real path (plan -> sim capture via engine::run_scan, all
+// rounds -> streaming decode -> outputs).
+//
+// Threads: test-thread only. Errors: gtest assertions in the caller's test.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cctype>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "procam/engine/rig_json.hpp"
+#include "procam/engine/scan_runner.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "procam/hw/rig.hpp"
+
+namespace procam::suite {
+
+inline std::string source(const std::string& rel) { return std::string(PROCAM_SOURCE_DIR) + "/" + rel; }
+
+struct MethodCase {
+  std::string plugin, method;
+  nlohmann::json describe;  // the method's describe() object
+};
+inline void PrintTo(const MethodCase& c, std::ostream* os) { *os << c.plugin << "/" << c.method; }
+
+// Every method of every plugin the host loads from PROCAM_PLUGIN_DIR.
+inline std::vector<MethodCase> all_methods() {
+  host::PluginHost host;
+  host.load_directories({PROCAM_PLUGIN_DIR});
+  std::vector<MethodCase> cases;
+  for (const auto& p : host.plugins())
+    for (const auto& m : p.methods) cases.push_back({p.name, m.name, m.describe});
+  return cases;
+}
+
+// A gtest-safe test name: "<plugin>_<method>[_<suffix>]" with [^A-Za-z0-9] -> '_'.
+inline std::string case_name(const std::string& plugin, const std::string& method, const std::string& suffix = "") {
+  std::string n = plugin + "_" + method + (suffix.empty() ? "" : "_" + suffix);
+  for (char& ch : n)
+    if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+  return n;
+}
+
+// The shipped sim rig (configs/rigs/sim.json) showing `scene`; a fresh rig
+// per call, so its frame noise starts from the same seed.
+inline std::unique_ptr<hw::Rig> sim_rig(const std::string& scene) {
+  auto cfg = engine::read_json_file(source("configs/rigs/sim.json"));
+  EXPECT_TRUE(cfg.ok()) << cfg.status().message();
+  if (!cfg.ok()) return nullptr;
+  auto rig = hw::create_rig(*cfg, {source("configs/rigs"), {source("configs/scenes")}});
+  EXPECT_TRUE(rig.ok()) << rig.status().message();
+  if (!rig.ok()) return nullptr;
+  EXPECT_TRUE((*rig)->apply_scan_options({{"scene", scene}}).ok());
+  return std::move(*rig);
+}
+
+// One finished scan. `session` owns the memory `outputs` point into.
+struct SimRun {
+  std::unique_ptr<hw::Rig> rig;
+  nlohmann::json rig_json;
+  std::optional<host::Session> session;
+  engine::ScanOutcome outcome;
+  std::vector<host::Output> outputs;
+};
+
+// Runs plugin/method with default parameters on `scene`; ADD_FAILUREs and
+// returns false when any step fails.
+inline bool run_on_sim(const std::string& plugin, const std::string& method, const std::string& scene, SimRun& run) {
+  run.rig = sim_rig(scene);
+  if (!run.rig) return false;
+  host::PluginHost host;
+  host.load_directories({PROCAM_PLUGIN_DIR});
+  run.rig_json = engine::plugin_rig_json(*run.rig, 2);
+  auto session = host.create_session(plugin, method, "{}", run.rig_json.dump());
+  if (!session.ok()) {
+    ADD_FAILURE() << "create_session: " << session.status().message();
+    return false;
+  }
+  run.session.emplace(std::move(*session));
+  std::atomic<bool> cancel{false};
+  auto outcome = engine::run_scan(*run.rig, *run.session, engine::CaptureOptions{}, nullptr, cancel);
+  if (!outcome.ok()) {
+    ADD_FAILURE() << "run_scan: " << outcome.status().message();
+    return false;
+  }
+  run.outcome = std::move(*outcome);
+  auto outs = run.session->outputs();
+  if (!outs.ok()) {
+    ADD_FAILURE() << "outputs: " << outs.status().message();
+    return false;
+  }
+  run.outputs = std::move(*outs);
+  return true;
+}
+
+inline const host::Output* find_output(const std::vector<host::Output>& outs, const std::string& name) {
+  for (const auto& o : outs)
+    if (o.name == name) return &o;
+  return nullptr;
+}
+
+}  // namespace procam::suite
