@@ -7,7 +7,7 @@
 #include <cmath>
 #include <limits>
 
-#include "simd.hpp"
+#include "procam/sdk/simd.hpp"
 
 namespace procam::sl {
 
@@ -51,7 +51,7 @@ inline int32_t diff(const uint8_t* L, const uint8_t* R, const uint8_t* B, size_t
     return int32_t{L[i]} - int32_t{R[i]};
 }
 
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
 // 32 pixels: d (two halves of 16 x int16, pixels 0-15 and 16-31) -> word
 // byte |= bit where d > 0, margin = min(margin, min(|d|, 255)).
 __attribute__((target("avx2"), always_inline)) inline void fold32_avx2(
@@ -142,23 +142,10 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void fold_u8_avx512(
   }
   for (; i < n; ++i) fold_one(diff<kSynthetic>(L, R, B, i), bit, first, first_word, word[i], margin[i]);
 }
+#endif  // PROCAM_SDK_X86
 
-bool detect_avx2() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") != 0;
-}
-bool detect_avx512() {
-  __builtin_cpu_init();
-  return detect_avx2() && __builtin_cpu_supports("avx512f") != 0 &&
-         __builtin_cpu_supports("avx512bw") != 0 && __builtin_cpu_supports("avx512vl") != 0;
-}
-#else
-bool detect_avx2() { return false; }
-bool detect_avx512() { return false; }
-#endif
-
-const bool kHaveAvx2 = detect_avx2();
-const bool kHaveAvx512 = detect_avx512();
+const bool kHaveAvx2 = sdk::cpu_has_avx2();
+const bool kHaveAvx512 = sdk::cpu_has_avx512();
 bool g_simd_enabled = true;
 bool g_avx512_enabled = true;
 
@@ -194,7 +181,7 @@ void fold_u8_inverse_scalar(const uint8_t* L, const uint8_t* L_bar, size_t n, ui
 void fold_u8_synthetic(const uint8_t* L, const uint8_t* W, const uint8_t* B, size_t n,
                        uint32_t position, bool first, bool first_word, uint8_t* word,
                        uint8_t* min_margin) {
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   if (avx512_active())
     return fold_u8_avx512<true>(L, W, B, n, position, first, first_word, word, min_margin);
   if (simd_active())
@@ -205,7 +192,7 @@ void fold_u8_synthetic(const uint8_t* L, const uint8_t* W, const uint8_t* B, siz
 
 void fold_u8_inverse(const uint8_t* L, const uint8_t* L_bar, size_t n, uint32_t position,
                      bool first, bool first_word, uint8_t* word, uint8_t* min_margin) {
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   if (avx512_active())
     return fold_u8_avx512<false>(L, L_bar, nullptr, n, position, first, first_word, word,
                                  min_margin);
@@ -222,7 +209,7 @@ void intensity_u8_scalar(const uint8_t* src, size_t b, size_t n, float inv_scale
     out[i] = std::clamp(static_cast<float>(src[i]) * inv_scale, 0.0f, 1.0f);
 }
 
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
 // 16 pixels per step: the same float product, clamped by max / min (the
 // product is finite and never NaN, so this equals std::clamp).
 __attribute__((target("avx512f,avx512bw,avx512vl"))) void intensity_u8_avx512(
@@ -240,7 +227,7 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void intensity_u8_avx512(
 }  // namespace
 
 void intensity_u8(const uint8_t* src, size_t n, float inv_scale, float* out) {
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   if (avx512_active()) return intensity_u8_avx512(src, n, inv_scale, out);
 #endif
   intensity_u8_scalar(src, 0, n, inv_scale, out);

@@ -76,7 +76,7 @@ void* allocate_pixels(size_t bytes) {
     }
     void* p = std::aligned_alloc(kHugePage, rounded);
     if (p == nullptr) throw std::bad_alloc();
-    advise_huge_pages(p, rounded);
+    sdk::advise_huge_pages(p, rounded);
     std::lock_guard<std::mutex> lock(c.mutex);
     c.sizes.emplace(p, rounded);
     return p;
@@ -86,18 +86,6 @@ void* allocate_pixels(size_t bytes) {
   return p;
 }
 
-void advise_huge_pages(const void* p, size_t bytes) {
-#ifdef MADV_HUGEPAGE
-  const auto a = reinterpret_cast<uintptr_t>(p);
-  const uintptr_t begin = (a + kHugePage - 1) / kHugePage * kHugePage;
-  const uintptr_t end = (a + bytes) / kHugePage * kHugePage;
-  if (end > begin)  // a hint: failure only means 4 KiB pages
-    (void)madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
-#else
-  (void)p;
-  (void)bytes;
-#endif
-}
 
 BitPlaneStream::BitPlaneStream(StreamLayout layout, uint32_t width, uint32_t height,
                                uint32_t threads)

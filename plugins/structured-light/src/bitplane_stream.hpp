@@ -35,10 +35,10 @@
 #include <vector>
 
 #include "binarize.hpp"
-#include "map_cache.hpp"
+#include "procam/sdk/map_cache.hpp"
 #include "plan_layout.hpp"
 #include "procam/plugin_sdk.hpp"
-#include "work_pool.hpp"
+#include "procam/base/work_pool.hpp"
 
 namespace procam::sl {
 
@@ -77,22 +77,10 @@ template <class T>
 PixelArray<T> make_pixel_array(size_t n) {
   return PixelArray<T>(static_cast<T*>(allocate_pixels(n * sizeof(T))));
 }
-// Advises the 2 MiB-aligned part of [p, p + bytes) for huge pages (for
-// std::vector output maps; call before their pages are first written).
-void advise_huge_pages(const void* p, size_t bytes);
-// Output map of n elements, allocated (huge pages advised) and every page
-// written now; a map that already has n elements is left as it is.
+// Output maps: sdk::allocate_map and sdk::advise_huge_pages (procam/sdk/map_cache.hpp).
 // (Pre-faulting with MADV_POPULATE_WRITE was tried: 2500 -> 130 page faults
 // per ensemble scan, but no faster here and slower where malloc reuses
 // already-mapped heap memory, as for the Gray round's maps.)
-template <class T>
-void allocate_map(std::vector<T>& v, size_t n) {
-  if (v.size() == n) return;
-  std::vector<T>().swap(v);
-  v.reserve(n);
-  advise_huge_pages(v.data(), n * sizeof(T));
-  v.assign(n, T{});
-}
 
 // Several map allocations spread over a pool's threads (the first touch
 // of ~35 MB of fresh output maps is a memset the threads can share).
@@ -104,9 +92,9 @@ class MapBatch {
   void add(std::vector<T>& v, size_t n) {
     if (v.size() == n) return;
     if constexpr (std::is_same_v<T, float> || std::is_same_v<T, uint8_t>)
-      jobs_.push_back([&v, n] { take_map(v, n); });
+      jobs_.push_back([&v, n] { sdk::take_map(v, n); });
     else
-      jobs_.push_back([&v, n] { allocate_map(v, n); });
+      jobs_.push_back([&v, n] { sdk::allocate_map(v, n); });
   }
   void run(WorkPool& pool) {
     pool.run(static_cast<uint32_t>(jobs_.size()), [&](uint32_t a, uint32_t b) {

@@ -13,7 +13,8 @@
 #include <utility>
 
 #include "codes.hpp"
-#include "map_cache.hpp"
+#include "correction.hpp"
+#include "procam/sdk/map_cache.hpp"
 #include "multi_round.hpp"
 #include "streaming_session.hpp"
 #include "subpixel.hpp"
@@ -25,16 +26,6 @@ namespace procam::sl {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Correction rounds (§3.4): a new value is taken only if the projector
-// pixels within this distance (px) of the one it names are all still on, and
-// the masked white frame still gives the pixel this fraction of its round-1
-// white light (see end_round()). 0.35: masking removes the global light the
-// round is for — on the glossy lamp a flagged pixel keeps 0.20–0.34 of its
-// round-1 light (global/direct 2.8 -> 0.10), and 0.5 rejected nearly all;
-// light scattered in from centimetres away (wax) stays far below it.
-constexpr int64_t kCorrectionEdgeMarginPx = 2;
-constexpr float kCorrectionMinLight = 0.35f;
-
 struct Config {
   std::string method;
   bool inverse = true;
@@ -127,7 +118,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       correction = true;
       for (uint32_t k = 0; k < codes_.size(); ++k) subset.push_back(k);
     }
-    if (correction) build_mask();
+    if (correction)  // projector pixels of resolved points off (correction.hpp)
+      mask_ = correction_mask(rig_, coord_, valid_, cls_, cfg_.mask_dilate_px, cfg_.mask_guard_px);
     round_codes_ = subset;
     std::vector<ProjectedCode> codes;
     for (uint32_t k : subset) codes.push_back(codes_[k]);
@@ -204,27 +196,11 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         valid_ = std::move(v.valid);
         confidence_ = std::move(v.confidence);
         cls_ = std::move(v.cls);
-      } else {  // correction: only pixels still in error take the new result
-        // ... and only where the projector pixel it names, and those within
-        // kCorrectionEdgeMarginPx of it, were on in this round. A pixel whose
-        // own projector pixel was switched off (wrongly claimed as resolved,
-        // or inside the mask's dilation) sees only light scattered in from
-        // the unmasked side — sub-surface, defocus, inter-reflection — and
-        // decodes to a column at the mask's edge; it stays an error instead.
-        // Long-range scattering (wax: centimetres) can bring such light from
-        // far beyond the margin, so the pixel must also keep at least
-        // kCorrectionMinLight of its round-1 white light (r.intensity is the
-        // masked white frame).
-        const std::vector<float>& masked_white = r.intensity;
-        for (size_t i = 0; i < n; ++i)
-          if (cls_[i] == kError && v.valid[i] != 0 && masked_white.size() == n &&
-              masked_white[i] >= kCorrectionMinLight * intensity_[i] && clear_of_mask(i, v.coord[i])) {
-            coord_[i] = v.coord[i];
-            valid_[i] = 255;
-            confidence_[i] = v.confidence[i];
-            cls_[i] = v.cls[i];
-            ++stats.resolved;
-          }
+      } else {  // correction: only pixels still in error take the new result, where
+        // their new projector pixel was lit and they keep enough of their
+        // round-1 light (correction.hpp; r.intensity is the masked white frame)
+        stats.resolved += merge_correction(rig_, mask_, v, r.intensity, intensity_, coord_, valid_,
+                                           confidence_, cls_);
       }
       recycle_maps(std::move(r));  // what this round's result still holds
     }
@@ -238,7 +214,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   }
 
   sdk::Error outputs(sdk::Outputs& out) override {
-    out.set_release(give_map, give_map);  // the next scan's decoder reuses the maps' pages
+    out.set_release(sdk::give_map, sdk::give_map);  // the next scan's decoder reuses the maps' pages
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
     std::optional<DepthResult> depth;
@@ -247,13 +223,15 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       depth = triangulate_columns(cam.calibration, rig_.projector, w, h, coord_.data(),
                                   intensity_.data(), rig_.threads);
     }
-    size_t valid = 0;
+    sdk::StandardOutputs standard;
+    standard.decode_ms = decode_ms_;  // the triangulation above included
+    standard.pattern_count = patterns_;
     std::array<size_t, kTransportClassCount> counts{};
     for (size_t i = 0; i < valid_.size(); ++i) {
-      valid += valid_[i] != 0 ? 1u : 0u;
+      standard.valid_pixels += valid_[i] != 0 ? 1u : 0u;
       ++counts[std::min<size_t>(cls_[i], kTransportClassCount - 1)];
     }
-    const double n = static_cast<double>(valid_.size());
+    standard.total_pixels = valid_.size();
     const size_t lit = rounds_.empty() ? 0 : rounds_.back().lit;
     const size_t errors = rounds_.empty() ? 0 : rounds_.back().errors;
     std::vector<float> subpx(coord_.size());
@@ -285,15 +263,10 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                       std::string("first-pass column decoded by code ") + kCodeIds[k] +
                           " alone (NaN: invalid or not projected)",
                       w, h, std::move(stage_maps_[k]));
-    add_depth_outputs(out, depth, w, h, valid, n);
+    add_depth_outputs(out, depth, w, h);
     out.add_scalar("error_fraction", "",
                    "lit pixels left as errors (no valid column; ensemble: no two codes agree) / lit",
                    lit > 0 ? static_cast<double>(errors) / static_cast<double>(lit) : 0.0);
-    out.add_scalar("decode_ms", "ms",
-                   "plugin time spent decoding (add_frame work + end_round + triangulation)",
-                   decode_ms_);
-    out.add_scalar("pattern_count", "", "frames projected in this scan (all rounds)",
-                   static_cast<double>(patterns_));
     out.add_scalar("rounds", "", "capture rounds (1 + correction rounds run)",
                    static_cast<double>(rounds_.size()));
     nlohmann::json codes = nlohmann::json::array();
@@ -322,7 +295,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     nlohmann::json classes = nlohmann::json::object();
     for (uint32_t c = 0; c < kTransportClassCount; ++c)
       classes[transport_class_name(static_cast<uint8_t>(c))] = counts[c];
-    nlohmann::json report = {
+    nlohmann::json& report = standard.report;
+    report = {
         {"method", cfg_.method},
         {"codes", codes},
         {"patterns", patterns_},
@@ -353,7 +327,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       if (!stop_reason_.empty()) report["correction_stop"] = stop_reason_;
     }
     if (!depth) report["note"] = "rig has no calibration for projector and camera 0: no depth";
-    out.add_json("report", "model choice and decoding settings", report.dump());
+    sdk::add_standard_outputs(out, standard);
     return sdk::ok();
   }
 
@@ -366,111 +340,27 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
 
   size_t errors_before_round() const { return rounds_.empty() ? 0 : rounds_.back().errors; }
 
-  // §3.4 stop rule: another round only for the ensemble, with a calibrated
-  // rig (the mask needs each resolved pixel's projector row), error pixels
-  // left, the round limit not reached, and the last round made progress.
+  // §3.4 stop rule (correction.hpp decide_correction).
   bool want_more_round() {
-    if (codes_.size() == 1 || cfg_.correction_rounds == 0) return false;
     const RoundStats& last = rounds_.back();
-    if (corrections_done_ >= cfg_.correction_rounds) return set_stop("round limit");
-    if (!rig_.can_triangulate(0)) return set_stop("rig not calibrated: cannot locate resolved projector pixels");
-    if (last.errors == 0) return set_stop("no error pixels left");
-    const double min_count = cfg_.min_progress * static_cast<double>(last.lit);
-    if (static_cast<double>(last.errors) < min_count)
-      return set_stop("error pixels below min_progress of lit pixels");
-    if (corrections_done_ > 0 && static_cast<double>(last.resolved) < min_count)
-      return set_stop("last round resolved fewer than min_progress of lit pixels");
-    return true;
-  }
-  bool set_stop(const char* why) {
-    stop_reason_ = why;
-    return false;
-  }
-
-  // The projector pixel that camera pixel i decoded to `col` names (by
-  // triangulation), in this round's mask: true when it and every projector
-  // pixel within kCorrectionEdgeMarginPx were on.
-  bool clear_of_mask(size_t i, float col) const {
-    const sdk::RigCamera& cam = rig_.cameras.at(0);
-    const uint32_t pw = rig_.projector_width, ph = rig_.projector_height;
-    const auto u = static_cast<uint32_t>(i % cam.width), v = static_cast<uint32_t>(i / cam.width);
-    const auto x = triangulate_column(cam.calibration, rig_.projector, u, v, col);
-    if (!x) return false;
-    double pu = 0, pv = 0;
-    rig_.projector.project(cam.calibration.cam_from_proj.inverse() * *x, pu, pv);
-    if (!std::isfinite(pu) || !std::isfinite(pv)) return false;
-    const auto cu = static_cast<int64_t>(std::lround(pu)), cv = static_cast<int64_t>(std::lround(pv));
-    const int64_t m = kCorrectionEdgeMarginPx;
-    for (int64_t yy = std::max<int64_t>(0, cv - m); yy <= std::min<int64_t>(ph - 1, cv + m); ++yy)
-      for (int64_t xx = std::max<int64_t>(0, cu - m); xx <= std::min<int64_t>(pw - 1, cu + m); ++xx)
-        if (mask_[static_cast<size_t>(yy) * pw + static_cast<size_t>(xx)] == 0) return false;
-    return true;
-  }
-
-  // Projector mask for a correction round (after Xu & Aliaga): every
-  // resolved camera pixel is triangulated, projected into the projector, and
-  // the projector pixels within mask_dilate_px of it are switched off, so
-  // only the light that can reach unresolved points (and its global light)
-  // remains. Resolved pixels within mask_guard_px (camera px) of an error
-  // pixel are left on: the camera samples the projector more densely than
-  // one pixel per pixel, so a resolved neighbour names the error pixel's own
-  // projector pixel, or one within the dilation. Without the guard 87 % of
-  // the lamp's error pixels were switched off with their neighbours and a
-  // round resolved none (docs/report/README.md).
-  void build_mask() {
-    const uint32_t pw = rig_.projector_width, ph = rig_.projector_height;
-    mask_.assign(size_t{pw} * ph, 255);
-    const sdk::RigCamera& cam = rig_.cameras.at(0);
-    const Rigid3 proj_from_cam = cam.calibration.cam_from_proj.inverse();
-    const auto r = static_cast<int64_t>(cfg_.mask_dilate_px);
-    const std::vector<uint8_t> guard = near_error(cfg_.mask_guard_px);
-    for (uint32_t v = 0; v < cam.height; ++v)
-      for (uint32_t u = 0; u < cam.width; ++u) {
-        const size_t i = size_t{v} * cam.width + u;
-        if (valid_[i] == 0 || guard[i] != 0) continue;
-        const auto x = triangulate_column(cam.calibration, rig_.projector, u, v, coord_[i]);
-        if (!x) continue;
-        const Vec3 xp = proj_from_cam * *x;
-        double pu = 0, pv = 0;
-        rig_.projector.project(xp, pu, pv);
-        if (!std::isfinite(pu) || !std::isfinite(pv)) continue;
-        const auto cu = static_cast<int64_t>(std::lround(pu));
-        const auto cv = static_cast<int64_t>(std::lround(pv));
-        for (int64_t yy = std::max<int64_t>(0, cv - r); yy <= std::min<int64_t>(ph - 1, cv + r); ++yy)
-          for (int64_t xx = std::max<int64_t>(0, cu - r); xx <= std::min<int64_t>(pw - 1, cu + r); ++xx)
-            mask_[static_cast<size_t>(yy) * pw + static_cast<size_t>(xx)] = 0;
-      }
-  }
-
-  // 1 where an error pixel lies within `radius` camera px (square window):
-  // a separable max filter of the error map.
-  std::vector<uint8_t> near_error(uint32_t radius) const {
-    const sdk::RigCamera& cam = rig_.cameras.at(0);
-    const size_t w = cam.width, h = cam.height;
-    std::vector<uint8_t> err(w * h), out(w * h);
-    for (size_t i = 0; i < w * h; ++i) err[i] = cls_[i] == kError ? 1 : 0;
-    if (radius == 0) return err;
-    std::vector<uint8_t> tmp(w * h, 0);
-    const auto rr = static_cast<size_t>(radius);
-    for (size_t y = 0; y < h; ++y)
-      for (size_t x = 0; x < w; ++x) {
-        uint8_t m = 0;
-        for (size_t xx = x > rr ? x - rr : 0; xx <= std::min(w - 1, x + rr); ++xx) m |= err[y * w + xx];
-        tmp[y * w + x] = m;
-      }
-    for (size_t y = 0; y < h; ++y)
-      for (size_t x = 0; x < w; ++x) {
-        uint8_t m = 0;
-        for (size_t yy = y > rr ? y - rr : 0; yy <= std::min(h - 1, y + rr); ++yy) m |= tmp[yy * w + x];
-        out[y * w + x] = m;
-      }
-    return out;
+    CorrectionProgress p;
+    p.ensemble = codes_.size() > 1;
+    p.max_rounds = cfg_.correction_rounds;
+    p.rounds_done = corrections_done_;
+    p.can_triangulate = rig_.can_triangulate(0);
+    p.errors = last.errors;
+    p.lit = last.lit;
+    p.resolved_last = last.resolved;
+    p.min_progress = cfg_.min_progress;
+    const CorrectionDecision d = decide_correction(p);
+    if (d.stop_reason != nullptr) stop_reason_ = d.stop_reason;
+    return d.more;
   }
 
   // Maps not handed to the host go back to the map cache (map_cache.hpp).
   void recycle_members() noexcept {
-    for (std::vector<float>* v : {&coord_, &confidence_, &intensity_}) give_map(std::move(*v));
-    for (std::vector<uint8_t>* v : {&valid_, &cls_, &lit_}) give_map(std::move(*v));
+    for (std::vector<float>* v : {&coord_, &confidence_, &intensity_}) sdk::give_map(std::move(*v));
+    for (std::vector<uint8_t>* v : {&valid_, &cls_, &lit_}) sdk::give_map(std::move(*v));
   }
 
   Config cfg_;
@@ -562,7 +452,8 @@ const std::vector<sdk::ParamSpec>& codes_param_specs(const std::string& method) 
   return method == "ensemble" ? ensemble : single;
 }
 
-nlohmann::json describe_codes_method(const std::string& method) {
+sdk::MethodDescription describe_codes_method(const std::string& method) {
+  sdk::MethodDescription d;
   std::string description, patterns;
   if (method == "xor02" || method == "xor04") {
     description = std::string("Logical XOR code ") + (method == "xor02" ? "XOR-02" : "XOR-04") +
@@ -574,6 +465,7 @@ nlohmann::json describe_codes_method(const std::string& method) {
     description = "10-bit max-min-SW Gray code (thesis §3.3.2), stretched code columns for "
                   "W > 1024; for short-range effects (sub-surface scattering, defocus).";
     patterns = "2 + 2*10 (binarize=inverse) or 2 + 10 (white)";
+    d.patterns = 22u;  // defaults: binarize=inverse, black_frame on; 10 bits at any width
   } else if (method == "auto") {
     description = "Model only what the scene needs: first xor04 + minsw (codes for opposite "
                   "global-light effects); where they disagree on more than auto_tolerance of lit "
@@ -588,18 +480,17 @@ nlohmann::json describe_codes_method(const std::string& method) {
     patterns = "1 + 3*ceil(log2 W) + 10 per round (41 for W = 1024, 44 for W = 1280); "
                "correction rounds repeat it";
   }
-  nlohmann::json outputs = {"proj_col_px", "proj_col_subpx", "valid", "confidence", "depth_mm", "points",
-                            "valid_fraction", "error_fraction", "decode_ms", "pattern_count",
-                            "rounds", "report"};
-  if (method == "ensemble" || method == "auto") outputs.push_back("transport_class");
-  return {{"name", method},
-          {"description", description},
-          // integer or null (proto/PROTOCOL.md); only minsw's count is independent of the projector
-          {"patterns", method == "minsw" ? nlohmann::json(22) : nlohmann::json()},
-          {"patterns_formula", patterns},
-          {"rounds", method == "ensemble" ? "1 + up to correction_rounds" : method == "auto" ? "1-2 + up to correction_rounds" : "1"},
-          {"outputs", outputs},
-          {"params", sdk::describe_params(codes_param_specs(method))}};
+  d.name = method;
+  d.summary = description;
+  d.patterns_formula = patterns;  // patterns: null (depends on the projector width) except minsw
+  d.outputs = {"proj_col_px", "proj_col_subpx", "valid", "confidence", "depth_mm", "points",
+               "valid_fraction", "error_fraction", "decode_ms", "pattern_count", "rounds", "report"};
+  if (method == "ensemble" || method == "auto") d.outputs.push_back("transport_class");
+  d.rounds = 1;
+  if (method == "ensemble") d.rounds_formula = "1 + up to correction_rounds";
+  if (method == "auto") d.rounds_formula = "1-2 + up to correction_rounds";
+  d.params = codes_param_specs(method);
+  return d;
 }
 
 sdk::Error create_codes_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {

@@ -22,7 +22,7 @@ namespace procam::sl {
 inline constexpr const char* kCodeMethods[] = {"xor02", "xor04", "minsw", "ensemble", "auto"};
 
 const std::vector<sdk::ParamSpec>& codes_param_specs(const std::string& method);
-nlohmann::json describe_codes_method(const std::string& method);
+sdk::MethodDescription describe_codes_method(const std::string& method);
 sdk::Error create_codes_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out);
 
 }  // namespace procam::sl

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <limits>
 
-#include "simd.hpp"
+#include "procam/sdk/simd.hpp"
 
 namespace procam::sl {
 
@@ -95,7 +95,7 @@ DecodeContext::DecodeContext(const BitPlaneStream& stream, const DecodeThreshold
 }
 
 namespace {
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
 __attribute__((target("avx2"), always_inline)) inline void store8(uint8_t* dst, __m256i v) {
   const __m128i w16 = _mm_packs_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
   _mm_storel_epi64(reinterpret_cast<__m128i*>(dst), _mm_packus_epi16(w16, w16));
@@ -213,7 +213,7 @@ PROCAM_AVX512 size_t decode_base_u8_avx512(const DecodeContext& ctx, size_t b, s
 
 void index_maps(const int32_t* out, size_t n, float* coord, uint8_t* valid) {
   size_t i = 0;
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   if (avx512_active())
     i = index_maps_avx512(out, n, coord, valid);
   else if (simd_active())
@@ -240,7 +240,7 @@ void decode_base(const DecodeContext& ctx, size_t b, size_t e, BaseRow& row, uin
     const uint8_t* b8 = s.black8();
     const bool clip = t.clipped_white_invalid;
     size_t start = b;
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
     if (avx512_active() && intensity == nullptr)
       start = decode_base_u8_avx512(ctx, b, e, row, lit);
     else if (simd_active() && intensity == nullptr)
@@ -323,7 +323,7 @@ size_t decode_code_scalar(const BitPlaneStream& s, const CodeState& st, const in
   return weak_used;
 }
 
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
 // 8-bit state with at least one strict plane: integer margins against the
 // integer gate (m > gate <=> m > thr for integer m, see BaseRow), 8 pixels
 // per step; the tail goes through the scalar loop.
@@ -478,7 +478,7 @@ PROCAM_AVX512 size_t decode_code_u8_avx512(const BitPlaneStream& s, const CodeSt
 size_t decode_code(const DecodeContext& ctx, size_t c, const WordMap& map, size_t b, size_t e,
                    const BaseRow& row, int32_t* out, float* confidence) {
   const CodeState& st = ctx.s.code(c);
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   if (ctx.s.u8() && st.folded[0] > 0 && avx512_active())
     return decode_code_u8_avx512<false>(ctx.s, st, map, b, e, row, out, confidence, nullptr,
                                         nullptr);
@@ -491,7 +491,7 @@ size_t decode_code(const DecodeContext& ctx, size_t c, const WordMap& map, size_
 size_t decode_code_maps(const DecodeContext& ctx, size_t c, const WordMap& map, size_t b,
                         size_t e, const BaseRow& row, int32_t* scratch, float* coord,
                         uint8_t* valid, float* confidence) {
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   const CodeState& st = ctx.s.code(c);
   if (ctx.s.u8() && st.folded[0] > 0 && avx512_active())
     return decode_code_u8_avx512<true>(ctx.s, st, map, b, e, row, scratch, confidence, coord,

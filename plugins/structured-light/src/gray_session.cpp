@@ -9,7 +9,7 @@
 #include <utility>
 
 #include "gray_code.hpp"
-#include "map_cache.hpp"
+#include "procam/sdk/map_cache.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
 #include "streaming_session.hpp"
@@ -88,12 +88,14 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
 
   // Called once per decoded round (SDK contract): moves the maps out.
   sdk::Error outputs(sdk::Outputs& out) override {
-    out.set_release(give_map, give_map);  // the next scan's decoder reuses the maps' pages
+    out.set_release(sdk::give_map, sdk::give_map);  // the next scan's decoder reuses the maps' pages
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
-    size_t valid = 0;
-    for (uint8_t v : result_.cols.valid) valid += v != 0 ? 1u : 0u;
-    const double n = static_cast<double>(result_.cols.valid.size());
+    sdk::StandardOutputs standard;
+    standard.decode_ms = decode_ms_;
+    standard.pattern_count = pattern_count_;
+    for (uint8_t v : result_.cols.valid) standard.valid_pixels += v != 0 ? 1u : 0u;
+    standard.total_pixels = result_.cols.valid.size();
     std::vector<float> subpx(result_.cols.coord.size());
     sdk::parallel_rows(h, rig_.threads, [&](uint32_t y0, uint32_t y1) {
       refine_columns(result_.cols.coord.data(), w, y0, y1, SubpixelOptions{}, subpx.data());
@@ -112,13 +114,8 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
     out.add_image("confidence", "",
                   "min over column bits of |L - L_inv| / (white - black), clipped to [0, 1]", w,
                   h, std::move(result_.cols.confidence));
-    add_depth_outputs(out, depth_, w, h, valid, n);
-    out.add_scalar("decode_ms", "ms",
-                   "plugin time spent decoding (add_frame work + end_round), wall clock",
-                   decode_ms_);
-    out.add_scalar("pattern_count", "", "frames projected in this scan",
-                   static_cast<double>(pattern_count_));
-    nlohmann::json report = {
+    add_depth_outputs(out, depth_, w, h);
+    standard.report = {
         {"method", "gray"},
         {"code", "binary-reflected Gray"},
         {"bits", cols_.bits},
@@ -137,8 +134,8 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
         {"triangulated", depth_.has_value()},
         {"camera_index", 0},
     };
-    if (!depth_) report["note"] = "rig has no calibration for projector and camera 0: no depth";
-    out.add_json("report", "model choice and decoding settings", report.dump());
+    if (!depth_) standard.report["note"] = "rig has no calibration for projector and camera 0: no depth";
+    sdk::add_standard_outputs(out, standard);
     return sdk::ok();
   }
 
@@ -179,21 +176,21 @@ const std::vector<sdk::ParamSpec>& gray_param_specs() {
   return specs;
 }
 
-nlohmann::json describe_gray() {
-  return {
-      {"name", "gray"},
-      {"description",
-       "Conventional binary-reflected Gray code (thesis §3.2): white, black, then ceil(log2 W) "
-       "column bit planes from the most significant, each with its inverse; optional row "
-       "codes. Direct-illumination model: no global-light handling."},
-      {"patterns", nullptr},  // depends on the projector width (proto/PROTOCOL.md: integer or null)
-      {"patterns_formula", "2 + 2*bits (binarize=inverse) or 2 + bits (binarize=white), bits = "
-                           "ceil(log2 projector width); rows add 2*row_bits or row_bits"},
-      {"rounds", 1},
-      {"outputs", {"proj_col_px", "proj_col_subpx", "proj_row_px", "valid", "confidence", "depth_mm", "points",
-                   "valid_fraction", "decode_ms", "pattern_count", "report"}},
-      {"params", sdk::describe_params(gray_param_specs())},
-  };
+sdk::MethodDescription describe_gray() {
+  sdk::MethodDescription d;
+  d.name = "gray";
+  d.summary =
+      "Conventional binary-reflected Gray code (thesis §3.2): white, black, then ceil(log2 W) "
+      "column bit planes from the most significant, each with its inverse; optional row "
+      "codes. Direct-illumination model: no global-light handling.";
+  d.patterns = std::nullopt;  // depends on the projector width
+  d.patterns_formula = "2 + 2*bits (binarize=inverse) or 2 + bits (binarize=white), bits = "
+                       "ceil(log2 projector width); rows add 2*row_bits or row_bits";
+  d.rounds = 1;
+  d.outputs = {"proj_col_px", "proj_col_subpx", "proj_row_px", "valid", "confidence", "depth_mm", "points",
+               "valid_fraction", "decode_ms", "pattern_count", "report"};
+  d.params = gray_param_specs();
+  return d;
 }
 
 sdk::Error create_gray_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {

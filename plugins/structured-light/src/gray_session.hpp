@@ -21,7 +21,7 @@ namespace procam::sl {
 const std::vector<sdk::ParamSpec>& gray_param_specs();
 
 // describe() entry of "gray": {"name","description","patterns","params",...}.
-nlohmann::json describe_gray();
+sdk::MethodDescription describe_gray();
 
 sdk::Error create_gray_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out);
 

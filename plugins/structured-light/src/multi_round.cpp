@@ -110,16 +110,16 @@ MultiCodeDecoder::MultiCodeDecoder(MultiLayout layout, const std::vector<Project
 
 void recycle_maps(MultiResult&& r) noexcept {
   for (AxisMaps& m : r.codes) {
-    give_map(std::move(m.coord));
-    give_map(std::move(m.valid));
-    give_map(std::move(m.confidence));
+    sdk::give_map(std::move(m.coord));
+    sdk::give_map(std::move(m.valid));
+    sdk::give_map(std::move(m.confidence));
   }
-  give_map(std::move(r.vote.coord));
-  give_map(std::move(r.vote.valid));
-  give_map(std::move(r.vote.confidence));
-  give_map(std::move(r.vote.cls));
-  give_map(std::move(r.lit));
-  give_map(std::move(r.intensity));
+  sdk::give_map(std::move(r.vote.coord));
+  sdk::give_map(std::move(r.vote.valid));
+  sdk::give_map(std::move(r.vote.confidence));
+  sdk::give_map(std::move(r.vote.cls));
+  sdk::give_map(std::move(r.lit));
+  sdk::give_map(std::move(r.intensity));
 }
 
 void MultiCodeDecoder::allocate_result(Output output) {

@@ -220,11 +220,12 @@ class PhaseSession final : public sdk::Session {
       out.add_image("depth_mm", "mm", "z of the triangulated point, camera frame (NaN: none)", w, h, std::move(depth->depth_mm));
       out.add_points("points", "triangulated points, camera frame", "x,y,z,intensity", 4, std::move(depth->points));
     }
-    out.add_scalar("valid_fraction", "", "fraction of camera pixels with a valid column",
-                   n_ > 0 ? static_cast<double>(valid) / static_cast<double>(n_) : 0.0);
-    out.add_scalar("decode_ms", "ms", "plugin time spent decoding (add_frame work + end_round + triangulation)", decode_ms_);
-    out.add_scalar("pattern_count", "", "frames projected in this scan", static_cast<double>(patterns_));
-    nlohmann::json report = {
+    sdk::StandardOutputs standard;
+    standard.decode_ms = decode_ms_;
+    standard.pattern_count = patterns_;
+    standard.valid_pixels = valid;
+    standard.total_pixels = n_;
+    standard.report = {
         {"method", method},
         {"code", cfg_.modulated ? "sinusoidal phase shifting, each pattern modulated by 9 high-frequency dot masks (Chen et al. 2008)"
                                 : "sinusoidal phase shifting with temporal unwrapping"},
@@ -240,7 +241,7 @@ class PhaseSession final : public sdk::Session {
         {"triangulated", depth.has_value()},
         {"camera_index", 0},
     };
-    out.add_json("report", "model choice and decoding settings", report.dump());
+    sdk::add_standard_outputs(out, standard);
     return sdk::ok();
   }
 
@@ -284,18 +285,20 @@ std::vector<sdk::ParamSpec> phase_specs() {
 
 }  // namespace
 
-nlohmann::json describe_phase_method(const std::string& method) {
+sdk::MethodDescription describe_phase_method(const std::string& method) {
   const bool mod = method == "modulated-phase-shift";
-  return {{"name", method},
-          {"description", mod ? "Modulated phase shifting (Chen et al. 2008; thesis §3.3.3 baseline): 18 phase-shift "
-                                "patterns each modulated by 9 high-frequency masks, direct component by max - min."
-                              : "Phase shifting (thesis §3.3.3 baseline): 3 frequencies (periods W, W/8, W/64) x 6 "
-                                "shifts, temporal unwrapping; continuous columns."},
-          {"patterns", mod ? 162 : 18},
-          {"rounds", 1},
-          {"outputs", {"proj_col_px", "valid", "confidence", "depth_mm", "points", "valid_fraction", "decode_ms",
-                       "pattern_count", "report"}},
-          {"params", sdk::describe_params(phase_specs())}};
+  sdk::MethodDescription d;
+  d.name = method;
+  d.summary = mod ? "Modulated phase shifting (Chen et al. 2008; thesis §3.3.3 baseline): 18 phase-shift "
+                    "patterns each modulated by 9 high-frequency masks, direct component by max - min."
+                  : "Phase shifting (thesis §3.3.3 baseline): 3 frequencies (periods W, W/8, W/64) x 6 "
+                    "shifts, temporal unwrapping; continuous columns.";
+  d.patterns = mod ? 162u : 18u;  // 3 frequencies x 6 shifts (x 9 masks), any projector size
+  d.rounds = 1;
+  d.outputs = {"proj_col_px", "valid", "confidence", "depth_mm", "points", "valid_fraction", "decode_ms",
+               "pattern_count", "report"};
+  d.params = phase_specs();
+  return d;
 }
 
 sdk::Error create_phase_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {

@@ -21,7 +21,7 @@ namespace procam::sl {
 
 inline constexpr const char* kPhaseMethods[] = {"phase-shift", "modulated-phase-shift"};
 
-nlohmann::json describe_phase_method(const std::string& method);
+sdk::MethodDescription describe_phase_method(const std::string& method);
 sdk::Error create_phase_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out);
 
 }  // namespace procam::sl

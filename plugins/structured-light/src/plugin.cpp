@@ -5,6 +5,7 @@
 // below, a describe entry and a branch in create().
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "codes_session.hpp"
 #include "gray_session.hpp"
@@ -14,13 +15,13 @@
 namespace {
 
 std::string describe() {
-  nlohmann::json methods = nlohmann::json::array();
+  std::vector<procam::sdk::MethodDescription> methods;
   methods.push_back(procam::sl::describe_gray());
   for (const char* m : procam::sl::kCodeMethods)
     methods.push_back(procam::sl::describe_codes_method(m));
   for (const char* m : procam::sl::kPhaseMethods)
     methods.push_back(procam::sl::describe_phase_method(m));
-  return methods.dump();
+  return procam::sdk::describe_methods(methods);
 }
 
 procam::sdk::Error create(const procam::sdk::CreateArgs& args,

@@ -123,8 +123,19 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
     EXPECT_TRUE(d[i]["params"].is_array()) << names[i];
   }
   EXPECT_TRUE(d[0]["description"].is_string());
-  EXPECT_TRUE(d[0]["patterns"].is_null());  // gray's count depends on the projector width
+  // "patterns" is an integer or null (proto/PROTOCOL.md list_plugins): null
+  // where the count depends on the projector width, which describe() cannot
+  // know; the formula is in "patterns_formula".
+  for (size_t i = 0; i < 8; ++i)
+    EXPECT_TRUE(d[i]["patterns"].is_null() || d[i]["patterns"].is_number_unsigned()) << names[i];
+  EXPECT_TRUE(d[0]["patterns"].is_null());
   EXPECT_TRUE(d[0]["patterns_formula"].is_string());
+  // Fixed counts, from the methods' definitions: minsw = white + black + 10
+  // planes with inverses (defaults binarize=inverse, black_frame on);
+  // phase shifting = 3 frequencies x 6 shifts, modulated x 9 masks.
+  EXPECT_EQ(d[3]["patterns"], 2 + 2 * 10);
+  EXPECT_EQ(d[6]["patterns"], 3 * 6);
+  EXPECT_EQ(d[7]["patterns"], 3 * 6 * 9);
   std::map<std::string, nlohmann::json> params;
   for (const auto& p : d[0]["params"]) params[p["name"].get<std::string>()] = p;
   ASSERT_EQ(params.size(), 5u);
@@ -339,6 +350,33 @@ TEST(PluginAbi, UncalibratedRigDecodesWithoutDepth) {
   EXPECT_FALSE(o.count("depth_mm"));
   EXPECT_FALSE(o.count("points"));
   EXPECT_EQ(nlohmann::json::parse(o["report"]->json)["triangulated"], false);
+}
+
+// describe()'s integer "patterns" must be what a session with default params
+// plans in its first round, on rigs of two projector widths (the count must not
+// depend on the width, else describe() has to say null).
+TEST(PluginAbi, DescribedPatternCountsMatchTheFirstPlan) {
+  const nlohmann::json d = nlohmann::json::parse(plugin().vt->describe());
+  size_t checked = 0;
+  for (const nlohmann::json& m : d) {
+    if (m["patterns"].is_null()) continue;
+    for (uint32_t width : {kProjW, 1030u}) {  // 1030 > 1024: stretched min-SW columns
+      nlohmann::json rig = rig_json(false);
+      rig["projector"]["width"] = width;
+      const std::string rig_text = rig.dump();
+      const std::string method = m["name"].get<std::string>();
+      procam_session* s = nullptr;
+      procam_error err{};
+      ASSERT_EQ(plugin().vt->session_create(method.c_str(), "{}", rig_text.c_str(), &s, &err), PROCAM_OK)
+          << method << ": " << err.message;
+      const procam_plan* plan = nullptr;
+      ASSERT_EQ(plugin().vt->next_plan(s, &plan, &err), 1) << method;
+      EXPECT_EQ(plan->frame_count, m["patterns"].get<uint32_t>()) << method << " at width " << width;
+      plugin().vt->session_destroy(s);
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 3u);  // minsw, phase-shift, modulated-phase-shift
 }
 
 // ---- misuse -------------------------------------------------------------------

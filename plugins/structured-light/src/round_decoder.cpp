@@ -61,11 +61,11 @@ void BinaryRoundDecoder::allocate_result() {
 
 void recycle_maps(RoundResult&& r) noexcept {
   for (AxisMaps* m : {&r.cols, &r.rows}) {
-    give_map(std::move(m->coord));
-    give_map(std::move(m->valid));
-    give_map(std::move(m->confidence));
+    sdk::give_map(std::move(m->coord));
+    sdk::give_map(std::move(m->valid));
+    sdk::give_map(std::move(m->confidence));
   }
-  give_map(std::move(r.intensity));
+  sdk::give_map(std::move(r.intensity));
 }
 
 RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margin) {

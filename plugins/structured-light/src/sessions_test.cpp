@@ -19,7 +19,7 @@
 
 #include "codes_session.hpp"
 #include "gray_session.hpp"
-#include "map_cache.hpp"
+#include "procam/sdk/map_cache.hpp"
 #include "phase_session.hpp"
 
 namespace procam::sl {
@@ -219,14 +219,14 @@ TEST(MapCache, RecycledMapsGiveTheSameResults) {
     return v;
   };
   const Distort scene_a = [](uint32_t, const std::string&, uint32_t, uint32_t, double v) { return v + 5.0; };
-  const size_t limit = map_cache_limit();
+  const size_t limit = sdk::map_cache_limit();
   for (const char* m : {"gray", "ensemble", "xor04"}) {
-    set_map_cache_limit(0);
+    sdk::set_map_cache_limit(0);
     const ScanRun ref = run(m, nlohmann::json::object(), scene_b);
-    EXPECT_EQ(map_cache_bytes(), 0u) << m;
-    set_map_cache_limit(limit);
+    EXPECT_EQ(sdk::map_cache_bytes(), 0u) << m;
+    sdk::set_map_cache_limit(limit);
     (void)run(m, nlohmann::json::object(), scene_a);  // its maps go to the cache at session end
-    EXPECT_GT(map_cache_bytes(), size_t{kW} * kH * 4) << m;
+    EXPECT_GT(sdk::map_cache_bytes(), size_t{kW} * kH * 4) << m;
     const ScanRun got = run(m, nlohmann::json::object(), scene_b);
     ASSERT_FALSE(ref.maps.empty()) << m;
     for (const auto& [name, want] : ref.maps) {
@@ -243,7 +243,7 @@ TEST(MapCache, RecycledMapsGiveTheSameResults) {
     for (float c : ref.maps.at("proj_col_px")) invalid += std::isnan(c) ? 1u : 0u;
     EXPECT_EQ(invalid, size_t{60} * kH) << m;
   }
-  set_map_cache_limit(limit);
+  sdk::set_map_cache_limit(limit);
 }
 
 // The ensemble's 41 patterns have no black frame (B = 0 assumed): a shadow

@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <limits>
 
-#include "simd.hpp"
+#include "procam/sdk/simd.hpp"
 
 namespace procam::sl {
 
@@ -144,7 +144,7 @@ void vote_keys_scalar(const int32_t* const key[kEnsembleCodes], const uint8_t* l
   }
 }
 
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
 #define PROCAM_AVX2 __attribute__((target("avx2"), always_inline)) inline
 PROCAM_AVX2 __m256i agree8(__m256i a, __m256i b, __m256i limit) {
   const __m256i minus1 = _mm256_set1_epi32(-1);
@@ -313,7 +313,7 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
 
 void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n,
                int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
-#ifdef PROCAM_SL_X86
+#ifdef PROCAM_SDK_X86
   if (avx512_active()) return vote_keys_avx512(key, lit, n, agree2, coord, valid, confidence, cls);
   if (simd_active()) return vote_keys_avx2(key, lit, n, agree2, coord, valid, confidence, cls);
 #endif

@@ -11,7 +11,7 @@
 //     procam::sdk::Error end_round() override;
 //     procam::sdk::Error outputs(procam::sdk::Outputs& out) override;
 //   };
-//   std::string my_describe();   // JSON array of methods (see describe_params)
+//   std::string my_describe();   // JSON array of methods (sdk::describe_methods)
 //   procam::sdk::Error my_create(const procam::sdk::CreateArgs& args,
 //                                std::unique_ptr<procam::sdk::Session>& out);
 //   PROCAM_DEFINE_PLUGIN("my-plugin", "0.1.0", "method_a,method_b", my_describe, my_create)
@@ -57,11 +57,16 @@
 #include "procam/plugin_abi.h"
 #include "procam/sdk/error.hpp"
 #include "procam/sdk/image.hpp"
+#include "procam/sdk/map_cache.hpp"
+#include "procam/sdk/method.hpp"
 #include "procam/sdk/outputs.hpp"
 #include "procam/sdk/parallel.hpp"
 #include "procam/sdk/params.hpp"
+#include "procam/sdk/patterns.hpp"
 #include "procam/sdk/plan.hpp"
 #include "procam/sdk/rig.hpp"
+#include "procam/sdk/standard_outputs.hpp"
+#include "procam/sdk/timing.hpp"
 
 namespace procam::sdk {
 

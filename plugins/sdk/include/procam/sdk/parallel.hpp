@@ -1,20 +1,22 @@
 // SPDX-License-Identifier: MIT
-// parallel_rows(): split per-pixel work over row bands on std::threads.
+// parallel_rows(): split per-pixel work over row bands on persistent threads.
 //
 // Contract: fn(y0, y1) is called for disjoint bands [y0, y1) covering [0, rows)
-// exactly once each, at most `threads` at a time (the calling thread runs the
-// first band). fn must only write state owned by its band. Returns after
-// every band finished; if any band threw, the first exception is rethrown on
-// the calling thread (so exceptions never escape a worker thread), which the
-// SDK's ABI wrapper then turns into an error code.
+// exactly once each, at most `threads` at a time (the calling thread runs
+// bands too). fn must only write state owned by its band. Returns after every
+// band finished; if any band threw, the first exception is rethrown on the
+// calling thread (so exceptions never escape a worker thread), which the SDK's
+// ABI wrapper then turns into an error code.
+// Bands: min(threads, rows) equal bands, band i = [rows*i/n, rows*(i+1)/n).
+// Threads: the calling thread's persistent pool (procam::parallel_bands in
+// procam/base/work_pool.hpp): no thread is started per call once the pool
+// exists; a nested call runs its bands on the calling thread.
 #pragma once
 
 #include <algorithm>
 #include <cstdint>
-#include <exception>
-#include <mutex>
-#include <thread>
-#include <vector>
+
+#include "procam/base/work_pool.hpp"
 
 namespace procam::sdk {
 
@@ -26,25 +28,9 @@ void parallel_rows(uint32_t rows, uint32_t threads, Fn&& fn) {
     fn(uint32_t{0}, rows);
     return;
   }
-  std::exception_ptr first;
-  std::mutex mutex;
-  auto band = [&](uint32_t i) {
-    const uint32_t y0 = static_cast<uint32_t>(uint64_t{rows} * i / n);
-    const uint32_t y1 = static_cast<uint32_t>(uint64_t{rows} * (i + 1) / n);
-    try {
-      fn(y0, y1);
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(mutex);
-      if (!first) first = std::current_exception();
-    }
-  };
-  {
-    std::vector<std::jthread> workers;  // jthread joins on destruction, even on throw
-    workers.reserve(n - 1);
-    for (uint32_t i = 1; i < n; ++i) workers.emplace_back(band, i);
-    band(0);
-  }
-  if (first) std::rethrow_exception(first);
+  procam::parallel_bands(n, n, [&](uint32_t i) {
+    fn(static_cast<uint32_t>(uint64_t{rows} * i / n), static_cast<uint32_t>(uint64_t{rows} * (i + 1) / n));
+  });
 }
 
 }  // namespace procam::sdk

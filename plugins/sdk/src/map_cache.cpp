@@ -1,14 +1,16 @@
 // SPDX-License-Identifier: MIT
-// Output-map storage cache (see map_cache.hpp).
-#include "map_cache.hpp"
+// Output-map storage cache and huge-page advice (see procam/sdk/map_cache.hpp).
+#include "procam/sdk/map_cache.hpp"
+
+#include <sys/mman.h>
 
 #include <mutex>
 #include <utility>
 
-#include "bitplane_stream.hpp"
-
-namespace procam::sl {
+namespace procam::sdk {
 namespace {
+
+constexpr size_t kHugePage = size_t{2} << 20;
 
 struct Cache {
   std::mutex mu;
@@ -94,4 +96,18 @@ size_t map_cache_bytes() {
   return c.bytes;
 }
 
-}  // namespace procam::sl
+void advise_huge_pages(const void* p, size_t bytes) noexcept {
+#ifdef MADV_HUGEPAGE
+  const auto a = reinterpret_cast<uintptr_t>(p);
+  const uintptr_t begin = (a + kHugePage - 1) / kHugePage * kHugePage;
+  const uintptr_t end = (a + bytes) / kHugePage * kHugePage;
+  if (end > begin)  // a hint: failure only means 4 KiB pages
+    (void)madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+  (void)kHugePage;
+#endif
+}
+
+}  // namespace procam::sdk
