@@ -3,8 +3,8 @@
 // ScopedMs adds the wall time of a scope, in ms, to a session's decode_ms
 // (add_frame work, end_round, triangulation); StreamingSession<Decoder> owns
 // the round's streaming decoder (BinaryRoundDecoder / MultiCodeDecoder) and
-// forwards add_frame to it, timed; add_depth_outputs writes the triangulated
-// outputs and the valid fraction the same way for both.
+// forwards add_frame to it, timed. (Their triangulated outputs and valid
+// fraction: sdk::add_depth_outputs, procam/sdk/triangulate.hpp.)
 // Thread-safety: thread-bound, like the sessions.
 #pragma once
 
@@ -14,7 +14,6 @@
 #include <utility>
 
 #include "procam/plugin_sdk.hpp"
-#include "triangulate.hpp"
 
 namespace procam::sl {
 
@@ -44,18 +43,5 @@ class StreamingSession : public sdk::Session {
   std::optional<Decoder> decoder_;  // the current round's decoder
   double decode_ms_ = 0;
 };
-
-// depth_mm + points (when triangulated) and valid_fraction = valid / n.
-inline void add_depth_outputs(sdk::Outputs& out, std::optional<DepthResult>& depth, uint32_t w,
-                              uint32_t h, size_t valid, double n) {
-  if (depth) {
-    out.add_image("depth_mm", "mm", "z of the triangulated point, camera frame (NaN: none)", w, h,
-                  std::move(depth->depth_mm));
-    out.add_points("points", "triangulated points, camera frame; intensity = white / full scale",
-                   "x,y,z,intensity", 4, std::move(depth->points));
-  }
-  out.add_scalar("valid_fraction", "", "fraction of camera pixels with a valid column",
-                 n > 0 ? static_cast<double>(valid) / n : 0.0);
-}
 
 }  // namespace procam::sl
