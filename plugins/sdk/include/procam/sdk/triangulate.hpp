@@ -21,8 +21,9 @@
 // Units: mm, camera frame (x right, y down, z forward). Thread-safety: a
 // ColumnTriangulator is immutable after construction; run() is reentrant and
 // uses `threads` worker threads (sdk::parallel_rows). Errors: std::bad_alloc
-// and std::invalid_argument (size mismatch) only; call inside the SDK's ABI
-// wrapper, which turns them into error codes.
+// and std::invalid_argument (no column map) only; call inside the SDK's ABI
+// wrapper, which turns them into error codes. Storage: `col` and `intensity`
+// are borrowed for the call and must hold width*height floats each.
 #pragma once
 
 #include <cstdint>
