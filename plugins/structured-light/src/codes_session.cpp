@@ -18,7 +18,7 @@
 #include "multi_round.hpp"
 #include "streaming_session.hpp"
 #include "subpixel.hpp"
-#include "triangulate.hpp"
+#include "procam/sdk/triangulate.hpp"
 #include "vote.hpp"
 
 namespace procam::sl {
@@ -217,11 +217,11 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     out.set_release(sdk::give_map, sdk::give_map);  // the next scan's decoder reuses the maps' pages
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
-    std::optional<DepthResult> depth;
+    std::optional<sdk::DepthResult> depth;
     if (rig_.can_triangulate(0)) {
       const ScopedMs timed(decode_ms_);
-      depth = triangulate_columns(cam.calibration, rig_.projector, w, h, coord_.data(),
-                                  intensity_.data(), rig_.threads);
+      depth = sdk::triangulate_columns(cam.calibration, rig_.projector, w, h, coord_.data(),
+                                       intensity_.data(), rig_.threads);
     }
     sdk::StandardOutputs standard;
     standard.decode_ms = decode_ms_;  // the triangulation above included
@@ -263,7 +263,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                       std::string("first-pass column decoded by code ") + kCodeIds[k] +
                           " alone (NaN: invalid or not projected)",
                       w, h, std::move(stage_maps_[k]));
-    add_depth_outputs(out, depth, w, h);
+    sdk::add_depth_outputs(out, depth, w, h);
     out.add_scalar("error_fraction", "",
                    "lit pixels left as errors (no valid column; ensemble: no two codes agree) / lit",
                    lit > 0 ? static_cast<double>(errors) / static_cast<double>(lit) : 0.0);

@@ -11,7 +11,7 @@
 #include "gray_code.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
-#include "triangulate.hpp"
+#include "procam/sdk/triangulate.hpp"
 
 namespace procam::sl {
 namespace {
@@ -70,8 +70,9 @@ void BM_GrayDecodeAndTriangulate(benchmark::State& state) {
   Data& d = data();
   for (auto _ : state) {
     RoundResult r = decode_round(threads);
-    benchmark::DoNotOptimize(triangulate_columns(d.cam, d.proj, kW, kH, r.cols.coord.data(),
-                                                 r.intensity.data(), threads));
+    benchmark::DoNotOptimize(sdk::triangulate_columns(d.cam, d.proj, kW, kH,
+                                                      r.cols.coord.data(), r.intensity.data(),
+                                                      threads));
   }
 }
 BENCHMARK(BM_GrayDecodeAndTriangulate)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -81,8 +82,9 @@ void BM_Triangulate(benchmark::State& state) {
   Data& d = data();
   const RoundResult r = decode_round(2);
   for (auto _ : state)
-    benchmark::DoNotOptimize(triangulate_columns(d.cam, d.proj, kW, kH, r.cols.coord.data(),
-                                                 r.intensity.data(), threads));
+    benchmark::DoNotOptimize(sdk::triangulate_columns(d.cam, d.proj, kW, kH,
+                                                      r.cols.coord.data(), r.intensity.data(),
+                                                      threads));
 }
 BENCHMARK(BM_Triangulate)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 

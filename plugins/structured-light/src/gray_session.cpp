@@ -14,7 +14,7 @@
 #include "round_decoder.hpp"
 #include "streaming_session.hpp"
 #include "subpixel.hpp"
-#include "triangulate.hpp"
+#include "procam/sdk/triangulate.hpp"
 
 namespace procam::sl {
 
@@ -80,9 +80,9 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
     decoder_.reset();  // releases the accumulators
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     if (rig_.can_triangulate(0))
-      depth_ = triangulate_columns(cam.calibration, rig_.projector, cam.width, cam.height,
-                                   result_.cols.coord.data(), result_.intensity.data(),
-                                   rig_.threads);
+      depth_ = sdk::triangulate_columns(cam.calibration, rig_.projector, cam.width, cam.height,
+                                        result_.cols.coord.data(), result_.intensity.data(),
+                                        rig_.threads);
     return sdk::ok();
   }
 
@@ -114,7 +114,7 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
     out.add_image("confidence", "",
                   "min over column bits of |L - L_inv| / (white - black), clipped to [0, 1]", w,
                   h, std::move(result_.cols.confidence));
-    add_depth_outputs(out, depth_, w, h);
+    sdk::add_depth_outputs(out, depth_, w, h);
     standard.report = {
         {"method", "gray"},
         {"code", "binary-reflected Gray"},
@@ -146,7 +146,7 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
   StripeCode cols_;
   std::optional<StripeCode> rows_;
   RoundResult result_;
-  std::optional<DepthResult> depth_;
+  std::optional<sdk::DepthResult> depth_;
   bool round_started_ = false;
   uint32_t pattern_count_ = 0;
 };

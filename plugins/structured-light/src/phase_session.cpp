@@ -28,7 +28,7 @@
 #include <numbers>
 #include <optional>
 
-#include "triangulate.hpp"
+#include "procam/sdk/triangulate.hpp"
 
 namespace procam::sl {
 
@@ -206,9 +206,9 @@ class PhaseSession final : public sdk::Session {
     const auto t0 = std::chrono::steady_clock::now();
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     const uint32_t w = cam.width, h = cam.height;
-    std::optional<DepthResult> depth;
+    std::optional<sdk::DepthResult> depth;
     if (rig_.can_triangulate(0))
-      depth = triangulate_columns(cam.calibration, rig_.projector, w, h, coord_.data(), nullptr, rig_.threads);
+      depth = sdk::triangulate_columns(cam.calibration, rig_.projector, w, h, coord_.data(), nullptr, rig_.threads);
     decode_ms_ += ms_since(t0);
     size_t valid = 0;
     for (uint8_t v : valid_) valid += v != 0 ? 1u : 0u;

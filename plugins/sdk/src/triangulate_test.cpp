@@ -1,0 +1,331 @@
+// SPDX-License-Identifier: MIT
+// Tests of procam::sdk triangulation: against geometry computed here (a plane at
+// known depth; each pixel's true column from projecting the plane point into
+// the projector, x_p = R^T (X - t)), and against a reference that runs the
+// per-pixel procam::triangulate_column (procam/base/calibration.hpp) the way
+// the former procam::sl::triangulate_columns did, on hard cases.
+#include "procam/sdk/triangulate.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace procam::sdk {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+struct Geometry {
+  CameraCalibration cam;
+  Intrinsics proj;
+};
+
+Geometry make_geometry() {
+  Geometry g;
+  g.cam.intrinsics = {320, 240, 400.0, 400.0, 159.5, 119.5};
+  g.proj = {640, 400, 700.0, 700.0, 319.5, 199.5};
+  // Projector 200 mm to the right of the camera, turned 20 degrees toward it.
+  const double a = -20.0 * M_PI / 180.0;
+  g.cam.cam_from_proj.rotation = Mat3{{std::cos(a), 0, std::sin(a), 0, 1, 0, -std::sin(a), 0,
+                                       std::cos(a)}};
+  g.cam.cam_from_proj.translation_mm = {200.0, 0.0, 0.0};
+  return g;
+}
+
+// Independent forward model: the camera ray of pixel (u, v) meets the plane
+// z = z0 + slope * x (camera frame); returns the point and its continuous
+// projector column.
+void plane_point(const Geometry& g, double u, double v, double z0, double slope, Vec3& X,
+                 double& col) {
+  const double dx = (u - g.cam.intrinsics.cx) / g.cam.intrinsics.fx;
+  const double dy = (v - g.cam.intrinsics.cy) / g.cam.intrinsics.fy;
+  const double s = z0 / (1.0 - slope * dx);  // z = s, x = s dx on the plane
+  X = {s * dx, s * dy, s};
+  const Mat3& R = g.cam.cam_from_proj.rotation;
+  const Vec3 d = X - g.cam.cam_from_proj.translation_mm;
+  const Vec3 xp = R.transposed() * d;
+  col = g.proj.fx * xp.x / xp.z + g.proj.cx;
+}
+
+// The former implementation, per pixel and single-threaded: the reference.
+DepthResult reference(const Geometry& g, uint32_t w, uint32_t h, const float* col,
+                      const float* intensity) {
+  DepthResult r;
+  r.depth_mm.assign(size_t{w} * h, kNaN);
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const size_t i = size_t{y} * w + x;
+      if (!std::isfinite(col[i])) continue;
+      const auto p = triangulate_column(g.cam, g.proj, x, y, static_cast<double>(col[i]));
+      if (!p) continue;
+      const auto X = static_cast<float>(p->x), Y = static_cast<float>(p->y),
+                 Z = static_cast<float>(p->z);
+      if (!std::isfinite(X) || !std::isfinite(Y) || !std::isfinite(Z)) continue;
+      r.depth_mm[i] = Z;
+      r.points.insert(r.points.end(), {X, Y, Z, intensity != nullptr ? intensity[i] : 0.0f});
+    }
+  r.point_count = r.points.size() / 4;
+  return r;
+}
+
+// Condition number |n||d| / |n.d| of pixel (u, v) against column c: how much
+// the float ray table's rounding (2^-24 relative) is amplified in the point.
+double condition(const Geometry& g, double u, double v, double c) {
+  const Vec3 d = g.cam.intrinsics.ray(u, v);
+  const Vec3 n = g.cam.cam_from_proj.rotation * Vec3{g.proj.fx, 0.0, -(c - g.proj.cx)};
+  return norm(n) * norm(d) / std::abs(dot(n, d));
+}
+
+// Same pixels get a point, in the same (row-major) order, with the same
+// intensity; coordinates agree within kRel * condition * |p|. kRel: the ray
+// table holds float rays (relative error <= 2^-24 = 6e-8 per component) and
+// the outputs are floats (another 2^-24); the ray error reaches s amplified by
+// at most the condition number, so 1e-6 leaves a margin of ~8 over the worst
+// case while still catching any real formula error (those are >= 1e-3).
+constexpr double kRel = 1e-6;
+void expect_matches_reference(const Geometry& g, uint32_t w, uint32_t h,
+                              const std::vector<float>& col, const float* intensity,
+                              const DepthResult& got, const std::string& what) {
+  const DepthResult want = reference(g, w, h, col.data(), intensity);
+  ASSERT_EQ(got.point_count, want.point_count) << what;
+  ASSERT_EQ(got.points.size(), want.points.size()) << what;
+  ASSERT_EQ(got.depth_mm.size(), want.depth_mm.size()) << what;
+  size_t p = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    ASSERT_EQ(std::isnan(got.depth_mm[i]), std::isnan(want.depth_mm[i])) << what << " pixel " << i;
+    if (std::isnan(want.depth_mm[i])) continue;
+    const double cond = condition(g, static_cast<double>(i % w), static_cast<double>(i / w),
+                                  static_cast<double>(col[i]));
+    const double scale = std::hypot(want.points[4 * p], want.points[4 * p + 1], want.points[4 * p + 2]);
+    const double tol = kRel * std::max(1.0, cond) * scale;
+    for (size_t k = 0; k < 3; ++k)
+      ASSERT_NEAR(got.points[4 * p + k], want.points[4 * p + k], tol) << what << " pixel " << i;
+    ASSERT_EQ(got.points[4 * p + 3], want.points[4 * p + 3]) << what << " pixel " << i;
+    ASSERT_EQ(got.depth_mm[i], got.points[4 * p + 2]) << what << " pixel " << i;
+    ++p;
+  }
+}
+
+TEST(Triangulate, PlaneAtKnownDepthExactColumns) {
+  const Geometry g = make_geometry();
+  const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
+  for (double slope : {0.0, 0.3}) {
+    std::vector<float> col(size_t{w} * h), intensity(col.size());
+    std::vector<Vec3> truth(col.size());
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x) {
+        const size_t i = size_t{y} * w + x;
+        double c;
+        plane_point(g, x, y, 400.0, slope, truth[i], c);
+        col[i] = static_cast<float>(c);
+        intensity[i] = static_cast<float>(i % 7) / 7.0f;
+      }
+    // Some invalid pixels.
+    col[5] = kNaN;
+    col[w * 100 + 50] = kNaN;
+    const DepthResult r = triangulate_columns(g.cam, g.proj, w, h, col.data(), intensity.data(), 2);
+    ASSERT_EQ(r.depth_mm.size(), col.size());
+    ASSERT_EQ(r.point_count, col.size() - 2);
+    ASSERT_EQ(r.points.size(), r.point_count * 4);
+    EXPECT_TRUE(std::isnan(r.depth_mm[5]));
+    EXPECT_TRUE(std::isnan(r.depth_mm[w * 100 + 50]));
+    // Float column storage (~3e-5 px) bounds the error far below 0.5 mm.
+    size_t p = 0;
+    double worst = 0;
+    for (size_t i = 0; i < col.size(); ++i) {
+      if (std::isnan(col[i])) continue;
+      worst = std::max(worst, std::abs(static_cast<double>(r.depth_mm[i]) - truth[i].z));
+      ASSERT_NEAR(r.points[4 * p + 0], truth[i].x, 0.05) << i;
+      ASSERT_NEAR(r.points[4 * p + 1], truth[i].y, 0.05) << i;
+      ASSERT_NEAR(r.points[4 * p + 2], truth[i].z, 0.05) << i;
+      ASSERT_EQ(r.points[4 * p + 3], intensity[i]);
+      ++p;
+    }
+    EXPECT_LT(worst, 0.05) << "slope " << slope;
+    expect_matches_reference(g, w, h, col, intensity.data(), r, "plane");
+  }
+}
+
+TEST(Triangulate, ThreadCountDoesNotChangeResult) {
+  const Geometry g = make_geometry();
+  const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
+  std::vector<float> col(size_t{w} * h);
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      Vec3 X;
+      double c;
+      plane_point(g, x, y, 350.0, 0.1, X, c);
+      col[size_t{y} * w + x] = (x + y) % 5 == 0 ? kNaN : std::round(static_cast<float>(c));
+    }
+  const DepthResult a = triangulate_columns(g.cam, g.proj, w, h, col.data(), nullptr, 1);
+  const DepthResult b = triangulate_columns(g.cam, g.proj, w, h, col.data(), nullptr, 5);
+  ASSERT_EQ(a.points, b.points);
+  ASSERT_EQ(a.point_count, b.point_count);
+  for (size_t i = 0; i < col.size(); ++i)
+    ASSERT_TRUE(a.depth_mm[i] == b.depth_mm[i] ||
+                (std::isnan(a.depth_mm[i]) && std::isnan(b.depth_mm[i])));
+  expect_matches_reference(g, w, h, col, nullptr, a, "rounded columns");
+}
+
+TEST(Triangulate, BehindTheDevicesGivesNoPoint) {
+  const Geometry g = make_geometry();
+  // Column plane that only meets this ray behind the camera: column far to
+  // the projector's left of the camera's optical axis intersection.
+  std::vector<float> col = {static_cast<float>(g.proj.cx + 5000.0)};
+  const DepthResult r = triangulate_columns(g.cam, g.proj, 1, 1, col.data(), nullptr, 1);
+  EXPECT_TRUE(std::isnan(r.depth_mm[0]));
+  EXPECT_EQ(r.point_count, 0u);
+}
+
+// A projector in front of the camera, 100 mm to the right, facing it (turned
+// 180 degrees about y): x_cam = 100 - x_p, z_cam = t_z - z_p. Column cx_p is
+// the plane x_cam = 100. Camera pixel x of a 3x1 image (fx 4, cx 0) has the
+// ray d = (x / 4, 0, 1): x = 0 runs parallel to the plane, x = 1 meets it at
+// z = 400, x = 2 at z = 200 (x = 100 mm).
+TEST(Triangulate, BehindTheProjectorGivesNoPoint) {
+  Geometry g;
+  g.cam.intrinsics = {3, 1, 4.0, 100.0, 0.0, 0.0};
+  g.proj = {100, 100, 100.0, 100.0, 50.0, 50.0};
+  g.cam.cam_from_proj.rotation = Mat3{{-1, 0, 0, 0, 1, 0, 0, 0, -1}};
+  g.cam.cam_from_proj.translation_mm = {100.0, 0.0, 500.0};
+  const std::vector<float> col = {50.0f, 50.0f, 50.0f};
+  const DepthResult r =
+      ColumnTriangulator(g.cam, g.proj, 3, 1).run(ColumnMap{col.data(), nullptr}, 1);
+  EXPECT_TRUE(std::isnan(r.depth_mm[0]));
+  EXPECT_FLOAT_EQ(r.depth_mm[1], 400.0f);  // z_p = 500 - 400 = 100 > 0
+  EXPECT_FLOAT_EQ(r.depth_mm[2], 200.0f);
+  // Projector at z 300: the z = 400 point is now behind it (z_p = -100).
+  g.cam.cam_from_proj.translation_mm.z = 300.0;
+  const DepthResult r2 =
+      ColumnTriangulator(g.cam, g.proj, 3, 1).run(ColumnMap{col.data(), nullptr}, 1);
+  EXPECT_TRUE(std::isnan(r2.depth_mm[0]));
+  EXPECT_TRUE(std::isnan(r2.depth_mm[1]));
+  EXPECT_FLOAT_EQ(r2.depth_mm[2], 200.0f);
+  ASSERT_EQ(r2.point_count, 1u);
+  EXPECT_FLOAT_EQ(r2.points[0], 100.0f);
+  expect_matches_reference(g, 3, 1, col, nullptr, r2, "behind projector");
+}
+
+// Exactly parallel ray and plane: identity rotation, fx = fx_p = 512 and
+// u - cx = c - cx_p = 32, so n.d = 512 * 0.0625 - 32 = 0 in any precision.
+TEST(Triangulate, RayParallelToPlaneGivesNoPoint) {
+  Geometry g;
+  g.cam.intrinsics = {64, 1, 512.0, 512.0, 0.0, 0.0};
+  g.proj = {256, 256, 512.0, 512.0, 100.0, 128.0};
+  g.cam.cam_from_proj.translation_mm = {100.0, 0.0, 0.0};
+  std::vector<float> col(64, 132.0f);  // c - cx_p = 32: parallel at u = 32
+  const DepthResult r = ColumnTriangulator(g.cam, g.proj, 64, 1).run(ColumnMap{col.data(), nullptr}, 1);
+  EXPECT_TRUE(std::isnan(r.depth_mm[32]));
+  EXPECT_FALSE(std::isnan(r.depth_mm[40]));  // its neighbours meet the plane (x > 32 in front)
+  expect_matches_reference(g, 64, 1, col, nullptr, r, "parallel");
+}
+
+// Random columns over a wide range (far outside the projector too), with NaN,
+// +-inf, the edge columns -0.5 and W - 0.5, and whole invalid rows: same
+// points, order and count as the reference, and the gap closing exercised
+// (finite columns that make no point in the middle of rows).
+TEST(Triangulate, MatchesPerPixelReferenceOnHardMaps) {
+  const Geometry g = make_geometry();
+  const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
+  const auto W = static_cast<float>(g.proj.width);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> wide(-3000.0f, 4000.0f), pick(0.0f, 1.0f);
+  std::vector<float> col(size_t{w} * h), intensity(col.size());
+  size_t finite_without_point = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    const float u = pick(rng);
+    col[i] = u < 0.1f   ? kNaN
+             : u < 0.12f ? std::numeric_limits<float>::infinity()
+             : u < 0.14f ? -std::numeric_limits<float>::infinity()
+             : u < 0.2f  ? -0.5f
+             : u < 0.26f ? W - 0.5f
+                         : wide(rng);
+    intensity[i] = pick(rng);
+  }
+  for (uint32_t x = 0; x < w; ++x) col[size_t{17} * w + x] = kNaN;  // an empty row
+  const DepthResult want = reference(g, w, h, col.data(), intensity.data());
+  for (size_t i = 0; i < col.size(); ++i)
+    finite_without_point += std::isfinite(col[i]) && std::isnan(want.depth_mm[i]) ? 1u : 0u;
+  ASSERT_GT(finite_without_point, 1000u);  // the hard cases are really there
+  ASSERT_GT(want.point_count, 10000u);
+  ColumnTriangulator t(g.cam, g.proj, w, h);
+  DepthResult reused;
+  for (uint32_t threads : {1u, 2u, 3u}) {
+    t.run(ColumnMap{col.data(), intensity.data()}, threads, reused);
+    expect_matches_reference(g, w, h, col, intensity.data(), reused,
+                             "threads " + std::to_string(threads));
+  }
+  // Edge columns on their own: -0.5 and W - 0.5 triangulate (they are
+  // projector pixel edges, not outside it).
+  std::vector<float> edges(col.size());
+  for (size_t i = 0; i < edges.size(); ++i) edges[i] = i % 2 == 0 ? -0.5f : W - 0.5f;
+  t.run(ColumnMap{edges.data(), nullptr}, 2, reused);  // reuses (shrinks) the storage
+  EXPECT_GT(reused.point_count, 0u);
+  expect_matches_reference(g, w, h, edges, nullptr, reused, "edges");
+}
+
+TEST(Triangulate, Avx2KernelEqualsBaselineBitForBit) {
+  if (!cpu_has_avx2()) GTEST_SKIP() << "CPU without AVX2";
+  const Geometry g = make_geometry();
+  const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> wide(-1000.0f, 1700.0f), pick(0.0f, 1.0f);
+  std::vector<float> col(size_t{w} * h), intensity(col.size());
+  for (size_t i = 0; i < col.size(); ++i) {
+    col[i] = pick(rng) < 0.1f ? kNaN : wide(rng);
+    intensity[i] = pick(rng);
+  }
+  const ColumnTriangulator t(g.cam, g.proj, w, h);
+  DepthResult base, avx;
+  t.run(ColumnMap{col.data(), intensity.data()}, 2, base, TriangulateIsa::baseline);
+  t.run(ColumnMap{col.data(), intensity.data()}, 2, avx, TriangulateIsa::avx2);
+  ASSERT_GT(base.point_count, 10000u);
+  ASSERT_EQ(base.point_count, avx.point_count);
+  ASSERT_EQ(0, std::memcmp(base.points.data(), avx.points.data(), base.points.size() * sizeof(float)));
+  ASSERT_EQ(0, std::memcmp(base.depth_mm.data(), avx.depth_mm.data(),
+                           base.depth_mm.size() * sizeof(float)));
+}
+
+TEST(Triangulate, CachedTriangulatorFollowsCalibrationChanges) {
+  Geometry g = make_geometry();
+  const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
+  std::vector<float> col(size_t{w} * h, 300.0f);
+  const DepthResult a = triangulate_columns(g.cam, g.proj, w, h, col.data(), nullptr, 2);
+  g.cam.cam_from_proj.translation_mm.x = 250.0;  // longer baseline: every point moves
+  const DepthResult b = triangulate_columns(g.cam, g.proj, w, h, col.data(), nullptr, 2);
+  expect_matches_reference(g, w, h, col, nullptr, b, "after change");
+  ASSERT_EQ(a.point_count, b.point_count);
+  EXPECT_NE(a.points[2], b.points[2]);
+}
+
+TEST(Triangulate, AddDepthOutputsWritesMapsAndPoints) {
+  std::optional<DepthResult> depth = DepthResult{{1.0f, kNaN}, {0.5f, 0.25f, 1.0f, 0.75f}, 1};
+  Outputs out;
+  add_depth_outputs(out, depth, 2, 1);
+  ASSERT_EQ(out.size(), 2u);
+  const procam_output* o = out.view();
+  EXPECT_STREQ(o[0].name, "depth_mm");
+  EXPECT_STREQ(o[0].unit, "mm");
+  EXPECT_STREQ(o[0].description, "z of the triangulated point, camera frame (NaN: none)");
+  EXPECT_EQ(static_cast<const float*>(o[0].image.data)[0], 1.0f);
+  EXPECT_STREQ(o[1].name, "points");
+  EXPECT_STREQ(o[1].point_fields, "x,y,z,intensity");
+  EXPECT_STREQ(o[1].description,
+               "triangulated points, camera frame; intensity = white / full scale");
+  EXPECT_EQ(o[1].point_count, 1u);
+  EXPECT_EQ(o[1].points[3], 0.75f);
+  // No depth: no outputs.
+  std::optional<DepthResult> none;
+  Outputs out2;
+  add_depth_outputs(out2, none, 2, 1);
+  EXPECT_EQ(out2.size(), 0u);
+}
+
+}  // namespace
+}  // namespace procam::sdk
