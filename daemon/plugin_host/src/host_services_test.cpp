@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -125,6 +126,43 @@ TEST(HostServices, PluginRunsWithoutHandlers) {
   moved.set_log_handler([&](log::Level, const std::string& m) { logs.push_back(m); });
   EXPECT_DOUBLE_EQ(run_one_round(moved, 200), 200.0);
   EXPECT_EQ(logs.size(), 4u);
+}
+
+TEST(HostServices, SdkPluginMarshalsWorkerThreadMessages) {
+  PluginHost host;
+  Status loaded = host.load_file(fixture("sdk_host_services"));
+  ASSERT_TRUE(loaded.ok()) << loaded.to_string();
+  auto s = host.create_session("sdk_host_services", "null", "{}", "{}");
+  ASSERT_TRUE(s.ok()) << s.status().to_string();
+  ASSERT_TRUE(s->has_host_services());
+  std::vector<std::pair<log::Level, std::string>> logs;
+  std::vector<std::pair<double, std::string>> progress;
+  std::vector<std::thread::id> threads;  // where each callback ran
+  s->set_log_handler([&](log::Level l, const std::string& m) {
+    logs.emplace_back(l, m);
+    threads.push_back(std::this_thread::get_id());
+  });
+  s->set_progress_handler([&](double f, const std::string& st) {
+    progress.emplace_back(f, st);
+    threads.push_back(std::this_thread::get_id());
+  });
+  auto plan = s->next_plan();
+  ASSERT_TRUE(plan.ok() && plan->has_value());
+  Image frame(4, 3, PixelType::u8);
+  std::memset(frame.data(), 0, frame.size_bytes());
+  ASSERT_TRUE(s->add_frame(0, frame.view()).ok());
+  ASSERT_TRUE(s->end_round().ok());
+  // Everything arrived, in the order the SDK delivers it: the worker's lines
+  // are queued and flushed on the calling thread before the next direct call.
+  const std::vector<std::pair<log::Level, std::string>> want_logs = {
+      {log::Level::info, "frame added"},
+      {log::Level::warn, "from the worker"},
+      {log::Level::info, "round decoded"}};
+  EXPECT_EQ(logs, want_logs);
+  const std::vector<std::pair<double, std::string>> want_progress = {{0.25, "calling thread"},
+                                                                     {0.75, "worker"}};
+  EXPECT_EQ(progress, want_progress);
+  for (const auto& t : threads) EXPECT_EQ(t, std::this_thread::get_id());
 }
 
 TEST(HostServices, SanitizeLogMessage) {
