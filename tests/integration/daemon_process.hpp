@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "../support/child_process.hpp"  // fork/exec/stop/reap
 #include "procam/client/client.hpp"
 
 namespace procam::testing {
@@ -42,28 +43,16 @@ struct TempDir {
 inline int run_command(const std::vector<std::string>& argv, std::string* output = nullptr) {
   int pipefd[2];
   if (pipe(pipefd) != 0) return -2;
-  pid_t pid = fork();
-  if (pid == 0) {
-    dup2(pipefd[1], 1);
-    dup2(pipefd[1], 2);
-    close(pipefd[0]);
-    close(pipefd[1]);
-    std::vector<char*> args;
-    for (auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    execv(args[0], args.data());
-    _exit(127);
-  }
+  const pid_t pid = spawn_piped(argv, pipefd[1], pipefd[0]);
   close(pipefd[1]);
   std::string out;
   char buf[4096];
   ssize_t n;
   while ((n = read(pipefd[0], buf, sizeof buf)) > 0) out.append(buf, static_cast<size_t>(n));
   close(pipefd[0]);
-  int status = 0;
-  waitpid(pid, &status, 0);
+  const int status = wait_child(pid);
   if (output) *output = out;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return status;
 }
 
 class Daemon {
@@ -96,10 +85,8 @@ public:
   }
   bool alive() {
     if (pid <= 0) return false;
-    int st;
-    pid_t r = waitpid(pid, &st, WNOHANG);
-    if (r == pid) {
-      exit_status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    if (auto ended = reap_if_exited(pid)) {
+      exit_status = *ended;
       pid = -1;
       return false;
     }
@@ -108,10 +95,7 @@ public:
   // SIGTERM and wait; returns the exit status (0 = clean).
   int stop() {
     if (pid > 0) {
-      kill(pid, SIGTERM);
-      int st = 0;
-      waitpid(pid, &st, 0);
-      exit_status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+      exit_status = stop_child(pid);
       pid = -1;
     }
     return exit_status;
@@ -129,21 +113,7 @@ public:
   int exit_status = -100;
 
 private:
-  void start(const std::vector<std::string>& argv) {
-    pid = fork();
-    if (pid == 0) {
-      FILE* f = std::fopen(log_path.c_str(), "w");
-      if (f) {
-        dup2(fileno(f), 1);
-        dup2(fileno(f), 2);
-      }
-      std::vector<char*> args;
-      for (auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
-      execv(args[0], args.data());
-      _exit(127);
-    }
-  }
+  void start(const std::vector<std::string>& argv) { pid = spawn_logged(argv, log_path); }
 };
 
 }  // namespace procam::testing

@@ -19,7 +19,7 @@ using Clock = std::chrono::steady_clock;
 
 std::string default_endpoint() {
   const char* e = std::getenv("PROCAM_ENDPOINT");
-  return e && *e ? e : kDefaultEndpoint;
+  return e && *e ? std::string(e) : std::string(kDefaultEndpoint);
 }
 
 Result<std::string> load_key(const std::string& value) {
@@ -151,34 +151,42 @@ Result<proto::Reply> Client::roundtrip(const proto::RequestBody& body, std::stri
                    impl_->curve ? "is procamd running, and does it list our public key in its authorized_keys? "
                                   "(with CURVE a refused key looks like no daemon)"
                                 : "is procamd running? start it with `procamd --config configs/procamd.json`");
-    zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
-    try {
-      zmq::poll(items, 1, left);
-    } catch (const zmq::error_t& e) {
-      if (e.num() == EINTR) continue;
-      return Error(Code::unavailable, std::string("poll: ") + e.what());
-    }
-    if (!(items[0].revents & ZMQ_POLLIN)) continue;
-    std::vector<zmq::message_t> msg;
-    try {
-      (void)zmq::recv_multipart(impl_->sock, std::back_inserter(msg));
-    } catch (const zmq::error_t& e) {
-      return Error(Code::unavailable, std::string("receive: ") + e.what());
-    }
-    size_t i = 0;
-    while (i < msg.size() && msg[i].size() == 0) ++i;  // delimiter
-    if (i >= msg.size()) continue;
-    auto in = proto::decode_incoming(std::string_view(static_cast<const char*>(msg[i].data()), msg[i].size()));
-    if (!in) return in.status().with_context("reply from procamd");
-    if (auto* ev = std::get_if<proto::Event>(&in->message)) {
-      pending_events_.push_back(std::move(*ev));
-      continue;
-    }
-    auto& rep = std::get<proto::Reply>(in->message);
+    auto got = receive_one(left, extra);
+    if (!got) return got.status();
+    if (!*got) continue;  // an event, a timeout or nothing
+    proto::Reply& rep = **got;
     if (!rep.id.empty() && rep.id != req.id) continue;  // late reply to an earlier, timed-out call
-    if (extra) *extra = i + 1 < msg.size() ? msg[i + 1].to_string() : std::string();
-    return rep;
+    return std::move(rep);
   }
+}
+
+Result<std::optional<proto::Reply>> Client::receive_one(std::chrono::milliseconds wait,
+                                                        std::string* extra) {
+  zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
+  try {
+    zmq::poll(items, 1, wait);
+  } catch (const zmq::error_t& e) {
+    if (e.num() == EINTR) return std::optional<proto::Reply>{};
+    return Error(Code::unavailable, std::string("poll: ") + e.what());
+  }
+  if (!(items[0].revents & ZMQ_POLLIN)) return std::optional<proto::Reply>{};
+  std::vector<zmq::message_t> msg;
+  try {
+    (void)zmq::recv_multipart(impl_->sock, std::back_inserter(msg));
+  } catch (const zmq::error_t& e) {
+    return Error(Code::unavailable, std::string("receive: ") + e.what());
+  }
+  size_t i = 0;
+  while (i < msg.size() && msg[i].size() == 0) ++i;  // delimiter
+  if (i >= msg.size()) return std::optional<proto::Reply>{};
+  auto in = proto::decode_incoming(std::string_view(static_cast<const char*>(msg[i].data()), msg[i].size()));
+  if (!in) return in.status().with_context("reply from procamd");
+  if (auto* ev = std::get_if<proto::Event>(&in->message)) {
+    pending_events_.push_back(std::move(*ev));
+    return std::optional<proto::Reply>{};
+  }
+  if (extra) *extra = i + 1 < msg.size() ? msg[i + 1].to_string() : std::string();
+  return std::optional<proto::Reply>(std::move(std::get<proto::Reply>(in->message)));
 }
 
 Result<nlohmann::json> Client::call_with_id(const std::string& id, const proto::RequestBody& body) {
@@ -223,27 +231,12 @@ Result<nlohmann::json> Client::scan(const proto::Scan& request,
     if (Clock::now() > deadline)
       return Error(Code::timeout, "scan " + scan_id + " did not finish in time", "check `procam status`");
     // Wait for events; every second confirm with status (events are advisory).
-    zmq::pollitem_t items[] = {{impl_->sock.handle(), 0, ZMQ_POLLIN, 0}};
-    try {
-      zmq::poll(items, 1, std::chrono::milliseconds(200));
-    } catch (const zmq::error_t&) {
-    }
-    if (items[0].revents & ZMQ_POLLIN) {
-      std::vector<zmq::message_t> msg;
-      try {
-        (void)zmq::recv_multipart(impl_->sock, std::back_inserter(msg));
-      } catch (const zmq::error_t& e) {
-        return Error(Code::unavailable, std::string("receive: ") + e.what());
-      }
-      size_t i = 0;
-      while (i < msg.size() && msg[i].size() == 0) ++i;
-      if (i < msg.size()) {
-        auto in = proto::decode_incoming(std::string_view(static_cast<const char*>(msg[i].data()), msg[i].size()));
-        if (in)
-          if (auto* ev = std::get_if<proto::Event>(&in->message)) pending_events_.push_back(std::move(*ev));
-      }
-      continue;
-    }
+    // Replies here are late answers to earlier calls (dropped); a message
+    // that does not decode is skipped; poll/receive failures end the wait.
+    const size_t events_before = pending_events_.size();
+    auto got = receive_one(std::chrono::milliseconds(200), nullptr);
+    if (!got && got.status().code() == Code::unavailable) return got.status();
+    if (!got || *got || pending_events_.size() != events_before) continue;
     if (Clock::now() - last_poll > std::chrono::seconds(1)) {
       last_poll = Clock::now();
       auto st = call(proto::StatusQuery{scan_id});

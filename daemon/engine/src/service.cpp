@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT
-// Scan queue + worker (see service.hpp for the contract).
+// Scan queue + worker (see service.hpp for the contract): scan records,
+// submit/cancel, the worker loop that runs one scan after another.
+// Split by concern: service_store.cpp (results folder), service_manifest.cpp
+// (manifest + status JSON), service_retention.cpp, service_dedupe.cpp
+// (request keys), service_metrics.cpp.
 #include "procam/engine/service.hpp"
 
 #include <chrono>
 #include <cmath>
 #include <ctime>
-#include <fcntl.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -18,6 +20,8 @@
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
 #include "procam/proto/protocol.hpp"
+#include "service_dedupe.hpp"
+#include "service_internal.hpp"
 
 namespace procam::engine {
 namespace fs = std::filesystem;
@@ -47,82 +51,21 @@ std::string new_scan_id() {
   return std::string(ts) + "-" + suffix;
 }
 
-nlohmann::json error_json(const Status& s) {
-  if (s.ok()) return nullptr;
-  return proto::error_to_json(s);
-}
-
-// Makes the renames inside `dir` durable (power loss after a finished scan).
-void fsync_dir(const std::string& dir) {
-  int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
-}
-
-// The files `fetch` serves: everything in the folder but manifest.json (its
-// content is the `result` reply) and temporaries.
-nlohmann::json scan_files(const std::string& dir) {
-  nlohmann::json out = nlohmann::json::array();
-  for (auto& f : list_files(dir))
-    if (f.value("name", "") != "manifest.json") out.push_back(f);
-  return out;
-}
-
-bool is_final(const std::string& state) { return state == "done" || state == "failed"; }
-
-// A string field of a manifest read from disk, "" when absent or not a string.
-std::string str_field(const nlohmann::json& j, const char* key) {
-  if (!j.is_object()) return "";
-  auto it = j.find(key);
-  return it != j.end() && it->is_string() ? it->get<std::string>() : "";
-}
-
-// The key under which a scan request is remembered: its id and a digest of
-// its content (two different 64-bit hashes and the length).
-std::string request_key(const std::string& id, const std::string& content) {
-  uint64_t fnv = 1469598103934665603ull;
-  for (char ch : content) fnv = (fnv ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
-  const uint64_t h = std::hash<std::string>{}(content);
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "\n%016llx%016llx-%zu", static_cast<unsigned long long>(fnv),
-                static_cast<unsigned long long>(h), content.size());
-  return id + buf;
-}
-
-uint64_t files_bytes(const nlohmann::json& manifest) {
-  uint64_t n = 0;
-  if (manifest.is_object() && manifest.contains("files") && manifest["files"].is_array())
-    for (const auto& f : manifest["files"])
-      if (f.is_object() && f.contains("size_bytes") && f["size_bytes"].is_number_unsigned())
-        n += f["size_bytes"].get<uint64_t>();
-  return n;
-}
-
 }  // namespace
 
-struct ScanService::Record {
-  std::string id;
-  ScanRequest req;
-  std::string state = "queued";
-  std::string created_utc, finished_utc;
-  Progress progress;
-  Status error;
-  std::optional<host::Session> session;  // until the scan runs
-  // When finished: the manifest lives in <results_dir>/<id>/manifest.json and
-  // is read from there on request (memory stays flat over thousands of
-  // scans); kept here only if writing it failed.
-  nlohmann::json manifest;
-  bool manifest_on_disk = false;
-  uint64_t seq = 0;
-  uint64_t bytes = 0;                    // files of a finished scan
-  // Last fetch (retention keeps recently downloaded scans); guarded by mu_.
-  mutable std::optional<std::chrono::steady_clock::time_point> last_download;
-};
+using service_detail::error_json;
+using service_detail::files_bytes;
+using service_detail::fsync_dir;
+using service_detail::is_final;
+using service_detail::scan_files;
 
 ScanService::ScanService(std::unique_ptr<hw::Rig> rig, const host::PluginHost& plugins,
                          ServiceConfig cfg, EventSink sink)
-    : rig_(std::move(rig)), plugins_(plugins), cfg_(std::move(cfg)), sink_(std::move(sink)) {
+    : rig_(std::move(rig)),
+      plugins_(plugins),
+      cfg_(std::move(cfg)),
+      sink_(std::move(sink)),
+      requests_(std::make_unique<RequestMemory>(cfg_.dedupe_window, cfg_.dedupe_max)) {
   rig_description_ = rig_->describe();
   rig_name_ = rig_description_.value("name", "");
   plugin_rig_json_ = plugin_rig_json(*rig_, cfg_.threads);
@@ -170,74 +113,6 @@ void ScanService::stop() {
   }
 }
 
-void ScanService::load_existing() {
-  std::error_code ec;
-  size_t interrupted = 0;
-  for (const auto& ent : fs::directory_iterator(cfg_.results_dir, ec)) try {
-    std::error_code ec2;
-    if (!ent.is_directory(ec2) || ent.is_symlink(ec2)) continue;
-    const std::string id = ent.path().filename().string();
-    if (id.empty() || id[0] == '.') continue;  // e.g. a folder being deleted
-    // Leftover temporaries of a write the daemon did not finish.
-    for (const auto& f : fs::directory_iterator(ent.path(), ec2)) {
-      const std::string n = f.path().filename().string();
-      if (n.size() > 1 && n[0] == '.' && n.find(".tmp") != std::string::npos) fs::remove(f.path(), ec2);
-    }
-    auto rec = std::make_shared<Record>();
-    rec->id = id;
-    auto m = read_json_file((ent.path() / "manifest.json").string());
-    if (m && m->is_object()) {
-      rec->req.plugin = str_field(*m, "plugin");
-      rec->req.method = str_field(*m, "method");
-      rec->req.label = str_field(*m, "label");
-      rec->created_utc = str_field(*m, "created_utc");
-      if (m->contains("params") && (*m)["params"].is_object()) rec->req.params = (*m)["params"];
-    }
-    if (m && m->is_object() && is_final(str_field(*m, "state"))) {
-      rec->manifest = *m;
-      rec->state = str_field(*m, "state");
-      rec->finished_utc = str_field(*m, "finished_utc");
-      if (!(*m)["files"].is_array()) rec->manifest["files"] = nlohmann::json::array();
-      if (rec->state == "failed") {
-        auto e = proto::error_from_json(m->value("error", nlohmann::json()));
-        rec->error = e ? *e : Error(Code::internal, "failed (no error recorded)");
-      }
-    } else {
-      // No final manifest: the daemon died while this scan ran. Say so on
-      // disk too, so the answer is the same after every later restart.
-      ++interrupted;
-      rec->state = "failed";
-      rec->error = Error(Code::cancelled, "interrupted: the daemon stopped before this scan finished",
-                         "scan again");
-      rec->finished_utc = utc_now();
-      rec->manifest = base_manifest(*rec);
-      rec->manifest["state"] = "failed";
-      rec->manifest["finished_utc"] = rec->finished_utc;
-      rec->manifest["error"] = error_json(rec->error);
-      rec->manifest["files"] = scan_files(ent.path().string());
-      Status ws = write_file_atomic((ent.path() / "manifest.json").string(), rec->manifest.dump(2));
-      if (!ws) PROCAM_LOG(engine, error) << "scan " << id << ": " << ws.to_string();
-      fsync_dir(ent.path().string());
-    }
-    rec->bytes = files_bytes(rec->manifest);
-    if (fs::is_regular_file(ent.path() / "manifest.json", ec2)) {
-      auto again = read_json_file((ent.path() / "manifest.json").string());
-      if (again && again->is_object() && is_final(str_field(*again, "state"))) {
-        rec->manifest = nullptr;
-        rec->manifest_on_disk = true;
-      }
-    }
-    rec->req.params = nlohmann::json::object();
-    scans_[id] = rec;
-  } catch (const std::exception& e) {  // a damaged folder must not stop the daemon
-    PROCAM_LOG(engine, error) << "skipping '" << ent.path().string() << "': " << e.what();
-  }
-  if (!scans_.empty()) {
-    PROCAM_LOG(engine, info) << "found " << scans_.size() << " earlier scans in " << cfg_.results_dir
-                             << (interrupted ? " (" + std::to_string(interrupted) + " interrupted)" : "");
-  }
-}
-
 Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::string& request_id) {
   using Clock = std::chrono::steady_clock;
   const std::string content =
@@ -249,17 +124,11 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
     if (stopping_) return Error(Code::unavailable, "the daemon is shutting down", "retry when it is back");
     // Forget old request ids.
     const auto now = Clock::now();
-    while (!recent_order_.empty() &&
-           (now - recent_order_.front().first > cfg_.dedupe_window || recent_order_.size() > cfg_.dedupe_max)) {
-      auto it = recent_requests_.find(recent_order_.front().second);
-      if (it != recent_requests_.end() && it->second.at == recent_order_.front().first) recent_requests_.erase(it);
-      recent_order_.pop_front();
-    }
+    requests_->forget_old(now);
     const std::string key = request_key(request_id, content);
     if (!request_id.empty()) {
-      auto it = recent_requests_.find(key);
-      if (it != recent_requests_.end()) {
-        auto sc = scans_.find(it->second.scan_id);
+      if (const std::string* seen = requests_->find(key)) {
+        auto sc = scans_.find(*seen);
         if (sc != scans_.end()) {
           const Record& r = *sc->second;
           size_t pos = 0;
@@ -297,8 +166,7 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
     if (!request_id.empty()) {
       const auto now = Clock::now();
       const std::string key = request_key(request_id, content);
-      recent_requests_[key] = {rec->id, now};
-      recent_order_.emplace_back(now, key);
+      requests_->remember(key, rec->id, now);
     }
   }
   cv_.notify_all();
@@ -357,6 +225,30 @@ void ScanService::worker_loop() {
   }
 }
 
+// Plugin host services (plugin_abi.h): the plugin's log lines become `log`
+// events (debug stays in the daemon log), its decode progress `progress`
+// events of stage "plugin" (done/total in thousandths, message = its step)
+// and the scan record's plugin_progress, which `status` shows. Called on the
+// worker thread; the handlers run there too, inside the plugin's calls.
+void ScanService::forward_plugin_reports(Record& rec, host::Session& session) {
+  session.set_log_handler([this, &rec](log::Level level, const std::string& message) {
+    if (level == log::Level::debug) return;
+    const char* name = level == log::Level::error ? "error" : level == log::Level::warn ? "warn" : "info";
+    emit(rec, "log", {{"level", name}, {"message", message}});
+  });
+  session.set_progress_handler([this, &rec](double fraction, const std::string& stage) {
+    int round = 1;
+    {
+      std::lock_guard lock(mu_);
+      rec.plugin_progress = PluginProgress{fraction, stage};
+      round = rec.progress.round;
+    }
+    emit(rec, "progress", {{"stage", "plugin"}, {"round", round},
+                           {"done", static_cast<int>(std::lround(fraction * 1000.0))}, {"total", 1000},
+                           {"message", stage}});
+  });
+}
+
 void ScanService::emit(Record& rec, const std::string& event, nlohmann::json fields) {
   if (sink_) sink_(rec.id, event, std::move(fields));
 }
@@ -411,6 +303,7 @@ void ScanService::run_one(Record& rec) {
     emit(rec, "progress", {{"stage", p.stage}, {"round", p.round}, {"done", p.done}, {"total", p.total},
                            {"message", p.message}});
   };
+  forward_plugin_reports(rec, session);
   CaptureOptions capture = cfg_.capture;
   if (rec.req.save_frames) capture.record_dir = dir;  // frame-r<round>-<index>.png beside the outputs
   auto outcome = run_scan(*rig_, session, capture, progress, cancel_running_);
@@ -511,205 +404,6 @@ void ScanService::finish(Record& rec, const Status& status, nlohmann::json manif
   nlohmann::json ev = {{"state", state}};
   if (!status.ok()) ev["error"] = error_json(status);
   emit(rec, "state", ev);
-}
-
-// Every field proto/PROTOCOL.md requires, with "nothing yet" values; the
-// scan fills them in as it goes.
-nlohmann::json ScanService::base_manifest(const Record& rec) const {
-  return {{"procam", 1},
-          {"scan_id", rec.id},
-          {"state", rec.state},
-          {"plugin", rec.req.plugin},
-          {"method", rec.req.method},
-          {"params", rec.req.params},
-          {"label", rec.req.label},
-          {"rig", {{"name", rig_name_}, {"state", nlohmann::json::object()}}},
-          {"created_utc", rec.created_utc.empty() ? nlohmann::json(nullptr) : nlohmann::json(rec.created_utc)},
-          {"finished_utc", nullptr},
-          {"plan", {{"rounds", nlohmann::json::array()}, {"patterns", 0}}},
-          {"timing_ms", {{"capture", 0}, {"decode", 0}, {"write", 0}, {"total", 0}}},
-          {"outputs", nlohmann::json::array()},
-          {"previews", nlohmann::json::array()},
-          {"files", nlohmann::json::array()},
-          {"error", nullptr}};
-}
-
-nlohmann::json ScanService::summary_locked(const Record& r) const {
-  return {{"scan_id", r.id},
-          {"state", r.state},
-          {"plugin", r.req.plugin},
-          {"method", r.req.method},
-          {"label", r.req.label},
-          {"created_utc", r.created_utc},
-          {"finished_utc", r.finished_utc.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.finished_utc)},
-          {"progress", r.progress.stage.empty()
-                           ? nlohmann::json(nullptr)
-                           : nlohmann::json{{"stage", r.progress.stage}, {"round", r.progress.round},
-                                            {"done", r.progress.done}, {"total", r.progress.total}}},
-          {"error", error_json(r.error)}};
-}
-
-nlohmann::json ScanService::daemon_status() const {
-  std::lock_guard lock(mu_);
-  const double up = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  nlohmann::json j = {{"version", "procamd 0.1.0"},
-                      {"uptime_s", up},
-                      {"state", running_ ? "scanning" : "idle"},
-                      {"scans", {{"done", done_}, {"failed", failed_}, {"queued", queue_.size()}}},
-                      {"plugins", plugins_.plugins().size()},
-                      {"rig", rig_description_.value("name", "")}};
-  size_t stored = 0;
-  for (const auto& [id, r] : scans_) stored += is_final(r->state);
-  j["metrics"] = {{"scans_done", done_},
-                  {"scans_failed", failed_},
-                  {"scans_cancelled", cancelled_},
-                  {"scans_rejected_busy", rejected_busy_},
-                  {"queue_depth", queue_.size()},
-                  {"queue_limit", cfg_.max_queue},
-                  {"frames_captured", frames_captured_},
-                  {"frames_dropped", frames_dropped_},
-                  {"decode_ms", {{"last", decode_ms_last_},
-                                 {"mean", decode_count_ ? decode_ms_sum_ / static_cast<double>(decode_count_) : 0.0},
-                                 {"max", decode_ms_max_}}},
-                  {"results_bytes", results_bytes_},
-                  {"scans_stored", stored}};
-  if (running_) j["current"] = summary_locked(*running_);
-  return j;
-}
-
-double ScanService::uptime_s() const {
-  std::lock_guard lock(mu_);
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-}
-
-Result<nlohmann::json> ScanService::scan_summary(const std::string& id) const {
-  std::lock_guard lock(mu_);
-  auto it = scans_.find(id);
-  if (it == scans_.end()) return Error(Code::not_found, "no scan with id '" + id + "'", "ask `status` without scan_id or list results");
-  return summary_locked(*it->second);
-}
-
-Result<nlohmann::json> ScanService::manifest(const std::string& id) const {
-  {
-    std::lock_guard lock(mu_);
-    auto it = scans_.find(id);
-    if (it == scans_.end()) return Error(Code::not_found, "no scan with id '" + id + "'");
-    const Record& r = *it->second;
-    if (r.state != "done" && r.state != "failed")
-      return Error(Code::failed_precondition, "scan '" + id + "' is still " + r.state,
-                   "wait for its final state event or poll status");
-    if (!r.manifest_on_disk) return r.manifest;
-  }
-  const fs::path path = fs::path(cfg_.results_dir) / id / "manifest.json";
-  auto m = read_json_file(path.string());
-  if (!m || !m->is_object()) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) return Error(Code::not_found, "scan '" + id + "' was deleted");
-    return Error(Code::io_error, "cannot read the manifest of scan '" + id + "'",
-                 "tell the operator: " + (m ? std::string("not a JSON object") : m.status().message()));
-  }
-  if (!(*m)["files"].is_array()) (*m)["files"] = nlohmann::json::array();
-  return *m;
-}
-
-Result<std::string> ScanService::file_path(const std::string& id, const std::string& file) const {
-  if (!proto::is_safe_file_name(file) || !proto::is_safe_file_name(id))
-    return Error(Code::invalid_argument, "'" + file + "' is not a plain file name", "use a name from the manifest's \"files\"");
-  auto m = manifest(id);
-  if (!m) return m.status();
-  bool listed = false;
-  for (const auto& f : (*m)["files"]) listed |= f.is_object() && f.value("name", "") == file;
-  if (!listed)
-    return Error(Code::not_found, "scan '" + id + "' has no file '" + file + "'", "see the manifest's \"files\"");
-  // The folder and file must really be inside results_dir: no symlinks out.
-  const fs::path p = fs::path(cfg_.results_dir) / id / file;
-  std::error_code ec;
-  const auto st = fs::symlink_status(p, ec);
-  const auto dst = fs::symlink_status(p.parent_path(), ec);
-  if (!fs::is_regular_file(st) || !fs::is_directory(dst))
-    return Error(Code::not_found, "file '" + file + "' of scan '" + id + "' is missing or not a regular file",
-                 "tell the operator: the results folder was changed by hand");
-  {
-    std::lock_guard lock(mu_);
-    auto it = scans_.find(id);
-    if (it != scans_.end()) it->second->last_download = std::chrono::steady_clock::now();
-  }
-  return p.string();
-}
-
-size_t ScanService::apply_retention() {
-  const auto& pol = cfg_.retention;
-  struct Cand { std::string finished, id; uint64_t bytes; };
-  std::vector<Cand> cands;
-  uint64_t total = 0;
-  const auto now = std::chrono::steady_clock::now();
-  {
-    std::lock_guard lock(mu_);
-    for (const auto& [id, r] : scans_) {
-      if (!is_final(r->state)) continue;
-      total += r->bytes;
-      if (r->last_download && now - *r->last_download < pol.download_grace) continue;  // being downloaded
-      cands.push_back({r->finished_utc, id, r->bytes});
-    }
-    results_bytes_ = total;
-  }
-  if (pol.max_age_days <= 0 && pol.max_scans == 0 && pol.min_free_mb == 0) return 0;
-  std::sort(cands.begin(), cands.end(),
-            [](const Cand& a, const Cand& b) { return std::tie(a.finished, a.id) < std::tie(b.finished, b.id); });
-  size_t stored = 0;
-  {
-    std::lock_guard lock(mu_);
-    for (const auto& [id, r] : scans_) stored += is_final(r->state);
-  }
-  const std::time_t cutoff =
-      std::time(nullptr) - static_cast<std::time_t>(pol.max_age_days * 86400.0);
-  char cutoff_utc[32] = "";
-  if (pol.max_age_days > 0) {
-    std::tm tm{};
-    gmtime_r(&cutoff, &tm);
-    std::strftime(cutoff_utc, sizeof cutoff_utc, "%Y-%m-%dT%H:%M:%S", &tm);
-  }
-  auto low_disk = [&] {
-    if (pol.min_free_mb == 0) return false;
-    std::error_code ec;
-    auto sp = fs::space(cfg_.results_dir, ec);
-    return !ec && sp.available < pol.min_free_mb * 1024 * 1024;
-  };
-  size_t deleted = 0;
-  for (const auto& c : cands) {
-    const bool too_old = pol.max_age_days > 0 && !c.finished.empty() && c.finished < std::string(cutoff_utc);
-    const bool too_many = pol.max_scans > 0 && stored > pol.max_scans;
-    if (!too_old && !too_many && !low_disk()) continue;
-    {
-      std::lock_guard lock(mu_);
-      auto it = scans_.find(c.id);
-      if (it == scans_.end()) continue;
-      if (it->second->last_download && now - *it->second->last_download < pol.download_grace) continue;
-      scans_.erase(it);
-      results_bytes_ -= std::min(results_bytes_, c.bytes);
-    }
-    // Rename first so a half-deleted folder is never loaded as a scan.
-    std::error_code ec;
-    const fs::path dir = fs::path(cfg_.results_dir) / c.id;
-    const fs::path doomed = fs::path(cfg_.results_dir) / ("." + c.id + ".deleting");
-    fs::rename(dir, doomed, ec);
-    fs::remove_all(ec ? dir : doomed, ec);
-    --stored;
-    ++deleted;
-    PROCAM_LOG(engine, info) << "retention: deleted scan " << c.id << " (finished " << c.finished << ")"
-                             << (too_old ? " [age]" : too_many ? " [count]" : " [disk]");
-  }
-  return deleted;
-}
-
-nlohmann::json ScanService::rig_description() const {
-  std::lock_guard lock(mu_);
-  return rig_description_;
-}
-
-std::string ScanService::rig_name() const {
-  std::lock_guard lock(mu_);
-  return rig_description_.value("name", "");
 }
 
 }  // namespace procam::engine

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <system_error>
 
+#include "host_services.hpp"
 #include "plugin_loader.hpp"
 #include "procam/core/log.hpp"
 
@@ -209,7 +210,22 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
       return Error(Code::plugin_error, "plugin '" + plugin +
                                            "' session_create returned PROCAM_OK "
                                            "but no session");
-    return Session(loaded, s, method);
+    // Host services (log/progress) for plugins whose table has session_set_host.
+    std::unique_ptr<detail::HostBridge> bridge;
+    if (const detail::SetHostFn set_host = detail::set_host_of(*loaded->vtable)) {
+      bridge = std::make_unique<detail::HostBridge>(plugin);
+      procam_error herr{};
+      const int hrc = set_host(s, bridge->table(), &herr);  // no CallScope: no callbacks yet
+      if (hrc != PROCAM_OK) {
+        loaded->vtable->session_destroy(s);
+        return Error(hrc < 0 ? detail::code_for_rc(hrc) : Code::plugin_error,
+                     "plugin '" + plugin + "' refused the host services for method '" + method +
+                         "' (" + detail::rc_name(hrc) + "): " +
+                         (hrc < 0 ? detail::error_message(herr)
+                                  : std::string("not allowed by the ABI")));
+      }
+    }
+    return Session(loaded, s, method, std::move(bridge));
   } catch (const std::exception& e) {
     return Error(Code::internal, "create_session: " + std::string(e.what()));
   }

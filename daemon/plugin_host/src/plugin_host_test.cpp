@@ -445,8 +445,10 @@ TEST_F(PluginHostTest, LoadDirectoriesSortsSkipsAndRecords) {
       {PROCAM_HOST_FIXTURE_DIR, tmp_.file("does-not-exist"), PROCAM_HOST_FIXTURE_DIR "/."});
   std::vector<std::string> names;
   for (const auto& p : host.plugins()) names.push_back(p.name);
-  // Loaded in file-name order: bad_outputs.so, bad_plan.so, good.so, session_fails.so.
-  EXPECT_EQ(names, (std::vector<std::string>{"bad_outputs", "bad_plan", "null", "session_fails"}));
+  // Loaded in file-name order: bad_outputs.so, bad_plan.so, good.so,
+  // host_services.so, sdk_host_services.so, session_fails.so, v1_table.so.
+  EXPECT_EQ(names, (std::vector<std::string>{"bad_outputs", "bad_plan", "null", "host_services",
+                                             "sdk_host_services", "session_fails", "v1_table"}));
   std::vector<std::string> rejected;
   for (const auto& r : host.rejected()) rejected.push_back(fs::path(r.file).filename().string());
   EXPECT_EQ(rejected, (std::vector<std::string>{"bad_magic.so", "crash_in_describe.so",

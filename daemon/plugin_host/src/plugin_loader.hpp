@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Internal steps of loading one plugin file: read + check its info from the
-// ELF file, probe it in a child process, dlopen + check it in this process.
+// ELF file (plugin_info_check.cpp), probe it in a child process
+// (plugin_probe.cpp), dlopen + check it in this process (plugin_dlopen_check.cpp).
 //
 // Every function returns a Status whose message starts with "plugin '<file>'"
 // and says what was found and what to do. Nothing throws.
@@ -73,7 +74,9 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
 Status probe_in_child(const std::string& path, const FileInfo& file,
                       std::chrono::milliseconds timeout);
 
-// Helpers shared with Session.
+// Helpers shared by the steps (plugin_loader.cpp) and with Session.
+// "plugin '<file>'": how every loader message names the file.
+std::string quoted(const std::string& file);
 bool valid_plugin_name(std::string_view s);  // [a-z0-9_-]{1,63}
 bool valid_output_name(std::string_view s);  // [a-z0-9_]{1,64}
 // A printable rendering of untrusted text for messages (non-printables as \xNN).

@@ -5,6 +5,7 @@
 #include <set>
 #include <utility>
 
+#include "host_services.hpp"
 #include "plugin_loader.hpp"
 #include "procam/core/image.hpp"
 #include "procam/host/plugin_host.hpp"
@@ -42,8 +43,11 @@ const char* label_problem(const std::string& l) {
 }  // namespace
 
 Session::Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_session* session,
-                 std::string method)
-    : plugin_(std::move(plugin)), session_(session), method_(std::move(method)) {}
+                 std::string method, std::unique_ptr<detail::HostBridge> bridge)
+    : plugin_(std::move(plugin)),
+      session_(session),
+      method_(std::move(method)),
+      bridge_(std::move(bridge)) {}
 
 Session::Session(Session&& o) noexcept
     : plugin_(std::move(o.plugin_)),
@@ -52,7 +56,8 @@ Session::Session(Session&& o) noexcept
       in_round_(o.in_round_),
       finished_(o.finished_),
       rounds_(o.rounds_),
-      added_(std::move(o.added_)) {}
+      added_(std::move(o.added_)),
+      bridge_(std::move(o.bridge_)) {}
 
 Session& Session::operator=(Session&& o) noexcept {
   if (this != &o) {
@@ -64,13 +69,22 @@ Session& Session::operator=(Session&& o) noexcept {
     finished_ = o.finished_;
     rounds_ = o.rounds_;
     added_ = std::move(o.added_);
+    bridge_ = std::move(o.bridge_);  // after session_destroy of the old session
   }
   return *this;
 }
 
 Session::~Session() {
   if (session_ != nullptr) plugin_->vtable->session_destroy(session_);
-  // plugin_ (and with it possibly the library) is released after the session.
+  // plugin_ (and with it possibly the library) and bridge_ are released after the session.
+}
+
+void Session::set_log_handler(LogHandler handler) {
+  if (bridge_) bridge_->set_log_handler(std::move(handler));
+}
+
+void Session::set_progress_handler(ProgressHandler handler) {
+  if (bridge_) bridge_->set_progress_handler(std::move(handler));
 }
 
 const std::string& Session::plugin_name() const {
@@ -100,7 +114,11 @@ Result<std::optional<Plan>> Session::next_plan() {
   try {
     const procam_plan* plan = nullptr;
     procam_error err{};
-    const int rc = plugin_->vtable->next_plan(session_, &plan, &err);
+    int rc = 0;
+    {
+      detail::HostBridge::CallScope scope(bridge_.get());  // host services allowed
+      rc = plugin_->vtable->next_plan(session_, &plan, &err);
+    }
     if (rc == 0) {
       finished_ = true;
       return std::optional<Plan>{};
@@ -181,7 +199,11 @@ Status Session::add_frame(uint32_t index, const procam_image& frame) {
   if (const char* p = validate_view(frame))
     return Error(Code::invalid_argument, "frame " + std::to_string(index) + ": " + p);
   procam_error err{};
-  const int rc = plugin_->vtable->add_frame(session_, index, &frame, &err);
+  int rc = 0;
+  {
+    detail::HostBridge::CallScope scope(bridge_.get());  // host services allowed
+    rc = plugin_->vtable->add_frame(session_, index, &frame, &err);
+  }
   if (rc != PROCAM_OK) return plugin_failure("add_frame", rc, err);
   added_[index] = true;
   return {};
@@ -208,7 +230,11 @@ Status Session::end_round() {
     return Error(Code::internal, std::string("end_round: ") + e.what());
   }
   procam_error err{};
-  const int rc = plugin_->vtable->end_round(session_, &err);
+  int rc = 0;
+  {
+    detail::HostBridge::CallScope scope(bridge_.get());  // host services allowed
+    rc = plugin_->vtable->end_round(session_, &err);
+  }
   in_round_ = false;  // after a failed decode the session should be discarded
   if (rc != PROCAM_OK) return plugin_failure("end_round", rc, err);
   return {};
@@ -225,7 +251,11 @@ Result<std::vector<Output>> Session::outputs() {
     const procam_output* outs = nullptr;
     uint32_t count = 0;
     procam_error err{};
-    const int rc = plugin_->vtable->get_outputs(session_, &outs, &count, &err);
+    int rc = 0;
+    {
+      detail::HostBridge::CallScope scope(bridge_.get());  // host services allowed
+      rc = plugin_->vtable->get_outputs(session_, &outs, &count, &err);
+    }
     if (rc != PROCAM_OK) return plugin_failure("get_outputs", rc, err);
     const std::string bad = who + " returned invalid outputs: ";
     if (count > kMaxOutputs)

@@ -14,6 +14,10 @@
  *   FX_CREATE_RETURNS_NULL, FX_NULL_FUNCTION, FX_SESSION_FAILS, FX_DESCRIBE_CRASHES
  *   FX_OUTPUT_NAME     name of the scalar output (default "frame_mean")
  *   FX_LABEL           label of the planned frame (default "black")
+ *   FX_V1_TABLE        return the function table as the first ABI 1 header
+ *                      declared it (no session_set_host, the v1 struct_size),
+ *                      followed in memory by a trap pointer the host must not read
+ *   FX_HOST_SERVICES   set session_set_host and log/report progress in end_round
  */
 #include <math.h>
 #include <signal.h>
@@ -55,6 +59,7 @@ FX_EXPORT const procam_plugin_info fx_info __asm__(FX_INFO_SYMBOL) = {
 static const uint8_t black[4 * 3]; /* zeros */
 
 struct procam_session {
+  const procam_host_services* host; /* FX_HOST_SERVICES: from session_set_host */
   int planned;
   int ended;
   double mean;
@@ -146,8 +151,55 @@ static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f
   return PROCAM_OK;
 }
 
+#ifdef FX_HOST_SERVICES
+#include <pthread.h>
+
+static void fx_log(procam_session* s, int level, const char* msg) {
+  if (s->host != NULL && s->host->log != NULL) s->host->log(s->host->ctx, level, msg);
+}
+
+/* Breaks the contract on purpose: calls the host from a worker thread. */
+static void* fx_worker(void* arg) {
+  fx_log((procam_session*)arg, PROCAM_LOG_ERROR, "from a worker thread");
+  return NULL;
+}
+
+static int fx_session_set_host(procam_session* s, const procam_host_services* host,
+                               procam_error* err) {
+  if (host == NULL || host->struct_size < sizeof(procam_host_services)) {
+    set_error(err, "host services table too small");
+    return PROCAM_ERR_INVALID_ARGUMENT;
+  }
+  s->host = host;
+  fx_log(s, PROCAM_LOG_ERROR, "inside session_set_host"); /* not allowed: dropped */
+  return PROCAM_OK;
+}
+
+/* The messages the host test expects, in order (see host_services_test.cpp). */
+static void fx_report(procam_session* s) {
+  static char big[3001];
+  pthread_t worker;
+  int i;
+  fx_log(s, PROCAM_LOG_INFO, "decoding 1 frame");
+  fx_log(s, PROCAM_LOG_WARN, "line1\nline2\x01" "end");
+  memset(big, 'x', sizeof big - 1);
+  big[sizeof big - 1] = '\0';
+  fx_log(s, PROCAM_LOG_DEBUG, big);
+  fx_log(s, 42, "unknown level");
+  if (pthread_create(&worker, NULL, fx_worker, s) == 0) pthread_join(worker, NULL);
+  if (s->host->progress != NULL) {
+    s->host->progress(s->host->ctx, NAN, "nan"); /* dropped */
+    for (i = 0; i <= 1000; ++i) s->host->progress(s->host->ctx, i / 1000.0, "unwrap");
+    s->host->progress(s->host->ctx, 2.0, "clamp"); /* clamped to 1 */
+  }
+}
+#endif
+
 static int fx_end_round(procam_session* s, procam_error* err) {
   (void)err;
+#ifdef FX_HOST_SERVICES
+  fx_report(s);
+#endif
   s->ended = 1;
   return PROCAM_OK;
 }
@@ -183,15 +235,47 @@ __attribute__((unused)) static int fx_get_outputs(procam_session* s,
   return PROCAM_OK;
 }
 
+#ifdef FX_V1_TABLE
+/* procam_plugin_vtable exactly as the first ABI 1 header declared it. */
+typedef struct fx_vtable_v1 {
+  uint32_t abi_version;
+  uint32_t struct_size;
+  const char* (*describe)(void);
+  int (*session_create)(const char*, const char*, const char*, procam_session**, procam_error*);
+  void (*session_destroy)(procam_session*);
+  int (*next_plan)(procam_session*, const procam_plan**, procam_error*);
+  int (*add_frame)(procam_session*, uint32_t, const procam_image*, procam_error*);
+  int (*end_round)(procam_session*, procam_error*);
+  int (*get_outputs)(procam_session*, const procam_output**, uint32_t*, procam_error*);
+} fx_vtable_v1;
+
+/* What follows the table in memory is where a new host would find
+ * session_set_host: a non-NULL garbage pointer, so a host reading past
+ * struct_size would call it and crash. */
+static const struct {
+  fx_vtable_v1 table;
+  uintptr_t trap;
+} fx_v1 = {{PROCAM_PLUGIN_ABI_VERSION, sizeof(fx_vtable_v1), fx_describe, fx_session_create,
+            fx_session_destroy, fx_next_plan, fx_add_frame, fx_end_round, fx_get_outputs},
+           (uintptr_t)0x1};
+#define FX_TABLE ((const procam_plugin_vtable*)(const void*)&fx_v1.table)
+#else
 static const procam_plugin_vtable fx_vtable = {
     PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), fx_describe, fx_session_create,
     fx_session_destroy,        fx_next_plan,                 fx_add_frame, fx_end_round,
 #ifdef FX_NULL_FUNCTION
-    NULL
+    NULL,
 #else
-    fx_get_outputs
+    fx_get_outputs,
+#endif
+#ifdef FX_HOST_SERVICES
+    fx_session_set_host
+#else
+    NULL
 #endif
 };
+#define FX_TABLE (&fx_vtable)
+#endif
 
 FX_EXPORT const procam_plugin_vtable* fx_create(uint32_t host_abi) __asm__(FX_CREATE_SYMBOL);
 const procam_plugin_vtable* fx_create(uint32_t host_abi) {
@@ -199,6 +283,6 @@ const procam_plugin_vtable* fx_create(uint32_t host_abi) {
   (void)host_abi;
   return NULL;
 #else
-  return host_abi == PROCAM_PLUGIN_ABI_VERSION ? &fx_vtable : NULL;
+  return host_abi == PROCAM_PLUGIN_ABI_VERSION ? FX_TABLE : NULL;
 #endif
 }

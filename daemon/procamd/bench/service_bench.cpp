@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "procam/client/client.hpp"
+#include "support/child_process.hpp"  // tests/support: fork/exec/stop/reap
 
 namespace {
 namespace fs = std::filesystem;
@@ -33,24 +34,11 @@ struct Proc {
   pid_t pid = -1;
   ~Proc() { stop(); }
   void start(const std::vector<std::string>& argv, const std::string& log) {
-    pid = fork();
-    if (pid == 0) {
-      FILE* f = std::fopen(log.c_str(), "w");
-      if (f) {
-        dup2(fileno(f), 1);
-        dup2(fileno(f), 2);
-      }
-      std::vector<char*> a;
-      for (auto& s : argv) a.push_back(const_cast<char*>(s.c_str()));
-      a.push_back(nullptr);
-      execv(a[0], a.data());
-      _exit(127);
-    }
+    pid = procam::testing::spawn_logged(argv, log);
   }
   void stop() {
     if (pid > 0) {
-      kill(pid, SIGTERM);
-      waitpid(pid, nullptr, 0);
+      procam::testing::stop_child(pid);
       pid = -1;
     }
   }

@@ -17,8 +17,9 @@
  *      loading it, and checks `magic`, `abi_version` and `struct_size`. A
  *      mismatch is reported and the file is skipped; no plugin code has run.
  *   2. Only then the host dlopen()s the library and calls procam_plugin_create,
- *      and checks the returned table's abi_version/struct_size and that every
- *      function pointer is set.
+ *      and checks the returned table's abi_version, its struct_size (the v1
+ *      size or the current size, see "Version history") and that every
+ *      required function pointer is set (session_set_host is optional).
  *
  * Rules for both sides:
  *   - No C++ types, exceptions or longjmps cross this ABI. A plugin catches
@@ -57,8 +58,42 @@
  * Multi-round methods (error correction, adaptive codes) return further plans
  * from next_plan after end_round; single-round methods return 0 the 2nd time.
  *
+ * Host services (log + progress), optional, appended to ABI 1:
+ *   A plugin that sets procam_plugin_vtable.session_set_host gets, right after
+ *   a successful session_create and before any other call on that session,
+ *   a procam_host_services table: log(level, message) and
+ *   progress(fraction, stage). Contract:
+ *     - Call them ONLY from within an ABI call on that session (next_plan,
+ *       add_frame, end_round, get_outputs), on the thread that made that
+ *       call. Never from session_set_host/session_destroy, never between
+ *       calls, never from a plugin's worker threads: the host is not ready
+ *       there and may drop, race or crash. A plugin with worker threads
+ *       hands messages to the calling thread (the C++ SDK does this:
+ *       sdk::Session::log/progress from a worker are queued and delivered
+ *       when the current ABI call returns).
+ *     - The table and `ctx` stay valid until session_destroy; `message` and
+ *       `stage` are NUL-terminated UTF-8, owned by the plugin, read only
+ *       during the call. Both functions return promptly and never fail.
+ *     - The host may truncate messages (1 KiB), escape control characters and
+ *       drop progress reports (it forwards at most ~20 per second);
+ *       `fraction` is 0..1 of the current round's decode (NaN/out of range
+ *       are clamped or dropped); `stage` is a short word ("unwrap"), may be NULL.
+ *   struct_size of procam_host_services lets the host append members later;
+ *   a plugin reads only the members that struct_size covers.
+ *
  * Version history
  *   1 (procam 0.1): initial ABI.
+ *   1, append-only (procam 0.2): procam_plugin_vtable gains the optional
+ *     session_set_host (may be NULL) and procam_host_services is added. The
+ *     version stays 1: the change only appends to the vtable and the host
+ *     tells the two layouts apart by vtable struct_size (the v1 size,
+ *     PROCAM_PLUGIN_VTABLE_V1_SIZE, or the full size), so plugins built
+ *     against the first ABI 1 header load and run unchanged (without host
+ *     services). The other way round is not promised: a procamd from before
+ *     this change requires struct_size == its own (v1) size and rejects
+ *     plugins built with this header. A real break (new required calls,
+ *     changed structs) bumps the version to 2.
+ *     procam_rc_name() is added (a static inline helper, no symbol).
  */
 #ifndef PROCAM_PLUGIN_ABI_H
 #define PROCAM_PLUGIN_ABI_H
@@ -88,6 +123,20 @@ enum {
   PROCAM_ERR_NO_MEMORY = -4,
   PROCAM_ERR_INTERNAL = -5          /* bug or unexpected exception in the plugin */
 };
+
+/* "PROCAM_ERR_BAD_FRAME" etc. for a return code above; NULL for any other
+ * value (callers print their own "unknown code N"). For messages and tests. */
+static inline const char* procam_rc_name(int rc) {
+  switch (rc) {
+    case PROCAM_OK: return "PROCAM_OK";
+    case PROCAM_ERR_INVALID_ARGUMENT: return "PROCAM_ERR_INVALID_ARGUMENT";
+    case PROCAM_ERR_BAD_FRAME: return "PROCAM_ERR_BAD_FRAME";
+    case PROCAM_ERR_STATE: return "PROCAM_ERR_STATE";
+    case PROCAM_ERR_NO_MEMORY: return "PROCAM_ERR_NO_MEMORY";
+    case PROCAM_ERR_INTERNAL: return "PROCAM_ERR_INTERNAL";
+    default: return NULL;
+  }
+}
 
 /* Error detail a plugin fills on failure. NUL-terminated, truncated to fit. */
 typedef struct procam_error {
@@ -156,6 +205,27 @@ typedef struct procam_output {
 
 typedef struct procam_session procam_session; /* opaque, plugin-owned */
 
+/* Log levels of procam_host_services.log. */
+enum {
+  PROCAM_LOG_DEBUG = 0,
+  PROCAM_LOG_INFO = 1,
+  PROCAM_LOG_WARN = 2,
+  PROCAM_LOG_ERROR = 3
+};
+
+/* What the host offers a session (see "Host services" above). Host-owned;
+ * valid until session_destroy. Any function pointer may be NULL. */
+typedef struct procam_host_services {
+  uint32_t struct_size; /* sizeof(procam_host_services) of the host */
+  void* ctx;            /* pass back as the first argument */
+  /* A line for the daemon log (and the scan's `log` events). `level` is a
+   * PROCAM_LOG_* value; `message` one line of text, no trailing newline. */
+  void (*log)(void* ctx, int level, const char* message);
+  /* Progress within the current round's decode: `fraction` 0..1, `stage` a
+   * short name of the current step or NULL. */
+  void (*progress)(void* ctx, double fraction, const char* stage);
+} procam_host_services;
+
 typedef struct procam_plugin_vtable {
   uint32_t abi_version;   /* PROCAM_PLUGIN_ABI_VERSION */
   uint32_t struct_size;   /* sizeof(procam_plugin_vtable) */
@@ -184,7 +254,21 @@ typedef struct procam_plugin_vtable {
   /* Results, valid until session_destroy. */
   int (*get_outputs)(procam_session* s, const procam_output** outputs,
                      uint32_t* count, procam_error* err);
+
+  /* ---- appended in ABI 1 (procam 0.2); a table of the v1 size ends above ---- */
+
+  /* Optional (may be NULL): receives the host's services for this session
+   * (see "Host services"). Called at most once, right after session_create,
+   * before any other call on `s`; `host` stays valid until session_destroy.
+   * Return PROCAM_OK; an error return fails the scan like session_create. */
+  int (*session_set_host)(procam_session* s, const procam_host_services* host,
+                          procam_error* err);
 } procam_plugin_vtable;
+
+/* Size of the table as first published for ABI 1 (up to get_outputs). The
+ * host accepts struct_size equal to this or to sizeof(procam_plugin_vtable). */
+#define PROCAM_PLUGIN_VTABLE_V1_SIZE \
+  (offsetof(procam_plugin_vtable, get_outputs) + sizeof(void (*)(void)))
 
 /* Signature of the exported create function. Returns NULL if the plugin cannot
  * serve `host_abi_version`. */

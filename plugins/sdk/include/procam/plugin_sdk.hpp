@@ -47,9 +47,12 @@
 #include <cstring>
 #include <exception>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <string>
 #include <string_view>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -70,11 +73,138 @@
 
 namespace procam::sdk {
 
+namespace detail {
+template <class Traits>
+struct Abi;
+
+// Carries Session::log/progress to the host's procam_host_services
+// (plugin_abi.h "Host services") and enforces its thread rule: a call on the
+// thread that is inside an ABI call goes straight to the host; a call from
+// any other thread (a plugin's worker) or between ABI calls is queued and
+// delivered by the calling thread when the current ABI call returns (or at
+// the start of the next one). At most kMaxQueuedLogs lines wait; more are
+// counted and reported as one line. Progress keeps only the latest report.
+// Thread-safe; never throws.
+class HostLink {
+ public:
+  static constexpr size_t kMaxQueuedLogs = 256;
+
+  void attach(const procam_host_services* host) noexcept {
+    std::lock_guard lock(mu_);
+    host_ = host;
+  }
+  bool attached() const noexcept {
+    std::lock_guard lock(mu_);
+    return host_ != nullptr;
+  }
+  // The calling thread enters / leaves an ABI call of this session.
+  void enter() noexcept {
+    std::lock_guard lock(mu_);
+    caller_ = std::this_thread::get_id();
+    flush_locked();
+  }
+  void leave() noexcept {
+    std::lock_guard lock(mu_);
+    flush_locked();
+    caller_ = std::thread::id{};
+  }
+  void log(int level, std::string_view message) noexcept {
+    std::lock_guard lock(mu_);
+    if (host_ == nullptr || host_log() == nullptr) return;
+    try {
+      if (on_caller_locked()) {
+        flush_locked();
+        const std::string text(message);
+        host_log()(host_->ctx, level, text.c_str());
+      } else if (queued_logs_.size() < kMaxQueuedLogs) {
+        queued_logs_.emplace_back(level, std::string(message));
+      } else {
+        ++dropped_;
+      }
+    } catch (...) {
+      ++dropped_;  // out of memory: the line is lost
+    }
+  }
+  void progress(double fraction, std::string_view stage) noexcept {
+    std::lock_guard lock(mu_);
+    if (host_ == nullptr || host_progress() == nullptr) return;
+    try {
+      if (on_caller_locked()) {
+        flush_locked();
+        const std::string text(stage);
+        host_progress()(host_->ctx, fraction, text.c_str());
+      } else {
+        queued_progress_ = {fraction, std::string(stage)};
+        has_queued_progress_ = true;
+      }
+    } catch (...) {
+      // Out of memory: a progress report is not worth failing for.
+    }
+  }
+
+ private:
+  using LogFn = void (*)(void*, int, const char*);
+  using ProgressFn = void (*)(void*, double, const char*);
+  // Members the host's table has (its struct_size covers them), else nullptr.
+  LogFn host_log() const noexcept {
+    return host_->struct_size >= offsetof(procam_host_services, log) + sizeof(host_->log) ? host_->log
+                                                                                          : nullptr;
+  }
+  ProgressFn host_progress() const noexcept {
+    return host_->struct_size >= offsetof(procam_host_services, progress) + sizeof(host_->progress)
+               ? host_->progress
+               : nullptr;
+  }
+  bool on_caller_locked() const noexcept {
+    return caller_ != std::thread::id{} && caller_ == std::this_thread::get_id();
+  }
+  // Delivers what workers queued; only on the calling thread, inside a call.
+  void flush_locked() noexcept {
+    if (host_ == nullptr || !on_caller_locked()) return;
+    if (LogFn fn = host_log()) {
+      for (const auto& [level, text] : queued_logs_) fn(host_->ctx, level, text.c_str());
+      if (dropped_ > 0) {
+        char line[96];
+        std::snprintf(line, sizeof line, "%zu log lines from worker threads were dropped",
+                      dropped_);
+        fn(host_->ctx, PROCAM_LOG_WARN, line);
+      }
+    }
+    queued_logs_.clear();
+    dropped_ = 0;
+    if (has_queued_progress_) {
+      if (ProgressFn fn = host_progress())
+        fn(host_->ctx, queued_progress_.first, queued_progress_.second.c_str());
+      has_queued_progress_ = false;
+    }
+  }
+
+  mutable std::mutex mu_;
+  const procam_host_services* host_ = nullptr;  // host-owned; valid until session_destroy
+  std::thread::id caller_;                      // inside an ABI call: its thread
+  std::vector<std::pair<int, std::string>> queued_logs_;
+  size_t dropped_ = 0;
+  std::pair<double, std::string> queued_progress_;
+  bool has_queued_progress_ = false;
+};
+}  // namespace detail
+
 // One scan. The SDK creates it through the plugin's factory and calls it in
 // protocol order only (see above); all calls come from one thread at a time.
 class Session {
  public:
   virtual ~Session() = default;
+
+  // Host services (plugin_abi.h "Host services"): a line for the daemon log
+  // (`level` PROCAM_LOG_DEBUG/INFO/WARN/ERROR) and how far this round's
+  // decode is (`fraction` 0..1, `stage` a short step name). No-ops when the
+  // host offers none. Safe from any thread: calls from worker threads are
+  // queued and reach the host when the current call (add_frame, end_round,
+  // ...) returns. The host may cut long messages and thin out progress.
+  void log(int level, std::string_view message) const noexcept { host_link_.log(level, message); }
+  void progress(double fraction, std::string_view stage) const noexcept {
+    host_link_.progress(fraction, stage);
+  }
 
   // Describe the next round in `plan` (empty on entry) and set has_round =
   // true, or leave has_round (false on entry) when no round is left. Called once at
@@ -96,6 +226,11 @@ class Session {
   // least one end_round, at most once per decoded round (the SDK reuses the
   // previous Outputs when nothing changed).
   virtual Error outputs(Outputs& out) = 0;
+
+ private:
+  template <class Traits>
+  friend struct detail::Abi;
+  mutable detail::HostLink host_link_;
 };
 
 // What session_create received, parsed.
@@ -192,8 +327,28 @@ inline Error check_usable(const SessionBox* box, const char* where) {
   return ok();
 }
 
+// Marks one ABI call on a session for HostLink's thread rule.
+class CallScope {
+ public:
+  explicit CallScope(HostLink* link) noexcept : link_(link) {
+    if (link_ != nullptr) link_->enter();
+  }
+  ~CallScope() {
+    if (link_ != nullptr) link_->leave();
+  }
+  CallScope(const CallScope&) = delete;
+  CallScope& operator=(const CallScope&) = delete;
+
+ private:
+  HostLink* link_;
+};
+
 template <class Traits>
 struct Abi {
+  static HostLink* link_of(SessionBox* box) noexcept {
+    return box != nullptr && box->impl ? &box->impl->host_link_ : nullptr;
+  }
+
   static const char* describe() noexcept {
     // Built once (thread-safe static init); on failure a valid empty array.
     static const std::string text = []() noexcept -> std::string {
@@ -254,6 +409,7 @@ struct Abi {
 
   static int next_plan(procam_session* s, const procam_plan** plan, procam_error* err) noexcept {
     SessionBox* box = box_of(s);
+    CallScope scope(link_of(box));  // host services allowed during this call
     bool has_round = false;
     bool reached_impl = false;
     const int rc = guarded(err, "next_plan", [&]() -> Error {
@@ -291,6 +447,7 @@ struct Abi {
   static int add_frame(procam_session* s, uint32_t index, const procam_image* frame,
                        procam_error* err) noexcept {
     SessionBox* box = box_of(s);
+    CallScope scope(link_of(box));  // host services allowed during this call
     bool reached_impl = false;
     const int rc = guarded(err, "add_frame", [&]() -> Error {
       if (Error e = check_usable(box, "add_frame"); !e.ok()) return e;
@@ -320,6 +477,7 @@ struct Abi {
 
   static int end_round(procam_session* s, procam_error* err) noexcept {
     SessionBox* box = box_of(s);
+    CallScope scope(link_of(box));  // host services allowed during this call
     bool reached_impl = false;
     const int rc = guarded(err, "end_round", [&]() -> Error {
       if (Error e = check_usable(box, "end_round"); !e.ok()) return e;
@@ -354,6 +512,7 @@ struct Abi {
   static int get_outputs(procam_session* s, const procam_output** outputs, uint32_t* count,
                          procam_error* err) noexcept {
     SessionBox* box = box_of(s);
+    CallScope scope(link_of(box));  // host services allowed during this call
     bool reached_impl = false;
     const int rc = guarded(err, "get_outputs", [&]() -> Error {
       if (Error e = check_usable(box, "get_outputs"); !e.ok()) return e;
@@ -381,11 +540,26 @@ struct Abi {
     return rc;
   }
 
+  // Keeps the host's services for Session::log/progress (plugin_abi.h).
+  static int session_set_host(procam_session* s, const procam_host_services* host,
+                              procam_error* err) noexcept {
+    SessionBox* box = box_of(s);
+    return guarded(err, "session_set_host", [&]() -> Error {
+      if (HostLink* link = link_of(box)) {
+        const bool usable =
+            host != nullptr && host->struct_size >= offsetof(procam_host_services, ctx) + sizeof(host->ctx);
+        link->attach(usable ? host : nullptr);
+        return ok();
+      }
+      return invalid_argument("session_set_host: session is NULL");
+    });
+  }
+
   static const procam_plugin_vtable* vtable(uint32_t host_abi) noexcept {
     static constexpr procam_plugin_vtable table = {
         PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), &describe, &session_create,
         &session_destroy,          &next_plan,                   &add_frame, &end_round,
-        &get_outputs};
+        &get_outputs,              &session_set_host};
     return host_abi == PROCAM_PLUGIN_ABI_VERSION ? &table : nullptr;
   }
 };

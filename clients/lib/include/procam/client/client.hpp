@@ -11,6 +11,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,7 +22,8 @@
 
 namespace procam::client {
 
-inline constexpr const char* kDefaultEndpoint = "tcp://127.0.0.1:5560";
+// "tcp://127.0.0.1:5560"; defined once, in the protocol (procam/proto/protocol.hpp).
+using proto::kDefaultEndpoint;
 
 // $PROCAM_ENDPOINT or kDefaultEndpoint.
 std::string default_endpoint();
@@ -88,6 +90,13 @@ public:
 private:
   Result<proto::Reply> roundtrip(const proto::RequestBody& body, std::string* extra_frame,
                                  const std::string& id = "");
+  // Waits up to `wait` for one message from the daemon. Events are queued in
+  // pending_events_ and give nullopt, as do a timeout, EINTR and an empty
+  // message; a reply is returned with its binary frame (if any) in *extra_frame.
+  // Errors: unavailable (poll or receive failed); a message that does not
+  // decode gives the decoder's error with context "reply from procamd".
+  Result<std::optional<proto::Reply>> receive_one(std::chrono::milliseconds wait,
+                                                  std::string* extra_frame);
   void init(const Result<CurveKeys>& keys);
   struct Impl;
   std::string endpoint_;

@@ -66,6 +66,8 @@ struct ScanRequest {
   bool save_frames = false;  // record the raw frames into the scan folder (CaptureOptions::record_dir)
 };
 
+class RequestMemory;  // scan request de-duplication (src/service_dedupe.hpp)
+
 // (scan_id, event name, fields) — fields exclude scan_id/seq, which the server adds.
 using EventSink = std::function<void(const std::string&, const std::string&, nlohmann::json)>;
 
@@ -116,8 +118,10 @@ private:
   void run_one(Record& rec);
   void finish(Record& rec, const Status& status, nlohmann::json manifest);
   void emit(Record& rec, const std::string& event, nlohmann::json fields);
+  void forward_plugin_reports(Record& rec, host::Session& session);
   nlohmann::json summary_locked(const Record& rec) const;
   nlohmann::json base_manifest(const Record& rec) const;
+  nlohmann::json metrics_locked() const;  // daemon_status()["metrics"]; mu_ held
   void load_existing();
 
   std::unique_ptr<hw::Rig> rig_;
@@ -138,12 +142,7 @@ private:
   double decode_ms_last_ = 0, decode_ms_sum_ = 0, decode_ms_max_ = 0;
   size_t decode_count_ = 0;
   uint64_t results_bytes_ = 0;
-  struct Remembered {
-    std::string scan_id;
-    std::chrono::steady_clock::time_point at;
-  };
-  std::map<std::string, Remembered> recent_requests_;  // request id + content digest → scan
-  std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> recent_order_;
+  std::unique_ptr<RequestMemory> requests_;  // request id + content digest → scan (service_dedupe.hpp)
   bool stopping_ = false;
   std::atomic<bool> cancel_running_{false};
   std::string cancel_reason_;  // why cancel_running_ was set (guarded by mu_)

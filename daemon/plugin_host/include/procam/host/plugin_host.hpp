@@ -21,6 +21,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -29,6 +30,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "procam/core/log.hpp"
 #include "procam/core/status.hpp"
 #include "procam/plugin_abi.h"
 
@@ -36,6 +38,7 @@ namespace procam::host {
 
 namespace detail {
 struct LoadedPlugin;  // dlopen handle + vtable; defined in src/plugin_loader.hpp
+class HostBridge;     // the session's procam_host_services; src/host_services.hpp
 }
 
 // One method of a plugin. `describe` is that method's object from the
@@ -118,6 +121,21 @@ public:
   const std::string& plugin_name() const;
   const std::string& method() const { return method_; }
 
+  // Plugin log lines and decode progress (plugin_abi.h "Host services"),
+  // for plugins whose table has session_set_host. Every line also goes to
+  // the daemon log, category "plugins", as "plugin '<name>': <message>".
+  // Handlers run on the thread calling this Session, inside next_plan,
+  // add_frame, end_round or outputs; they must be quick and must not call
+  // the Session. Messages arrive sanitised (<= 1 KiB, control characters
+  // escaped); progress `fraction` in [0, 1], at most ~20 reports per second
+  // (a new stage and fraction 1 always pass). No-ops for other plugins.
+  using LogHandler = std::function<void(log::Level level, const std::string& message)>;
+  using ProgressHandler = std::function<void(double fraction, const std::string& stage)>;
+  void set_log_handler(LogHandler handler);
+  void set_progress_handler(ProgressHandler handler);
+  // True when the plugin accepted host services (its session_set_host ran).
+  bool has_host_services() const { return bridge_ != nullptr; }
+
   // The next round to capture, or nullopt when the scan needs no more frames.
   Result<std::optional<Plan>> next_plan();
   // Frame `index` of the current plan (any order, each exactly once). The
@@ -131,7 +149,7 @@ public:
 private:
   friend class PluginHost;
   Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_session* session,
-          std::string method);
+          std::string method, std::unique_ptr<detail::HostBridge> bridge);
   Status plugin_failure(const char* call, int rc, const procam_error& err) const;
 
   std::shared_ptr<const detail::LoadedPlugin> plugin_;
@@ -141,6 +159,7 @@ private:
   bool finished_ = false;  // next_plan gave nullopt
   uint32_t rounds_ = 0;
   std::vector<bool> added_;  // per frame of the current plan
+  std::unique_ptr<detail::HostBridge> bridge_;  // null: the plugin has no host services
 };
 
 class PluginHost {

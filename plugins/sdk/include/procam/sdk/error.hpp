@@ -34,17 +34,11 @@ inline Error internal_error(std::string message) {
   return {PROCAM_ERR_INTERNAL, std::move(message)};
 }
 
-// "PROCAM_ERR_BAD_FRAME" etc., for messages and test output.
+// "PROCAM_ERR_BAD_FRAME" etc., for messages and test output (procam_rc_name
+// of plugin_abi.h, shared with the host).
 inline const char* code_name(int code) noexcept {
-  switch (code) {
-    case PROCAM_OK: return "PROCAM_OK";
-    case PROCAM_ERR_INVALID_ARGUMENT: return "PROCAM_ERR_INVALID_ARGUMENT";
-    case PROCAM_ERR_BAD_FRAME: return "PROCAM_ERR_BAD_FRAME";
-    case PROCAM_ERR_STATE: return "PROCAM_ERR_STATE";
-    case PROCAM_ERR_NO_MEMORY: return "PROCAM_ERR_NO_MEMORY";
-    case PROCAM_ERR_INTERNAL: return "PROCAM_ERR_INTERNAL";
-    default: return "PROCAM_ERR_(unknown)";
-  }
+  const char* name = procam_rc_name(code);
+  return name != nullptr ? name : "PROCAM_ERR_(unknown)";
 }
 
 // Copy `message` into err->message, NUL-terminated. Longer messages are cut at
