@@ -488,5 +488,177 @@ TEST(WeakPlanes, FinestGrayPlaneNearTieIsToleratedOnlyWithMaxWeak) {
   }
 }
 
+// The fit of sigma_d^2 = a + b S from per-pixel sample variances of n pair
+// sums: samples drawn here from Gaussians of known variance.
+TEST(NoiseRule, FitRecoversReadAndShotNoise) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> level(10.0, 500.0);
+  const double a = 9.0, b = 0.4;  // sigma_d^2 in DN^2: read 9, shot 0.4 per DN of S
+  const uint32_t pairs = 20;
+  std::vector<double> mean, var;
+  for (int p = 0; p < 40000; ++p) {
+    const double S = level(rng);
+    std::normal_distribution<double> g(S, std::sqrt(a + b * S));
+    double sum = 0, sq = 0;
+    for (uint32_t k = 0; k < pairs; ++k) {
+      const double v = g(rng);
+      sum += v;
+      sq += v * v;
+    }
+    const double m = sum / pairs;
+    mean.push_back(m);
+    var.push_back((sq - pairs * m * m) / (pairs - 1));
+  }
+  const NoiseFit f = fit_noise_samples(mean, var, pairs, 255.0);
+  ASSERT_TRUE(f.measured);
+  EXPECT_NEAR(f.b, b, 0.04 * b);
+  EXPECT_NEAR(f.a, a, 0.25 * a) << "a is the intercept: a few % of the variance at S ~ 250";
+  for (double S : {20.0, 250.0, 480.0}) EXPECT_NEAR(f.a + f.b * S, a + b * S, 0.04 * (a + b * S));
+  EXPECT_FALSE(fit_noise_samples(mean, var, 2, 255.0).measured) << "2 pairs: too few to measure";
+  EXPECT_FALSE(fit_noise_samples({}, {}, pairs, 255.0).measured);
+}
+
+// End to end: frames with Gaussian noise sigma^2(I) = r + q I per frame give
+// sigma_d^2 = 2 r + q (W + B) (decode.hpp), measured from the pairs alone.
+TEST(NoiseRule, StreamMeasuresTheMarginNoiseOfTheCapture) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s{PROCAM_PIXEL_F32, 32, 0, 0, 0};
+  const double r = 4e-5, q = 2e-4;  // per-frame variance, F32 units
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> albedo(0.2, 1.0);
+  std::vector<double> pix_albedo(col.size());
+  for (double& v : pix_albedo) v = albedo(rng);
+  std::vector<TestFrame> frames;
+  for (const FrameRole& role : layout.frames) {
+    TestFrame f = blank_frame(s);
+    for (size_t i = 0; i < col.size(); ++i) {
+      bool lit = false;
+      if (col[i] >= 0) {
+        const auto c = static_cast<uint32_t>(col[i]);
+        lit = role.kind == FrameKind::white || (role.kind == FrameKind::plane && cols.bit(role.plane, c)) ||
+              (role.kind == FrameKind::inverse && !cols.bit(role.plane, c));
+      }
+      const double I = 0.05 + (lit ? 0.6 * pix_albedo[i] : 0.0);
+      std::normal_distribution<double> g(I, std::sqrt(r + q * I));
+      f.set(i, g(rng), s);
+    }
+    frames.push_back(std::move(f));
+  }
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 2, 1);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult res = dec.finish(0.03, 0.0, 3.0);
+  ASSERT_TRUE(res.noise.measured);
+  EXPECT_EQ(res.noise.pairs, cols.bits);
+  EXPECT_NEAR(res.noise.b, q, 0.1 * q);
+  EXPECT_NEAR(res.noise.a, 2 * r, 0.3 * 2 * r);
+  // A clean capture: the noise rule keeps every lit pixel exact (margins ~ 0.12..0.6 >> 3 sigma_d ~ 0.04).
+  size_t lit = 0, exact = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    if (col[i] < 0) continue;
+    ++lit;
+    exact += res.cols.coord[i] == static_cast<float>(col[i]) ? 1u : 0u;
+  }
+  EXPECT_EQ(exact, lit);
+}
+
+// A margin of 2 sigma_d is rejected at k = 3 and kept at k = 1; the threshold
+// grows with W + B (shot noise), on 8-bit (integer kernels) and F32 input.
+TEST(NoiseRule, MarginWithinKSigmaIsRejected) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  for (const Case& cs : {kCases[0], kCases[3]}) {
+    SCOPED_TRACE(cs.name);
+    const Sensor s = cs.sensor;
+    std::vector<TestFrame> frames = render(layout, cols, col, s, 29);
+    const size_t mid = 2 + 2 * 3;  // plane 3, a strict plane
+    ASSERT_EQ(layout.frames[mid].label, "col bit " + std::to_string(cols.bits - 4));
+    // Uniform noise +-u per frame: sigma_d^2 = 2 u^2 / 3 (+ quantization 2/12 at 8 bit).
+    const double var = 2 * s.noise * s.noise / 3 + (s.type == PROCAM_PIXEL_U8 ? 2.0 / 12 : 0.0);
+    const double sd = std::sqrt(var);
+    const size_t px = 50 * kCamW + 400;
+    const double sign = cols.bit(layout.frames[mid].plane, static_cast<uint32_t>(col[px])) ? 1.0 : -1.0;
+    const double midv = s.black + s.contrast / 2;
+    frames[mid].set(px, midv + sign * sd, s);   // margin 2 sigma_d
+    frames[mid + 1].set(px, midv - sign * sd, s);
+    auto run = [&](double k) {
+      BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 0);
+      for (uint32_t i = 0; i < frames.size(); ++i) EXPECT_TRUE(dec.add_frame(i, frames[i].img).ok());
+      return dec.finish(0.03, 0.0, k);
+    };
+    const RoundResult k3 = run(3.0), k1 = run(1.0), off = run(0.0);
+    ASSERT_TRUE(k3.noise.measured);
+    // The fit sees a constant-variance capture (uniform noise): sigma_d within 25 %.
+    EXPECT_NEAR(std::sqrt(k3.noise.a + k3.noise.b * (2 * s.black + s.contrast)), sd, 0.25 * sd);
+    EXPECT_EQ(k3.cols.valid[px], 0) << "2 sigma_d < 3 sigma_d";
+    EXPECT_EQ(k1.cols.valid[px], 255) << "2 sigma_d > 1 sigma_d";
+    EXPECT_EQ(off.cols.valid[px], 255);
+    EXPECT_EQ(k1.cols.coord[px], static_cast<float>(col[px]));
+  }
+}
+
+// Gray code, the k finest planes tolerable: the interval is the aligned block
+// of 2^k columns (clipped to the code's length), written out independently.
+TEST(UncertainPlanes, GrayCoarseMapIsTheAlignedBlock) {
+  const StripeCode cols = make_gray_code(1000);
+  for (uint32_t k : {1u, 2u}) {
+    std::vector<uint8_t> tol(cols.bits, 0);
+    for (uint32_t p = cols.bits - k; p < cols.bits; ++p) tol[p] = 1;
+    const CoarseMap m = coarse_map(cols, tol);
+    const uint32_t block = 1u << k;
+    for (uint32_t x = 0; x < 1000; ++x) {
+      const uint32_t lo = x / block * block, hi = std::min(lo + block - 1, 999u);
+      const uint32_t w = cols.words[x];
+      ASSERT_EQ(m.centre[w], 0.5f * static_cast<float>(lo + hi)) << x;
+      ASSERT_EQ(m.half[w], 0.5f * static_cast<float>(hi - lo)) << x;
+    }
+  }
+}
+
+// With uncertain output, a pixel whose finest plane is a near tie or an exact
+// tie gets the two-column interval (centre col +- 0.5 around the truth's pair);
+// a near tie on a coarser plane stays invalid; other pixels are exact with 0.
+TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[0].sensor;  // 8 bit
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 31);
+  const size_t finest = 2 + (cols.bits - 1) * 2, mid = 2 + 3 * 2;
+  const size_t weak = 12 * kCamW + 300, tie = 12 * kCamW + 301, coarse = 12 * kCamW + 302;
+  auto set = [&](size_t f, size_t i, double frac) {
+    const double sign = cols.bit(layout.frames[f].plane, static_cast<uint32_t>(col[i])) ? 1.0 : -1.0;
+    const double midv = s.black + s.contrast / 2;
+    frames[f].set(i, midv + sign * frac * s.contrast / 2, s);
+    frames[f + 1].set(i, midv - sign * frac * s.contrast / 2, s);
+  };
+  set(finest, weak, 0.05);
+  set(finest, tie, 0.0);
+  set(mid, coarse, 0.05);
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
+  dec.set_uncertain_output(true);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult r = dec.finish(0.03, 0.1, 3.0);
+  for (size_t px : {weak, tie}) {
+    const auto c = static_cast<uint32_t>(col[px]);
+    EXPECT_EQ(r.cols.valid[px], 255) << px;
+    EXPECT_EQ(r.cols.coord[px], static_cast<float>(c / 2 * 2) + 0.5f) << px;
+    EXPECT_EQ(r.cols.uncertainty[px], 0.5f) << px;
+    EXPECT_LE(r.cols.confidence[px], 0.1f) << "lower than a certain pixel's";
+  }
+  EXPECT_EQ(r.cols.valid[coarse], 0);
+  EXPECT_TRUE(std::isnan(r.cols.uncertainty[coarse]));
+  size_t exact = 0, lit = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    if (col[i] < 0 || i == weak || i == tie || i == coarse) continue;
+    ++lit;
+    exact += r.cols.coord[i] == static_cast<float>(col[i]) && r.cols.uncertainty[i] == 0.0f ? 1u : 0u;
+  }
+  EXPECT_EQ(exact, lit);
+  EXPECT_EQ(r.cols_weak, 2u);
+}
+
 }  // namespace
 }  // namespace procam::sl
