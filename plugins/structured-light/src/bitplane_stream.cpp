@@ -155,6 +155,16 @@ void BitPlaneStream::set_format(const procam_image& frame) {
   }
   for (CodeState& s : codes_) {
     const int margins = s.has_weak ? 2 : 1;
+    s.tracked = track_;
+    if (track_) {
+      s.t_plane = make_pixel_array<uint8_t>(n);
+      for (int k = 0; k < 2; ++k) {
+        if (u8_)
+          s.t8[k] = make_pixel_array<uint8_t>(n);
+        else
+          s.tf[k] = make_pixel_array<float>(n);
+      }
+    }
     if (u8_) {  // written (not OR-ed / min-ed) by the first plane: no initialisation
       s.wbyte[0] = make_pixel_array<uint8_t>(n);
       if (s.bits > 8) s.wbyte[1] = make_pixel_array<uint8_t>(n);
@@ -250,6 +260,8 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
   const uint32_t byte = u8_ ? position / 8 : 0;
   const bool first_word = s.bytes_folded[byte] == 0;
   const size_t w = width_;
+  const bool track = s.tracked && which == 0;  // strict planes only
+  const auto plane_index = static_cast<uint8_t>(role.plane);
   if (u8_) {
     uint8_t* word = s.wbyte[byte].get();
     const uint32_t bit = position % 8;
@@ -263,10 +275,15 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
           fold_u8_inverse(sdk::row_bytes(plane, y), sdk::row_bytes(*inverse, y), w, bit, first,
                           first_word, word + off, margin + off);
           if (y % kNoiseRowStep == 0) sample_noise(plane, *inverse, y);
-        } else  // binarize "white": footnote 2, generalised (binarize.hpp)
+        } else {  // binarize "white": footnote 2, generalised (binarize.hpp)
           fold_u8_synthetic(sdk::row_bytes(plane, y), white + off,
                             black != nullptr ? black + off : nullptr, w, bit, first,
                             first_word, word + off, margin + off);
+        }
+        if (track)
+          track_u8(sdk::row_bytes(plane, y), inverse != nullptr ? sdk::row_bytes(*inverse, y) : white + off,
+                   inverse != nullptr || black == nullptr ? nullptr : black + off, inverse == nullptr, w,
+                   plane_index, first, s.t8[0].get() + off, s.t8[1].get() + off, s.t_plane.get() + off);
       }
     });
   } else {
@@ -288,6 +305,9 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
                              w, row_lb.data());
         fold_plane(row_l.data(), row_lb.data(), w, position, full_scale_, word + off,
                    margin + off, flags + off);
+        if (track)
+          track_f(row_l.data(), row_lb.data(), w, plane_index, first, s.tf[0].get() + off,
+                  s.tf[1].get() + off, s.t_plane.get() + off);
       }
     });
   }

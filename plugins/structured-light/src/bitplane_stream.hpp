@@ -147,6 +147,12 @@ struct CodeState {
   PixelArray<uint8_t> flags;
   uint32_t folded[2] = {0, 0};      // planes folded into margin [0] / [1]
   uint32_t bytes_folded[2] = {0, 0};  // planes folded into wbyte[0] / [1] (or word)
+  // Single-uncertain-plane tracking over the strict planes (binarize.hpp
+  // track_u8 / track_f; only with BitPlaneStream::track_single_planes):
+  // smallest margin, its plane (0 = most significant), second smallest.
+  PixelArray<uint8_t> t8[2], t_plane;  // 8-bit: m1, m2
+  PixelArray<float> tf[2];             // float: m1, m2
+  bool tracked = false;
 };
 
 // sigma_d^2 = a + b * S (input units^2, S = W + B ~ L + L̄), fitted per
@@ -206,6 +212,10 @@ class BitPlaneStream {
   const uint8_t* black8() const { return layout_.black >= 0 ? black8_.get() : nullptr; }
   const float* white_f() const { return white_f_.get(); }
   const float* black_f() const { return layout_.black >= 0 ? black_f_.get() : nullptr; }
+  // Track, per pixel and code, the smallest and second smallest strict
+  // margin and the smallest's plane (CodeState::t8 / tf / t_plane); call
+  // before the first frame.
+  void track_single_planes(bool on) { track_ = on; }
   // The noise model of this capture (see above); call when complete.
   NoiseFit fit_noise() const;
 
@@ -240,6 +250,7 @@ class BitPlaneStream {
   std::vector<double> noise_sum_, noise_sq_;  // per sampled pixel (row y / kNoiseRowStep)
   std::vector<uint8_t> noise_bad_;             // 1: some value clipped, <= 0 or non-finite
   uint32_t noise_pairs_ = 0;
+  bool track_ = false;
   float* intensity_out_ = nullptr;
   const float* intensity_written_ = nullptr;
 };

@@ -557,35 +557,73 @@ CoarseMap coarse_map(const StripeCode& code, const std::vector<uint8_t>& tolerab
   return m;
 }
 
-size_t decode_uncertain(const DecodeContext& ctx, size_t c, const CoarseMap& map, size_t b,
-                        size_t e, const BaseRow& row, float* coord, uint8_t* valid,
-                        float* uncertainty) {
+size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
+                        const CoarseMap& map, size_t b, size_t e, const BaseRow& row, float* coord,
+                        uint8_t* valid, float* uncertainty) {
   const BitPlaneStream& s = ctx.s;
   const CodeState& st = s.code(c);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const bool strict_any = st.folded[0] > 0;
+  const bool single = st.tracked && strict_any;
   const uint8_t* lo = st.wbyte[0].get();
   const uint8_t* hi = st.wbyte[1].get();
+  const int32_t* table = words.table.data();
+  const bool have_coarse = !map.centre.empty();
   size_t used = 0;
   for (size_t i = b; i < e; ++i) {
     const size_t k = i - b;
-    bool strict_ok = false, weak_ok = true;
+    bool strict_ok = false, weak_ok = true, clean = true, only_one = false;
     uint32_t word = 0;
     if (s.u8()) {  // integer margins against the gate, as the kernels compare them
       strict_ok = !strict_any || st.m8[0][i] > row.gate[k];
       if (st.has_weak) weak_ok = st.m8[1][i] > row.gate[k];
+      if (single) only_one = st.t8[1][i] > row.gate[k];
       word = lo[i] | (hi != nullptr ? uint32_t{hi[i]} << 8 : 0u);
     } else {
-      const uint8_t fl = st.flags[i];
-      strict_ok = fl == 0 && (!strict_any || st.mf[0][i] > row.thr[k]);
+      clean = st.flags[i] == 0;
+      strict_ok = !strict_any || st.mf[0][i] > row.thr[k];
       if (st.has_weak) weak_ok = st.mf[1][i] > row.thr[k];
+      if (single) only_one = st.tf[1][i] > row.thr[k];
       word = st.word[i];
     }
-    const bool take = row.base_ok[k] != 0 && strict_ok && !weak_ok && std::isfinite(map.centre[word]);
+    // The candidate set's interval [lo_c, hi_c] per word: the weak planes'
+    // block where they are uncertain, else the word's own value.
+    auto interval = [&](uint32_t w, float& l, float& h) {
+      if (!weak_ok && have_coarse) {
+        l = map.centre[w] - map.half[w];
+        h = map.centre[w] + map.half[w];
+      } else {
+        l = h = table[w] >= 0 ? static_cast<float>(table[w]) : nan;
+      }
+    };
+    bool take = false;
+    float centre = nan, half = nan;
+    if (row.base_ok[k] != 0 && clean) {
+      if (strict_ok && !weak_ok && have_coarse && std::isfinite(map.centre[word])) {
+        take = true;  // only tolerable planes uncertain
+        centre = map.centre[word];
+        half = map.half[word];
+      } else if (!strict_ok && only_one) {
+        // Exactly one strict plane uncertain: the word or the word with that
+        // bit flipped. Taken only where their intervals touch (a stripe edge
+        // of that plane runs through the pixel); elsewhere the flip would be
+        // a jump and the pixel stays invalid.
+        const uint32_t w2 = word ^ (1u << (st.bits - 1 - st.t_plane[i]));
+        float l1, h1, l2, h2;
+        interval(word, l1, h1);
+        interval(w2, l2, h2);
+        if (std::isfinite(l1) && std::isfinite(l2) && l2 <= h1 + 1.0f && l1 <= h2 + 1.0f) {
+          take = true;
+          const float l = std::min(l1, l2), h = std::max(h1, h2);
+          centre = 0.5f * (l + h);
+          half = 0.5f * (h - l);
+        }
+      }
+    }
     if (take) {
-      coord[k] = map.centre[word];
+      coord[k] = centre;
       if (valid != nullptr) valid[k] = 255;
-      uncertainty[k] = map.half[word];
+      uncertainty[k] = half;
       ++used;
     } else {
       uncertainty[k] = std::isnan(coord[k]) ? nan : 0.0f;

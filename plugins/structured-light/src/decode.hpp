@@ -175,16 +175,26 @@ struct CoarseMap {
 };
 CoarseMap coarse_map(const StripeCode& code, const std::vector<uint8_t>& tolerable);
 
-// After decode_code_maps for pixels [b, e) of code c: where rules 1, 2, 4 and
-// rule 3 of the strict planes hold but a tolerable plane's margin is not
-// above the threshold, coord = centre, valid = 255 and uncertainty = half of
-// the pixel's word (when centre is finite); confidence stays min margin / C
-// (below thr / C: lower than any certain pixel's at the same contrast).
-// Elsewhere uncertainty = 0 where valid, NaN where invalid. Returns the
-// number of pixels given an interval. Scalar; reads the state directly.
-size_t decode_uncertain(const DecodeContext& ctx, size_t c, const CoarseMap& map, size_t b,
-                        size_t e, const BaseRow& row, float* coord, uint8_t* valid,
-                        float* uncertainty);
+// After decode_code_maps for pixels [b, e) of code c, where rules 1 and 2 hold:
+//  - rule 3 holds on the strict planes but a tolerable plane's margin is not
+//    above the threshold: the interval of the word (`map`, may be empty = no
+//    tolerable planes);
+//  - exactly one strict plane p is uncertain (the code's state tracks the
+//    smallest and second smallest strict margin, BitPlaneStream::
+//    track_single_planes): the union of the intervals of the word and of the
+//    word with p's bit flipped (each the word's value, or its tolerable-plane
+//    interval where those are uncertain too), taken only when the two touch
+//    (|difference| <= 1 column between them) — a stripe edge of plane p runs
+//    through the pixel, so it sees both columns. Anything else (two strict
+//    planes uncertain, or a flip that jumps) stays invalid.
+// There coord = centre, valid = 255 and uncertainty = half-width; confidence
+// stays min margin / C (below thr / C: lower than any certain pixel's at the
+// same contrast). Elsewhere uncertainty = 0 where valid, NaN where invalid.
+// Returns the number of pixels given an interval. Scalar (runs on the
+// invalid remainder's state only through plain loads).
+size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
+                        const CoarseMap& map, size_t b, size_t e, const BaseRow& row, float* coord,
+                        uint8_t* valid, float* uncertainty);
 
 // The per-row decode loop shared by the decoders: on the stream's pool, for
 // every row, decode_base into a per-band BaseRow (lit / intensity written

@@ -81,10 +81,15 @@ class BinaryRoundDecoder {
   // has nothing to measure and only min_bit_margin applies.
   RoundResult finish(double min_contrast, double min_bit_margin, double noise_k = 0);
 
-  // With true, pixels whose tolerable planes are uncertain get the interval
-  // centre and cols.uncertainty (decode_uncertain) instead of the tolerated
-  // bit or nothing (rows: the centre; coord only). Call before finish.
-  void set_uncertain_output(bool on) { uncertain_ = on; }
+  // With true, pixels whose tolerable planes are uncertain, or exactly one
+  // strict plane at one of its stripe edges, get the interval centre and
+  // cols.uncertainty (decode_uncertain) instead of the tolerated bit or
+  // nothing (rows: the centre; coord only). Call before the first frame.
+  // Also tracks single uncertain strict planes (decode_uncertain).
+  void set_uncertain_output(bool on) {
+    uncertain_ = on;
+    stream_.track_single_planes(on);
+  }
 
   const Layout& layout() const { return layout_; }
 
