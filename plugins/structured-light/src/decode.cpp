@@ -572,18 +572,26 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
   size_t used = 0;
   for (size_t i = b; i < e; ++i) {
     const size_t k = i - b;
+    // signed_*: the uncertain plane's margin is > 0 — an exact tie or a
+    // clipped pair (8-bit: L = L-bar = 255) says nothing, not even that a
+    // stripe edge is near, so it never gets an interval.
     bool strict_ok = false, weak_ok = true, clean = true, only_one = false;
+    bool signed_weak = false, signed_single = false;
     uint32_t word = 0;
     if (s.u8()) {  // integer margins against the gate, as the kernels compare them
       strict_ok = !strict_any || st.m8[0][i] > row.gate[k];
       if (st.has_weak) weak_ok = st.m8[1][i] > row.gate[k];
       if (single) only_one = st.t8[1][i] > row.gate[k];
+      signed_weak = st.has_weak && st.m8[1][i] > 0;
+      signed_single = single && st.t8[0][i] > 0;
       word = lo[i] | (hi != nullptr ? uint32_t{hi[i]} << 8 : 0u);
     } else {
       clean = st.flags[i] == 0;
       strict_ok = !strict_any || st.mf[0][i] > row.thr[k];
       if (st.has_weak) weak_ok = st.mf[1][i] > row.thr[k];
       if (single) only_one = st.tf[1][i] > row.thr[k];
+      signed_weak = st.has_weak && st.mf[1][i] > 0.0f;
+      signed_single = single && st.tf[0][i] > 0.0f;
       word = st.word[i];
     }
     // The candidate set's interval [lo_c, hi_c] per word: the weak planes'
@@ -599,11 +607,11 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
     bool take = false;
     float centre = nan, half = nan;
     if (row.base_ok[k] != 0 && clean) {
-      if (strict_ok && !weak_ok && have_coarse && std::isfinite(map.centre[word])) {
+      if (strict_ok && !weak_ok && signed_weak && have_coarse && std::isfinite(map.centre[word])) {
         take = true;  // only tolerable planes uncertain
         centre = map.centre[word];
         half = map.half[word];
-      } else if (!strict_ok && only_one) {
+      } else if (!strict_ok && only_one && signed_single && (weak_ok || signed_weak)) {
         // Exactly one strict plane uncertain: the word or the word with that
         // bit flipped. Taken only where their intervals touch (a stripe edge
         // of that plane runs through the pixel); elsewhere the flip would be

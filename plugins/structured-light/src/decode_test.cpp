@@ -617,9 +617,11 @@ TEST(UncertainPlanes, GrayCoarseMapIsTheAlignedBlock) {
   }
 }
 
-// With uncertain output, a pixel whose finest plane is a near tie or an exact
-// tie gets the two-column interval (centre col +- 0.5 around the truth's pair);
-// a near tie on a coarser plane stays invalid; other pixels are exact with 0.
+// With uncertain output, a pixel whose finest plane is a near tie gets the
+// two-column interval (centre col +- 0.5 around the truth's pair); an exact
+// tie (no sign: also what a clipped pair looks like at 8 bit) and a near tie
+// on a coarser plane away from its edge stay invalid; other pixels are exact
+// with uncertainty 0.
 TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
   const StripeCode cols = make_gray_code(kProjW);
   const std::vector<int32_t> col = truth_columns();
@@ -641,13 +643,13 @@ TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
   dec.set_uncertain_output(true);
   for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
   const RoundResult r = dec.finish(0.03, 0.1, 3.0);
-  for (size_t px : {weak, tie}) {
-    const auto c = static_cast<uint32_t>(col[px]);
-    EXPECT_EQ(r.cols.valid[px], 255) << px;
-    EXPECT_EQ(r.cols.coord[px], static_cast<float>(c / 2 * 2) + 0.5f) << px;
-    EXPECT_EQ(r.cols.uncertainty[px], 0.5f) << px;
-    EXPECT_LE(r.cols.confidence[px], 0.1f) << "lower than a certain pixel's";
-  }
+  const auto c = static_cast<uint32_t>(col[weak]);
+  EXPECT_EQ(r.cols.valid[weak], 255);
+  EXPECT_EQ(r.cols.coord[weak], static_cast<float>(c / 2 * 2) + 0.5f);
+  EXPECT_EQ(r.cols.uncertainty[weak], 0.5f);
+  EXPECT_LE(r.cols.confidence[weak], 0.1f) << "lower than a certain pixel's";
+  EXPECT_EQ(r.cols.valid[tie], 0) << "an exact tie carries no information";
+  EXPECT_TRUE(std::isnan(r.cols.uncertainty[tie]));
   EXPECT_EQ(r.cols.valid[coarse], 0);
   EXPECT_TRUE(std::isnan(r.cols.uncertainty[coarse]));
   size_t exact = 0, lit = 0;
@@ -657,7 +659,49 @@ TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
     exact += r.cols.coord[i] == static_cast<float>(col[i]) && r.cols.uncertainty[i] == 0.0f ? 1u : 0u;
   }
   EXPECT_EQ(exact, lit);
-  EXPECT_EQ(r.cols_weak, 2u);
+  EXPECT_EQ(r.cols_weak, 1u);
+}
+
+// One strict plane nearly tied (margin 2 DN, below 3 sigma_d and 0.1 C): at
+// that plane's stripe edge the pixel sees both columns, so it gets the
+// two-column interval; away from the edge the flip would jump by 2^k columns
+// and the pixel stays invalid.
+TEST(UncertainPlanes, SingleStrictPlaneTieOnlyAtItsStripeEdge) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[0].sensor;
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 37);
+  const uint32_t plane = 4;  // bit position bits - 5: stripes of 32 columns
+  const size_t f = 2 + 2 * plane;
+  ASSERT_EQ(layout.frames[f].label, "col bit " + std::to_string(cols.bits - 1 - plane));
+  // Find, on row 60, a pixel whose column c and c + 1 differ exactly in this
+  // plane (its stripe edge), and one whose neighbours do not.
+  size_t edge = 0, inner = 0;
+  for (uint32_t x = 200; x < 600 && (edge == 0 || inner == 0); ++x) {
+    const size_t i = 60 * kCamW + x;
+    const auto c = static_cast<uint32_t>(col[i]);
+    const bool at_edge = cols.bit(plane, c) != cols.bit(plane, c + 1);
+    const bool near_edge = at_edge || cols.bit(plane, c) != cols.bit(plane, c - 1);
+    if (at_edge && edge == 0) edge = i;
+    if (!near_edge && inner == 0) inner = i;
+  }
+  ASSERT_NE(edge, 0u);
+  ASSERT_NE(inner, 0u);
+  for (size_t i : {edge, inner}) {  // near tie, either sign
+    frames[f].set(i, s.black + s.contrast / 2 + 1, s);
+    frames[f + 1].set(i, s.black + s.contrast / 2 - 1, s);
+  }
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
+  dec.set_uncertain_output(true);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult r = dec.finish(0.03, 0.1, 3.0);
+  EXPECT_EQ(r.cols.valid[edge], 255);
+  EXPECT_EQ(r.cols.coord[edge], static_cast<float>(col[edge]) + 0.5f);
+  EXPECT_EQ(r.cols.uncertainty[edge], 0.5f);
+  EXPECT_NEAR(r.cols.confidence[edge], 0.01f, 0.0005f) << "the tied plane's margin 2 / C, C = 200 +- 6";
+  EXPECT_EQ(r.cols.valid[inner], 0) << "a flip away from the edge is a 2^k jump: not an interval";
+  EXPECT_TRUE(std::isnan(r.cols.coord[inner]));
 }
 
 }  // namespace
