@@ -39,9 +39,11 @@ int cmd_decode(const Args& a) {
   auto session = host.create_session(a.get("plugin"), a.get("method"), params->dump(), rig_json->dump());
   if (!session) return report(session.status());
   auto t0 = std::chrono::steady_clock::now();
+  engine::OfflineOptions offline;
+  if (a.has("layout")) offline.layout = a.get("layout");
   auto outcome = engine::run_offline(*session, a.get("frames"), [](const engine::Progress& p) {
     std::fprintf(stderr, "\r  decode round %d %zu/%zu %-24.24s", p.round, p.done, p.total, p.message.c_str());
-  });
+  }, offline);
   std::fprintf(stderr, "\n");
   if (!outcome) return report(outcome.status());
   auto outs = session->outputs();
@@ -53,6 +55,7 @@ int cmd_decode(const Args& a) {
   for (const auto& r : outcome->rounds) rounds.push_back({{"note", r.note}, {"frames", r.frames}});
   nlohmann::json m = {{"procam", 1}, {"scan_id", "offline"}, {"state", "done"}, {"plugin", a.get("plugin")},
                       {"method", a.get("method")}, {"params", *params}, {"frames_dir", a.get("frames")},
+                      {"layout", offline.layout},
                       {"created_utc", engine::utc_now()}, {"finished_utc", engine::utc_now()},
                       {"plan", {{"rounds", rounds}, {"patterns", outcome->patterns}}},
                       {"timing_ms", {{"decode", outcome->decode_ms},

@@ -36,10 +36,12 @@ const std::vector<Command> kCommands = {
      "                                for `procam decode --frames DIR`"},
     {"result", cmd_result, {"endpoint", "timeout", "scan", "out"},
      "result --scan ID --out DIR      download a finished scan's results"},
-    {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins"},
+    {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins", "layout"},
      "decode --plugin P --method M --frames DIR --out DIR [--param k=v]... [--rig RIG.json] [--plugins DIR]...\n"
+     "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json]\n"
      "                                offline: decode a scan's saved frames (frame-r<round>-<i>.png), or\n"
-     "                                image files sorted by name in plan order (later rounds in roundN/)"},
+     "                                image files sorted by name in plan order (later rounds in roundN/),\n"
+     "                                or in another layout (--layout; missing white/black synthesized)"},
     {"bench", cmd_bench, {"rig", "scenes", "scene", "method", "param", "out", "keep", "plugins", "threads", "only-listed"},
      "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
      "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs + outputs.json)\n"

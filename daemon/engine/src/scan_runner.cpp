@@ -10,6 +10,7 @@
 
 #include "procam/core/image_io.hpp"
 #include "procam/core/log.hpp"
+#include "procam/engine/frame_layout.hpp"
 #include "procam/engine/sync.hpp"
 
 namespace procam::engine {
@@ -127,8 +128,36 @@ std::vector<std::string> list_image_files(const std::string& dir) {
   return files;
 }
 
+namespace {
+// Per-pixel max (white) / min (black) of the pair frames, in their own format
+// (frame_layout.hpp, synthesized white / black).
+struct Extremes {
+  Image hi, lo;
+  void add(const Image& img) {
+    if (hi.empty()) {
+      hi = img;
+      lo = img;
+      return;
+    }
+    const size_t n = img.pixel_count() * img.channels();
+    switch (img.type()) {
+      case PixelType::u8: fold(img.ptr<uint8_t>(), hi.ptr<uint8_t>(), lo.ptr<uint8_t>(), n); break;
+      case PixelType::u16: fold(img.ptr<uint16_t>(), hi.ptr<uint16_t>(), lo.ptr<uint16_t>(), n); break;
+      default: fold(img.ptr<float>(), hi.ptr<float>(), lo.ptr<float>(), n); break;
+    }
+  }
+  template <class T>
+  static void fold(const T* v, T* h, T* l, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+      h[i] = v[i] > h[i] ? v[i] : h[i];  // a NaN sample never replaces a value
+      l[i] = v[i] < l[i] ? v[i] : l[i];
+    }
+  }
+};
+}  // namespace
+
 Result<ScanOutcome> run_offline(host::Session& session, const std::string& frames_dir,
-                                const ProgressFn& progress) {
+                                const ProgressFn& progress, const OfflineOptions& options) {
   ScanOutcome out;
   if (!fs::is_directory(frames_dir))
     return Error(Code::not_found, "frames folder '" + frames_dir + "' does not exist");
@@ -151,26 +180,65 @@ Result<ScanOutcome> run_offline(host::Session& session, const std::string& frame
     } else {
       files = list_image_files(dir);
     }
-    if (files.size() != p.frames.size()) {
-      std::string labels;
-      for (size_t i = 0; i < p.frames.size(); ++i)
-        labels += (i ? ", " : "") + std::to_string(i) + ":" + p.frames[i].label;
-      return Error(Code::invalid_argument,
-                   "round " + std::to_string(round) + " needs " + std::to_string(p.frames.size()) +
-                       " frames in '" + dir + "' but found " + std::to_string(files.size()) + " image files",
-                   recorded ? "recorded frames are named " + recorded_frame_name(round, 0) + ", ...: the scan that "
-                                                                               "recorded them used another method or parameters"
-                            : "name the files so that sorting by name gives the plan order: " + labels);
+    FrameAssignment assign;
+    if (recorded || options.layout.empty() || options.layout == "procam") {
+      if (files.size() != p.frames.size()) {
+        std::string labels;
+        for (size_t i = 0; i < p.frames.size(); ++i)
+          labels += (i ? ", " : "") + std::to_string(i) + ":" + p.frames[i].label;
+        return Error(Code::invalid_argument,
+                     "round " + std::to_string(round) + " needs " + std::to_string(p.frames.size()) +
+                         " frames in '" + dir + "' but found " + std::to_string(files.size()) + " image files",
+                     recorded ? "recorded frames are named " + recorded_frame_name(round, 0) + ", ...: the scan that "
+                                                                                 "recorded them used another method or parameters"
+                              : "name the files so that sorting by name gives the plan order: " + labels +
+                                    " (or pass --layout: " + kBuiltinLayouts + ", or a layout file)");
+      }
+      for (size_t i = 0; i < files.size(); ++i) {
+        assign.frame_of_file.push_back(i);
+        assign.files.push_back(i);
+      }
+    } else {
+      std::vector<std::string> labels;
+      for (const auto& f : p.frames) labels.push_back(f.label);
+      auto a = assign_frames(options.layout, labels, files);
+      if (!a) return a.status().with_context("round " + std::to_string(round) + " in '" + dir + "'");
+      assign = std::move(*a);
     }
+    const bool synthesize = assign.white >= 0 || assign.black >= 0;
+    std::vector<bool> is_pair(p.frames.size(), false);
+    for (size_t f : assign.pair_frames) is_pair[f] = true;
+    Extremes extremes;
     out.rounds.push_back({p.note, p.frames.size()});
+    if (synthesize)
+      out.rounds.back().note += std::string(" [") + (assign.white >= 0 ? "white" : "") +
+                                (assign.white >= 0 && assign.black >= 0 ? " and " : "") +
+                                (assign.black >= 0 ? "black" : "") +
+                                " synthesized: per-pixel max/min of the pattern/inverse frames]";
     out.patterns += p.frames.size();
     auto t0 = Clock::now();
-    for (size_t i = 0; i < files.size(); ++i) {
-      auto img = read_image(files[i]);
-      if (!img) return img.status().with_context(frame_context(round, i, p.frames[i].label));
+    for (size_t j = 0; j < assign.files.size(); ++j) {
+      const std::string& file = files[assign.files[j]];
+      const size_t i = assign.frame_of_file[j];
+      const std::string ctx = frame_context(round, i, p.frames[i].label) + " from " + fs::path(file).filename().string();
+      auto img = read_image(file);
+      if (!img) return img.status().with_context(ctx);
+      if (synthesize && is_pair[i]) {
+        if (!extremes.hi.empty() && (img->width() != extremes.hi.width() || img->height() != extremes.hi.height() ||
+                                     img->type() != extremes.hi.type() || img->channels() != extremes.hi.channels()))
+          return Error(Code::invalid_argument, ctx + ": size or format differs from the earlier frames of the round");
+        extremes.add(*img);
+      }
       Status s = session.add_frame(static_cast<uint32_t>(i), img->view());
-      if (!s) return s.with_context(frame_context(round, i, p.frames[i].label) + " from " + files[i]);
-      if (progress) progress({"decode", round, i + 1, files.size(), p.frames[i].label});
+      if (!s) return s.with_context(ctx);
+      if (progress) progress({"decode", round, j + 1, assign.files.size(), p.frames[i].label});
+    }
+    for (long f : {assign.white, assign.black}) {
+      if (f < 0) continue;
+      const Image& img = f == assign.white ? extremes.hi : extremes.lo;
+      Status s = session.add_frame(static_cast<uint32_t>(f), img.view());
+      if (!s) return s.with_context(frame_context(round, static_cast<size_t>(f), p.frames[static_cast<size_t>(f)].label) +
+                                    " (synthesized)");
     }
     Status s = session.end_round();
     if (!s) return s.with_context("decoding round " + std::to_string(round));

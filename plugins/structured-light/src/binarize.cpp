@@ -233,6 +233,46 @@ void intensity_u8(const uint8_t* src, size_t n, float inv_scale, float* out) {
   intensity_u8_scalar(src, 0, n, inv_scale, out);
 }
 
+void track_u8(const uint8_t* __restrict L, const uint8_t* __restrict R, const uint8_t* __restrict B,
+              bool synthetic, size_t n, uint8_t plane, bool first, uint8_t* __restrict m1,
+              uint8_t* __restrict m2, uint8_t* __restrict p1) {
+  for (size_t i = 0; i < n; ++i) {
+    const int32_t d = synthetic ? 2 * int32_t{L[i]} - int32_t{R[i]} - (B != nullptr ? int32_t{B[i]} : 0)
+                                : int32_t{L[i]} - int32_t{R[i]};
+    const int32_t a0 = d < 0 ? -d : d;
+    const auto a = static_cast<uint8_t>(a0 > 255 ? 255 : a0);
+    if (first) {
+      m1[i] = a;
+      m2[i] = 255;
+      p1[i] = plane;
+      continue;
+    }
+    const uint8_t o = m1[i];
+    m2[i] = std::min(m2[i], std::max(o, a));
+    p1[i] = a < o ? plane : p1[i];
+    m1[i] = std::min(o, a);
+  }
+}
+
+void track_f(const float* __restrict L, const float* __restrict L_bar, size_t n, uint8_t plane,
+             bool first, float* __restrict m1, float* __restrict m2, uint8_t* __restrict p1) {
+  const float inf = std::numeric_limits<float>::infinity();
+  for (size_t i = 0; i < n; ++i) {
+    const float a = std::fabs(L[i] - L_bar[i]);  // NaN: every comparison false, nothing lowered
+    if (first) {
+      m1[i] = a == a ? a : inf;
+      m2[i] = inf;
+      p1[i] = plane;
+      continue;
+    }
+    const float o = m1[i];
+    const float hi = a > o ? a : o;  // max(o, a); o if a is NaN
+    m2[i] = hi < m2[i] ? hi : m2[i];
+    p1[i] = a < o ? plane : p1[i];
+    m1[i] = a < o ? a : o;
+  }
+}
+
 void synthesize_inverse(const float* L, const float* white, const float* black, size_t n,
                         float* L_bar) {
   for (size_t i = 0; i < n; ++i) L_bar[i] = white[i] + (black != nullptr ? black[i] : 0.0f) - L[i];

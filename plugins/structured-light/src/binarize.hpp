@@ -93,6 +93,19 @@ void set_avx512_enabled(bool enabled);
 // identical results.
 void intensity_u8(const uint8_t* src, size_t n, float inv_scale, float* out);
 
+// Single-uncertain-plane tracking (decode.hpp, decode_uncertain): per pixel
+// the smallest margin m1 over a code's strict planes, the plane p1 it came
+// from and the second smallest m2 (so "only plane p1 is uncertain" is
+// m1 <= thr < m2). 8-bit: margins saturated at 255 as above, d = L - L̄
+// (inverse) or 2L - W - B (synthetic, B may be null); float: a NaN margin
+// never lowers them. `first`: the first strict plane of the code (stored,
+// m2 = max). Plain loops without branches (the vectorizer compiles them);
+// no intrinsics, so there is no SIMD twin to keep identical.
+void track_u8(const uint8_t* L, const uint8_t* R, const uint8_t* B, bool synthetic, size_t n,
+              uint8_t plane, bool first, uint8_t* m1, uint8_t* m2, uint8_t* p1);
+void track_f(const float* L, const float* L_bar, size_t n, uint8_t plane, bool first, float* m1,
+             float* m2, uint8_t* p1);
+
 // L̄ = W + B - L for n pixels (synthetic inverse, see above; B may be null = 0).
 void synthesize_inverse(const float* L, const float* white, const float* black, size_t n,
                         float* L_bar);

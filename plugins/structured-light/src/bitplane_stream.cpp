@@ -135,8 +135,24 @@ void BitPlaneStream::set_format(const procam_image& frame) {
   u8_ = frame.pixel_type == PROCAM_PIXEL_U8 && frame.bit_depth == 8;
   have_format_ = true;
   const size_t n = size_t{width_} * height_;
+  if (layout_.inverse) {
+    const size_t sn = size_t{width_} * ((height_ + kNoiseRowStep - 1) / kNoiseRowStep);
+    noise_sum_.assign(sn, 0.0);
+    noise_sq_.assign(sn, 0.0);
+    noise_bad_.assign(sn, 0);
+  }
   for (CodeState& s : codes_) {
     const int margins = s.has_weak ? 2 : 1;
+    s.tracked = track_;
+    if (track_) {
+      s.t_plane = make_pixel_array<uint8_t>(n);
+      for (int k = 0; k < 2; ++k) {
+        if (u8_)
+          s.t8[k] = make_pixel_array<uint8_t>(n);
+        else
+          s.tf[k] = make_pixel_array<float>(n);
+      }
+    }
     if (u8_) {  // written (not OR-ed / min-ed) by the first plane: no initialisation
       s.wbyte[0] = make_pixel_array<uint8_t>(n);
       if (s.bits > 8) s.wbyte[1] = make_pixel_array<uint8_t>(n);
@@ -232,6 +248,8 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
   const uint32_t byte = u8_ ? position / 8 : 0;
   const bool first_word = s.bytes_folded[byte] == 0;
   const size_t w = width_;
+  const bool track = s.tracked && which == 0;  // strict planes only
+  const auto plane_index = static_cast<uint8_t>(role.plane);
   if (u8_) {
     uint8_t* word = s.wbyte[byte].get();
     const uint32_t bit = position % 8;
@@ -241,13 +259,19 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
     pool_->run(height_, [&](uint32_t y0, uint32_t y1) {
       for (uint32_t y = y0; y < y1; ++y) {
         const size_t off = size_t{y} * w;
-        if (inverse != nullptr)
+        if (inverse != nullptr) {
           fold_u8_inverse(sdk::row_bytes(plane, y), sdk::row_bytes(*inverse, y), w, bit, first,
                           first_word, word + off, margin + off);
-        else  // binarize "white": footnote 2, generalised (binarize.hpp)
+          if (y % kNoiseRowStep == 0) sample_noise(plane, *inverse, y);
+        } else {  // binarize "white": footnote 2, generalised (binarize.hpp)
           fold_u8_synthetic(sdk::row_bytes(plane, y), white + off,
                             black != nullptr ? black + off : nullptr, w, bit, first,
                             first_word, word + off, margin + off);
+        }
+        if (track)
+          track_u8(sdk::row_bytes(plane, y), inverse != nullptr ? sdk::row_bytes(*inverse, y) : white + off,
+                   inverse != nullptr || black == nullptr ? nullptr : black + off, inverse == nullptr, w,
+                   plane_index, first, s.t8[0].get() + off, s.t8[1].get() + off, s.t_plane.get() + off);
       }
     });
   } else {
@@ -261,19 +285,119 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
       for (uint32_t y = y0; y < y1; ++y) {
         const size_t off = size_t{y} * w;
         sdk::read_row(plane, y, row_l.data());
-        if (inverse != nullptr)
+        if (inverse != nullptr) {
           sdk::read_row(*inverse, y, row_lb.data());
-        else
+          if (y % kNoiseRowStep == 0) sample_noise(plane, *inverse, y);
+        } else
           synthesize_inverse(row_l.data(), white + off, black != nullptr ? black + off : nullptr,
                              w, row_lb.data());
         fold_plane(row_l.data(), row_lb.data(), w, position, full_scale_, word + off,
                    margin + off, flags + off);
+        if (track)
+          track_f(row_l.data(), row_lb.data(), w, plane_index, first, s.tf[0].get() + off,
+                  s.tf[1].get() + off, s.t_plane.get() + off);
       }
     });
   }
+  if (inverse != nullptr) ++noise_pairs_;
   ++s.folded[which];
   ++s.bytes_folded[byte];
   s.plane_done[role.plane] = 1;
+}
+
+// Row y (a multiple of kNoiseRowStep) of a pattern/inverse pair into the
+// noise sums; each sampled row belongs to one band, so no two threads write
+// the same sample.
+void BitPlaneStream::sample_noise(const procam_image& plane, const procam_image& inverse,
+                                  uint32_t y) {
+  const size_t w = width_, off = size_t{y / kNoiseRowStep} * w;
+  double* sum = noise_sum_.data() + off;
+  double* sq = noise_sq_.data() + off;
+  uint8_t* bad = noise_bad_.data() + off;
+  const float fs = full_scale_;
+  auto add = [&](size_t x, float l, float lb) {
+    const double s = double{l} + double{lb};
+    sum[x] += s;
+    sq[x] += s * s;
+    const bool ok = std::isfinite(s) && l > 0.0f && lb > 0.0f && l < fs && lb < fs;
+    bad[x] = static_cast<uint8_t>(bad[x] | (ok ? 0 : 1));
+  };
+  if (u8_) {
+    const uint8_t* l = sdk::row_bytes(plane, y);
+    const uint8_t* lb = sdk::row_bytes(inverse, y);
+    for (size_t x = 0; x < w; ++x) add(x, static_cast<float>(l[x]), static_cast<float>(lb[x]));
+    return;
+  }
+  std::vector<float> l(w), lb(w);
+  sdk::read_row(plane, y, l.data());
+  sdk::read_row(inverse, y, lb.data());
+  for (size_t x = 0; x < w; ++x) add(x, l[x], lb[x]);
+}
+
+NoiseFit BitPlaneStream::fit_noise() const {
+  if (noise_pairs_ < 3) return NoiseFit{};
+  const double n = noise_pairs_;
+  std::vector<double> mean, var;
+  mean.reserve(noise_sum_.size());
+  var.reserve(noise_sum_.size());
+  for (size_t i = 0; i < noise_sum_.size(); ++i) {
+    if (noise_bad_[i] != 0) continue;
+    const double m = noise_sum_[i] / n;
+    mean.push_back(m);
+    var.push_back(std::max(0.0, (noise_sq_[i] - n * m * m) / (n - 1.0)));
+  }
+  return fit_noise_samples(mean, var, noise_pairs_, full_scale_);
+}
+
+NoiseFit fit_noise_samples(const std::vector<double>& mean_sum, const std::vector<double>& variance,
+                           uint32_t pairs, double full_scale) {
+  NoiseFit f;
+  f.pairs = pairs;
+  if (pairs < 3 || mean_sum.empty() || !(full_scale > 0)) return f;
+  constexpr size_t kBins = 64, kMinBin = 20;
+  const double nu = pairs - 1.0;
+  const double median_factor = std::pow(1.0 - 2.0 / (9.0 * nu), 3.0);  // median(chi2_nu) / nu
+  std::vector<std::vector<double>> bins(kBins);
+  std::vector<double> bin_s(kBins, 0.0);
+  for (size_t i = 0; i < mean_sum.size(); ++i) {
+    const double s = mean_sum[i];
+    if (!std::isfinite(s) || !std::isfinite(variance[i]) || s < 0) continue;
+    const auto b = std::min(kBins - 1, static_cast<size_t>(s / (2.0 * full_scale) * kBins));
+    bins[b].push_back(variance[i]);
+    bin_s[b] += s;
+  }
+  double sw = 0, ss = 0, sy = 0, sss = 0, ssy = 0;
+  size_t used_bins = 0;
+  for (size_t b = 0; b < kBins; ++b) {
+    std::vector<double>& v = bins[b];
+    if (v.size() < kMinBin) continue;
+    auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    const double y = *mid / median_factor;
+    const double s = bin_s[b] / static_cast<double>(v.size());
+    const auto w = static_cast<double>(v.size());
+    sw += w, ss += w * s, sy += w * y, sss += w * s * s, ssy += w * s * y;
+    f.pixels += v.size();
+    ++used_bins;
+  }
+  if (used_bins == 0) return f;
+  f.measured = true;
+  const double det = sw * sss - ss * ss;
+  if (used_bins >= 2 && det > 0) {
+    f.b = (sw * ssy - ss * sy) / det;
+    f.a = (sy - f.b * ss) / sw;
+  } else {
+    f.a = sy / sw;
+  }
+  if (f.b < 0) {  // no shot-noise term in the data: constant variance
+    f.b = 0;
+    f.a = sy / sw;
+  }
+  if (f.a < 0) {  // shot noise only: through the origin
+    f.a = 0;
+    f.b = sss > 0 ? ssy / sss : 0;
+  }
+  return f;
 }
 
 void BitPlaneStream::fold_waiting_planes() {

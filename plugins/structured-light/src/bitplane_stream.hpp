@@ -20,6 +20,14 @@
 // Weak ("tolerable") planes: planes flagged tolerable keep their own min
 // margin (decode.hpp, max_weak_error_px), the others the strict min margin.
 //
+// Noise samples (decode.hpp, noise rule): in "inverse" mode every
+// kNoiseRowStep-th row keeps, per pixel, the sum and the sum of squares of
+// S_p = L_p + L̄_p over the folded pairs p. Under linear light transport S_p
+// is the same for every pattern (P + P̄ = white), so its spread across the
+// planes is noise only: Var(S_p) = sigma^2(L) + sigma^2(L̄) = Var(L - L̄) =
+// sigma_d^2 — the variance of the margin, measured without knowing the bits.
+// fit_noise() fits sigma_d^2 = a + b S to those samples.
+//
 // Errors: add_frame returns INVALID_ARGUMENT (index out of range), STATE
 // (frame added twice) or BAD_FRAME (size, channels, format differing from
 // earlier frames); nothing changes on error.
@@ -127,10 +135,37 @@ struct CodeState {
   PixelArray<uint8_t> flags;
   uint32_t folded[2] = {0, 0};      // planes folded into margin [0] / [1]
   uint32_t bytes_folded[2] = {0, 0};  // planes folded into wbyte[0] / [1] (or word)
+  // Single-uncertain-plane tracking over the strict planes (binarize.hpp
+  // track_u8 / track_f; only with BitPlaneStream::track_single_planes):
+  // smallest margin, its plane (0 = most significant), second smallest.
+  PixelArray<uint8_t> t8[2], t_plane;  // 8-bit: m1, m2
+  PixelArray<float> tf[2];             // float: m1, m2
+  bool tracked = false;
 };
+
+// sigma_d^2 = a + b * S (input units^2, S = W + B ~ L + L̄), fitted per
+// capture (BitPlaneStream::fit_noise); measured false when no pairs were
+// folded ("white" mode, or fewer than 3 pairs).
+struct NoiseFit {
+  bool measured = false;
+  double a = 0, b = 0;
+  size_t pixels = 0;   // sample pixels used
+  uint32_t pairs = 0;  // pattern/inverse pairs per pixel
+};
+
+// Fit of sigma_d^2 = a + b S from per-pixel sample variances (n pairs each,
+// unbiased, n >= 3) at mean sums S: the variances are binned by S (64 bins
+// over [0, 2 full scale]); a bin's value is its median divided by the median
+// of chi^2_nu / nu (Wilson-Hilferty (1 - 2 / (9 nu))^3, nu = n - 1), robust to
+// the few pixels where transport is not linear (clipping, motion); a and b
+// come from count-weighted least squares over bins of >= 20 pixels, clamped
+// to a, b >= 0. Exposed for tests.
+NoiseFit fit_noise_samples(const std::vector<double>& mean_sum, const std::vector<double>& variance,
+                           uint32_t pairs, double full_scale);
 
 class BitPlaneStream {
  public:
+  static constexpr uint32_t kNoiseRowStep = 8;
   BitPlaneStream(StreamLayout layout, uint32_t width, uint32_t height, uint32_t threads);
 
   sdk::Error add_frame(uint32_t index, const procam_image& frame);
@@ -165,6 +200,12 @@ class BitPlaneStream {
   const uint8_t* black8() const { return layout_.black >= 0 ? black8_.get() : nullptr; }
   const float* white_f() const { return white_f_.get(); }
   const float* black_f() const { return layout_.black >= 0 ? black_f_.get() : nullptr; }
+  // Track, per pixel and code, the smallest and second smallest strict
+  // margin and the smallest's plane (CodeState::t8 / tf / t_plane); call
+  // before the first frame.
+  void track_single_planes(bool on) { track_ = on; }
+  // The noise model of this capture (see above); call when complete.
+  NoiseFit fit_noise() const;
 
  private:
   struct Copy {  // a waiting frame, copied in its own format
@@ -178,6 +219,7 @@ class BitPlaneStream {
   void store_reference(const procam_image& frame, PixelArray<uint8_t>& r8, PixelArray<float>& rf);
   void fold(const StreamFrame& role, const procam_image& plane, const procam_image* inverse);
   void fold_waiting_planes();
+  void sample_noise(const procam_image& plane, const procam_image& inverse, uint32_t y);
   bool have_reference() const;
 
   StreamLayout layout_;
@@ -193,6 +235,10 @@ class BitPlaneStream {
   bool have_format_ = false, u8_ = false;
   uint32_t pixel_type_ = 0, bit_depth_ = 0;
   float full_scale_ = 0;
+  std::vector<double> noise_sum_, noise_sq_;  // per sampled pixel (row y / kNoiseRowStep)
+  std::vector<uint8_t> noise_bad_;             // 1: some value clipped, <= 0 or non-finite
+  uint32_t noise_pairs_ = 0;
+  bool track_ = false;
   float* intensity_out_ = nullptr;
   const float* intensity_written_ = nullptr;
 };

@@ -80,9 +80,18 @@ WordMap word_map(const StripeCode& code, const std::vector<int32_t>* value_of) {
   return m;
 }
 
+float noise_threshold(const DecodeThresholds& t, float S) {
+  const float var = t.noise_a + t.noise_b * S;
+  return t.noise_k > 0.0f && var > 0.0f ? t.noise_k * std::sqrt(var) : 0.0f;
+}
+
 DecodeContext::DecodeContext(const BitPlaneStream& stream, const DecodeThresholds& thresholds)
     : s(stream), t(thresholds), inv_scale(1.0f / stream.full_scale()) {
   if (!s.u8()) return;
+  for (int v = 0; v < 512; ++v) {
+    noise8[v] = noise_threshold(t, static_cast<float>(v));
+    noise = noise || noise8[v] > 0.0f;
+  }
   for (int v = 0; v < 256; ++v) {  // the float expressions of the scalar rule, per integer value
     const auto c = static_cast<float>(v);
     inv_c8[v] = v > 0 ? 1.0f / c : 0.0f;
@@ -141,7 +150,13 @@ __attribute__((target("avx2"))) size_t decode_base_u8_avx2(const DecodeContext& 
     const __m256i lit_px = _mm256_and_si256(pos, _mm256_castps_si256(_mm256_cmp_ps(cf, min_abs, _CMP_GE_OQ)));
     const __m256i clipped = _mm256_and_si256(clip, _mm256_cmpeq_epi32(w, full));
     const __m256i ok = _mm256_andnot_si256(clipped, lit_px);
-    const __m256 thr = _mm256_mul_ps(t, cf);
+    __m256 thr = _mm256_mul_ps(t, cf);
+    if (ctx.noise) {  // max(t * C, noise8[W + B]), the scalar expression
+      __m256i sum = w;
+      if (b8 != nullptr)
+        sum = _mm256_add_epi32(w, _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(b8 + i))));
+      thr = _mm256_max_ps(thr, _mm256_i32gather_ps(ctx.noise8, sum, 4));
+    }
     _mm256_storeu_ps(row.thr.data() + k, thr);
     _mm256_storeu_ps(row.inv_c.data() + k, _mm256_and_ps(_mm256_castsi256_ps(pos), _mm256_div_ps(onef, cf)));
     const __m256i thr8 = _mm256_cvttps_epi32(_mm256_min_ps(_mm256_floor_ps(thr), f255));
@@ -197,7 +212,13 @@ PROCAM_AVX512 size_t decode_base_u8_avx512(const DecodeContext& ctx, size_t b, s
     const __mmask16 lit_px = pos & _mm512_cmp_ps_mask(cf, min_abs, _CMP_GE_OQ);
     const __mmask16 clipped = clip ? _mm512_cmpeq_epi32_mask(w, c255) : __mmask16{0};
     const __mmask16 ok = lit_px & static_cast<__mmask16>(~clipped);
-    const __m512 thr = _mm512_mul_ps(t, cf);
+    __m512 thr = _mm512_mul_ps(t, cf);
+    if (ctx.noise) {  // max(t * C, noise8[W + B]), the scalar expression
+      __m512i sum = w;
+      if (b8 != nullptr)
+        sum = _mm512_add_epi32(w, _mm512_cvtepu8_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(b8 + i))));
+      thr = _mm512_max_ps(thr, _mm512_i32gather_ps(sum, ctx.noise8, 4));
+    }
     _mm512_storeu_ps(row.thr.data() + k, thr);
     _mm512_storeu_ps(row.inv_c.data() + k, _mm512_maskz_div_ps(pos, onef, cf));
     const __m512i thr8 = _mm512_cvttps_epi32(_mm512_min_ps(_mm512_roundscale_ps(thr, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), f255));
@@ -248,14 +269,22 @@ void decode_base(const DecodeContext& ctx, size_t b, size_t e, BaseRow& row, uin
 #endif
     for (size_t i = start; i < e; ++i) {
       const size_t k = i - b;
-      const int32_t w = w8[i], c = w - (b8 != nullptr ? int32_t{b8[i]} : 0);
+      const int32_t bk = b8 != nullptr ? int32_t{b8[i]} : 0;
+      const int32_t w = w8[i], c = w - bk;
       const auto cu = static_cast<size_t>(c > 0 ? c : 0);
       const bool lit_px = c > 0 && ctx.lit8[cu] != 0;
       const bool ok = lit_px && (!clip || w < 255);
       base_ok[k] = ok;
       inv_c[k] = ctx.inv_c8[cu];
-      thr[k] = c > 0 ? ctx.thr_f8[cu] : t.min_bit_margin * static_cast<float>(c);
-      gate[k] = ok ? ctx.thr8[cu] : 255;
+      float th = c > 0 ? ctx.thr_f8[cu] : t.min_bit_margin * static_cast<float>(c);
+      uint8_t g = ctx.thr8[cu];
+      if (ctx.noise) {  // the SIMD kernels' max_ps(t * C, noise) and floor
+        const float nz = ctx.noise8[static_cast<size_t>(w + bk)];
+        th = th > nz ? th : nz;
+        g = th >= 255.0f ? 255 : static_cast<uint8_t>(std::floor(th));
+      }
+      thr[k] = th;
+      gate[k] = ok ? g : 255;
       if (lit != nullptr) lit[i] = lit_px ? 255 : 0;
       if (intensity != nullptr) intensity[i] = ctx.intensity8[w];
     }
@@ -272,7 +301,7 @@ void decode_base(const DecodeContext& ctx, size_t b, size_t e, BaseRow& row, uin
     const bool lit_px = pos && contrast >= t.min_contrast_abs;
     base_ok[k] = lit_px && (!t.clipped_white_invalid || w < fs);
     inv_c[k] = pos ? 1.0f / contrast : 0.0f;
-    thr[k] = t.min_bit_margin * contrast;
+    thr[k] = std::max(t.min_bit_margin * contrast, finite ? noise_threshold(t, w + bl) : 0.0f);
     gate[k] = 255;  // unused: float state
     if (lit != nullptr) lit[i] = lit_px ? 255 : 0;
     if (intensity != nullptr) {
@@ -500,6 +529,115 @@ size_t decode_code_maps(const DecodeContext& ctx, size_t c, const WordMap& map, 
   const size_t weak = decode_code(ctx, c, map, b, e, row, scratch, confidence);
   index_maps(scratch, e - b, coord, valid);
   return weak;
+}
+
+CoarseMap coarse_map(const StripeCode& code, const std::vector<uint8_t>& tolerable) {
+  CoarseMap m;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  m.centre.assign(code.lut.size(), nan);
+  m.half.assign(code.lut.size(), nan);
+  uint32_t mask = 0;
+  for (uint32_t p = 0; p < code.bits && p < tolerable.size(); ++p)
+    if (tolerable[p] != 0) mask |= 1u << (code.bits - 1 - p);
+  for (size_t w = 0; w < code.lut.size(); ++w) {
+    uint32_t lo = StripeCode::kInvalid, hi = 0;
+    // Every subset of the mask (including the empty one).
+    for (uint32_t sub = mask;; sub = (sub - 1) & mask) {
+      const uint32_t c = code.lut[w ^ sub];
+      if (c != StripeCode::kInvalid) {
+        lo = std::min(lo, c);
+        hi = std::max(hi, c);
+      }
+      if (sub == 0) break;
+    }
+    if (lo == StripeCode::kInvalid) continue;
+    m.centre[w] = 0.5f * (static_cast<float>(lo) + static_cast<float>(hi));
+    m.half[w] = 0.5f * static_cast<float>(hi - lo);
+  }
+  return m;
+}
+
+size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
+                        const CoarseMap& map, size_t b, size_t e, const BaseRow& row, float* coord,
+                        uint8_t* valid, float* uncertainty) {
+  const BitPlaneStream& s = ctx.s;
+  const CodeState& st = s.code(c);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const bool strict_any = st.folded[0] > 0;
+  const bool single = st.tracked && strict_any;
+  const uint8_t* lo = st.wbyte[0].get();
+  const uint8_t* hi = st.wbyte[1].get();
+  const int32_t* table = words.table.data();
+  const bool have_coarse = !map.centre.empty();
+  size_t used = 0;
+  for (size_t i = b; i < e; ++i) {
+    const size_t k = i - b;
+    // signed_*: the uncertain plane's margin is > 0 — an exact tie or a
+    // clipped pair (8-bit: L = L-bar = 255) says nothing, not even that a
+    // stripe edge is near, so it never gets an interval.
+    bool strict_ok = false, weak_ok = true, clean = true, only_one = false;
+    bool signed_weak = false, signed_single = false;
+    uint32_t word = 0;
+    if (s.u8()) {  // integer margins against the gate, as the kernels compare them
+      strict_ok = !strict_any || st.m8[0][i] > row.gate[k];
+      if (st.has_weak) weak_ok = st.m8[1][i] > row.gate[k];
+      if (single) only_one = st.t8[1][i] > row.gate[k];
+      signed_weak = st.has_weak && st.m8[1][i] > 0;
+      signed_single = single && st.t8[0][i] > 0;
+      word = lo[i] | (hi != nullptr ? uint32_t{hi[i]} << 8 : 0u);
+    } else {
+      clean = st.flags[i] == 0;
+      strict_ok = !strict_any || st.mf[0][i] > row.thr[k];
+      if (st.has_weak) weak_ok = st.mf[1][i] > row.thr[k];
+      if (single) only_one = st.tf[1][i] > row.thr[k];
+      signed_weak = st.has_weak && st.mf[1][i] > 0.0f;
+      signed_single = single && st.tf[0][i] > 0.0f;
+      word = st.word[i];
+    }
+    // The candidate set's interval [lo_c, hi_c] per word: the weak planes'
+    // block where they are uncertain, else the word's own value.
+    auto interval = [&](uint32_t w, float& l, float& h) {
+      if (!weak_ok && have_coarse) {
+        l = map.centre[w] - map.half[w];
+        h = map.centre[w] + map.half[w];
+      } else {
+        l = h = table[w] >= 0 ? static_cast<float>(table[w]) : nan;
+      }
+    };
+    bool take = false;
+    float centre = nan, half = nan;
+    if (row.base_ok[k] != 0 && clean) {
+      if (strict_ok && !weak_ok && signed_weak && have_coarse && std::isfinite(map.centre[word])) {
+        take = true;  // only tolerable planes uncertain
+        centre = map.centre[word];
+        half = map.half[word];
+      } else if (!strict_ok && only_one && signed_single && (weak_ok || signed_weak)) {
+        // Exactly one strict plane uncertain: the word or the word with that
+        // bit flipped. Taken only where their intervals touch (a stripe edge
+        // of that plane runs through the pixel); elsewhere the flip would be
+        // a jump and the pixel stays invalid.
+        const uint32_t w2 = word ^ (1u << (st.bits - 1 - st.t_plane[i]));
+        float l1, h1, l2, h2;
+        interval(word, l1, h1);
+        interval(w2, l2, h2);
+        if (std::isfinite(l1) && std::isfinite(l2) && l2 <= h1 + 1.0f && l1 <= h2 + 1.0f) {
+          take = true;
+          const float l = std::min(l1, l2), h = std::max(h1, h2);
+          centre = 0.5f * (l + h);
+          half = 0.5f * (h - l);
+        }
+      }
+    }
+    if (take) {
+      coord[k] = centre;
+      if (valid != nullptr) valid[k] = 255;
+      uncertainty[k] = half;
+      ++used;
+    } else {
+      uncertainty[k] = std::isnan(coord[k]) ? nan : 0.0f;
+    }
+  }
+  return used;
 }
 
 }  // namespace procam::sl

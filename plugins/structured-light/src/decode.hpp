@@ -10,10 +10,12 @@
 //      with the synthetic inverse of MultiCodeDecoder also W < full scale
 //      (a clipped white is not a usable reference);
 //   2. no plane was saturated (L and L̄ both clipped) or non-finite;
-//   3. every *strict* plane's margin |L - L̄| exceeds min_bit_margin * C (near
-//      ties; under direct light the margin equals C, Eq. 3.3–3.5 with α = 1,
-//      L_g = 0). A *tolerable* plane (below) may fail this rule, but its margin
-//      must be > 0 (an exact tie or a clipped pair carries no sign);
+//   3. every *strict* plane's margin |L - L̄| exceeds the pixel's threshold
+//        thr = max(min_bit_margin * C, noise_k * sigma_d),
+//      sigma_d the measured noise of the margin (noise rule, below; under
+//      direct light the margin equals C, Eq. 3.3–3.5 with α = 1, L_g = 0). A
+//      *tolerable* plane (below) may fail this rule, but its margin must be
+//      > 0 (an exact tie or a clipped pair carries no sign);
 //   4. the word is a code word of a coordinate < length (e.g. column < W).
 // confidence = min over all planes of |L - L̄| / C, clipped to [0, 1] (0 where
 // C <= 0 or values are not finite), reported for every pixel — so a pixel
@@ -28,6 +30,18 @@
 // max_weak_error_px = 1 tolerates only the finest plane — the one sub-surface
 // scattering blurs first (thesis §3.2, Fig. 3.3). The bound assumes one weak
 // plane is wrong at a time.
+//
+// Noise rule (issue 16): a margin d = L - L̄ whose sign is decided by noise
+// alone has |d| of the order of sigma_d, the standard deviation of d. With a
+// camera whose per-frame noise is sigma^2(I) = a + b I (read noise a, shot
+// noise b I, in input units) and independent frames,
+//   sigma_d^2 = sigma^2(L) + sigma^2(L̄) = 2a + b (L + L̄) = noise_a + noise_b * S,
+// S = L + L̄ = W + B per pixel (linear light transport: a pattern and its
+// inverse add up to the white pattern, binarize.hpp), so the threshold is a
+// function of W + B, computed once per pixel (decode_base), not per plane.
+// noise_a / noise_b come from the capture itself (NoiseFit, bitplane_stream.hpp).
+// noise_k = 3: a bit with no signal (true margin 0) passes with probability
+// 2 (1 - Phi(3)) = 0.27 % under Gaussian noise. noise_k = 0 turns the rule off.
 // Thread-safety: reentrant; callers partition pixels by band.
 #pragma once
 
@@ -54,7 +68,13 @@ struct DecodeThresholds {
   float min_contrast_abs = 0.0f;  // rule 1, in input units (min_contrast * full scale)
   float min_bit_margin = 0.1f;    // rule 3, fraction of the contrast
   bool clipped_white_invalid = false;  // rule 1, synthetic inverse of MultiCodeDecoder
+  // Noise rule (above): sigma_d^2 = noise_a + noise_b * (W + B), input units^2.
+  float noise_k = 0.0f;
+  float noise_a = 0.0f, noise_b = 0.0f;
 };
+
+// noise_k * sigma_d for S = W + B (0 where the rule is off or the variance is <= 0).
+float noise_threshold(const DecodeThresholds& t, float S);
 
 // error_bound[k] per bit position k (k = 0: least significant): max over
 // projector coordinates x whose projected word w(x) XOR (1 << k) is a code
@@ -95,6 +115,10 @@ struct DecodeContext {
   // 8-bit state only, indexed by C = W - B in 1..255 / by W:
   float inv_c8[256] = {}, thr_f8[256] = {}, intensity8[256] = {};
   uint8_t thr8[256] = {}, lit8[256] = {};
+  // Noise rule, 8-bit state: noise_threshold by S = W + B in 0..510; `noise`
+  // false when the rule is off (every entry 0).
+  bool noise = false;
+  float noise8[512] = {};
 };
 
 // Fills `row` for pixels [b, e) (row index 0 = pixel b) and, when non-null,
@@ -136,6 +160,41 @@ size_t decode_code(const DecodeContext& ctx, size_t c, const WordMap& map, size_
 size_t decode_code_maps(const DecodeContext& ctx, size_t c, const WordMap& map, size_t b,
                         size_t e, const BaseRow& row, int32_t* scratch, float* coord,
                         uint8_t* valid, float* confidence);
+
+// Uncertain finest planes (issue 16): instead of rejecting a pixel whose
+// strict planes pass rule 3 but some tolerable plane does not (margin <= thr,
+// or an exact tie), report the interval of coordinates that the tolerable
+// planes allow. Per word w: the set of coordinates coord(w XOR m) over every
+// subset m of the tolerable planes' bits that is a code word; `centre` =
+// (min + max) / 2 and `half` = (max - min) / 2 of that set (NaN where the set
+// is empty). For the Gray code with the k finest planes tolerable the set is
+// the aligned block of 2^k columns around the decoded one (half = (2^k - 1) / 2:
+// 0.5 for one plane, 1.5 for two). Word-indexed like WordMap::table.
+struct CoarseMap {
+  std::vector<float> centre, half;
+};
+CoarseMap coarse_map(const StripeCode& code, const std::vector<uint8_t>& tolerable);
+
+// After decode_code_maps for pixels [b, e) of code c, where rules 1 and 2 hold:
+//  - rule 3 holds on the strict planes but a tolerable plane's margin is not
+//    above the threshold: the interval of the word (`map`, may be empty = no
+//    tolerable planes);
+//  - exactly one strict plane p is uncertain (the code's state tracks the
+//    smallest and second smallest strict margin, BitPlaneStream::
+//    track_single_planes): the union of the intervals of the word and of the
+//    word with p's bit flipped (each the word's value, or its tolerable-plane
+//    interval where those are uncertain too), taken only when the two touch
+//    (|difference| <= 1 column between them) — a stripe edge of plane p runs
+//    through the pixel, so it sees both columns. Anything else (two strict
+//    planes uncertain, or a flip that jumps) stays invalid.
+// There coord = centre, valid = 255 and uncertainty = half-width; confidence
+// stays min margin / C (below thr / C: lower than any certain pixel's at the
+// same contrast). Elsewhere uncertainty = 0 where valid, NaN where invalid.
+// Returns the number of pixels given an interval. Scalar (runs on the
+// invalid remainder's state only through plain loads).
+size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
+                        const CoarseMap& map, size_t b, size_t e, const BaseRow& row, float* coord,
+                        uint8_t* valid, float* uncertainty);
 
 // The per-row decode loop shared by the decoders: on the stream's pool, for
 // every row, decode_base into a per-band BaseRow (lit / intensity written

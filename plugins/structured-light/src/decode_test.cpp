@@ -488,5 +488,221 @@ TEST(WeakPlanes, FinestGrayPlaneNearTieIsToleratedOnlyWithMaxWeak) {
   }
 }
 
+// The fit of sigma_d^2 = a + b S from per-pixel sample variances of n pair
+// sums: samples drawn here from Gaussians of known variance.
+TEST(NoiseRule, FitRecoversReadAndShotNoise) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> level(10.0, 500.0);
+  const double a = 9.0, b = 0.4;  // sigma_d^2 in DN^2: read 9, shot 0.4 per DN of S
+  const uint32_t pairs = 20;
+  std::vector<double> mean, var;
+  for (int p = 0; p < 40000; ++p) {
+    const double S = level(rng);
+    std::normal_distribution<double> g(S, std::sqrt(a + b * S));
+    double sum = 0, sq = 0;
+    for (uint32_t k = 0; k < pairs; ++k) {
+      const double v = g(rng);
+      sum += v;
+      sq += v * v;
+    }
+    const double m = sum / pairs;
+    mean.push_back(m);
+    var.push_back((sq - pairs * m * m) / (pairs - 1));
+  }
+  const NoiseFit f = fit_noise_samples(mean, var, pairs, 255.0);
+  ASSERT_TRUE(f.measured);
+  EXPECT_NEAR(f.b, b, 0.04 * b);
+  EXPECT_NEAR(f.a, a, 0.25 * a) << "a is the intercept: a few % of the variance at S ~ 250";
+  for (double S : {20.0, 250.0, 480.0}) EXPECT_NEAR(f.a + f.b * S, a + b * S, 0.04 * (a + b * S));
+  EXPECT_FALSE(fit_noise_samples(mean, var, 2, 255.0).measured) << "2 pairs: too few to measure";
+  EXPECT_FALSE(fit_noise_samples({}, {}, pairs, 255.0).measured);
+}
+
+// End to end: frames with Gaussian noise sigma^2(I) = r + q I per frame give
+// sigma_d^2 = 2 r + q (W + B) (decode.hpp), measured from the pairs alone.
+TEST(NoiseRule, StreamMeasuresTheMarginNoiseOfTheCapture) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s{PROCAM_PIXEL_F32, 32, 0, 0, 0};
+  const double r = 4e-5, q = 2e-4;  // per-frame variance, F32 units
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> albedo(0.2, 1.0);
+  std::vector<double> pix_albedo(col.size());
+  for (double& v : pix_albedo) v = albedo(rng);
+  std::vector<TestFrame> frames;
+  for (const FrameRole& role : layout.frames) {
+    TestFrame f = blank_frame(s);
+    for (size_t i = 0; i < col.size(); ++i) {
+      bool lit = false;
+      if (col[i] >= 0) {
+        const auto c = static_cast<uint32_t>(col[i]);
+        lit = role.kind == FrameKind::white || (role.kind == FrameKind::plane && cols.bit(role.plane, c)) ||
+              (role.kind == FrameKind::inverse && !cols.bit(role.plane, c));
+      }
+      const double I = 0.05 + (lit ? 0.6 * pix_albedo[i] : 0.0);
+      std::normal_distribution<double> g(I, std::sqrt(r + q * I));
+      f.set(i, g(rng), s);
+    }
+    frames.push_back(std::move(f));
+  }
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 2, 1);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult res = dec.finish(0.03, 0.0, 3.0);
+  ASSERT_TRUE(res.noise.measured);
+  EXPECT_EQ(res.noise.pairs, cols.bits);
+  EXPECT_NEAR(res.noise.b, q, 0.1 * q);
+  EXPECT_NEAR(res.noise.a, 2 * r, 0.3 * 2 * r);
+  // A clean capture: the noise rule keeps every lit pixel exact (margins ~ 0.12..0.6 >> 3 sigma_d ~ 0.04).
+  size_t lit = 0, exact = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    if (col[i] < 0) continue;
+    ++lit;
+    exact += res.cols.coord[i] == static_cast<float>(col[i]) ? 1u : 0u;
+  }
+  EXPECT_EQ(exact, lit);
+}
+
+// A margin of 2 sigma_d is rejected at k = 3 and kept at k = 1; the threshold
+// grows with W + B (shot noise), on 8-bit (integer kernels) and F32 input.
+TEST(NoiseRule, MarginWithinKSigmaIsRejected) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  for (const Case& cs : {kCases[0], kCases[3]}) {
+    SCOPED_TRACE(cs.name);
+    const Sensor s = cs.sensor;
+    std::vector<TestFrame> frames = render(layout, cols, col, s, 29);
+    const size_t mid = 2 + 2 * 3;  // plane 3, a strict plane
+    ASSERT_EQ(layout.frames[mid].label, "col bit " + std::to_string(cols.bits - 4));
+    // Uniform noise +-u per frame: sigma_d^2 = 2 u^2 / 3 (+ quantization 2/12 at 8 bit).
+    const double var = 2 * s.noise * s.noise / 3 + (s.type == PROCAM_PIXEL_U8 ? 2.0 / 12 : 0.0);
+    const double sd = std::sqrt(var);
+    const size_t px = 50 * kCamW + 400;
+    const double sign = cols.bit(layout.frames[mid].plane, static_cast<uint32_t>(col[px])) ? 1.0 : -1.0;
+    const double midv = s.black + s.contrast / 2;
+    frames[mid].set(px, midv + sign * sd, s);   // margin 2 sigma_d
+    frames[mid + 1].set(px, midv - sign * sd, s);
+    auto run = [&](double k) {
+      BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 0);
+      for (uint32_t i = 0; i < frames.size(); ++i) EXPECT_TRUE(dec.add_frame(i, frames[i].img).ok());
+      return dec.finish(0.03, 0.0, k);
+    };
+    const RoundResult k3 = run(3.0), k1 = run(1.0), off = run(0.0);
+    ASSERT_TRUE(k3.noise.measured);
+    // The fit sees a constant-variance capture (uniform noise): sigma_d within 25 %.
+    EXPECT_NEAR(std::sqrt(k3.noise.a + k3.noise.b * (2 * s.black + s.contrast)), sd, 0.25 * sd);
+    EXPECT_EQ(k3.cols.valid[px], 0) << "2 sigma_d < 3 sigma_d";
+    EXPECT_EQ(k1.cols.valid[px], 255) << "2 sigma_d > 1 sigma_d";
+    EXPECT_EQ(off.cols.valid[px], 255);
+    EXPECT_EQ(k1.cols.coord[px], static_cast<float>(col[px]));
+  }
+}
+
+// Gray code, the k finest planes tolerable: the interval is the aligned block
+// of 2^k columns (clipped to the code's length), written out independently.
+TEST(UncertainPlanes, GrayCoarseMapIsTheAlignedBlock) {
+  const StripeCode cols = make_gray_code(1000);
+  for (uint32_t k : {1u, 2u}) {
+    std::vector<uint8_t> tol(cols.bits, 0);
+    for (uint32_t p = cols.bits - k; p < cols.bits; ++p) tol[p] = 1;
+    const CoarseMap m = coarse_map(cols, tol);
+    const uint32_t block = 1u << k;
+    for (uint32_t x = 0; x < 1000; ++x) {
+      const uint32_t lo = x / block * block, hi = std::min(lo + block - 1, 999u);
+      const uint32_t w = cols.words[x];
+      ASSERT_EQ(m.centre[w], 0.5f * static_cast<float>(lo + hi)) << x;
+      ASSERT_EQ(m.half[w], 0.5f * static_cast<float>(hi - lo)) << x;
+    }
+  }
+}
+
+// With uncertain output, a pixel whose finest plane is a near tie gets the
+// two-column interval (centre col +- 0.5 around the truth's pair); an exact
+// tie (no sign: also what a clipped pair looks like at 8 bit) and a near tie
+// on a coarser plane away from its edge stay invalid; other pixels are exact
+// with uncertainty 0.
+TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[0].sensor;  // 8 bit
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 31);
+  const size_t finest = 2 + (cols.bits - 1) * 2, mid = 2 + 3 * 2;
+  const size_t weak = 12 * kCamW + 300, tie = 12 * kCamW + 301, coarse = 12 * kCamW + 302;
+  auto set = [&](size_t f, size_t i, double frac) {
+    const double sign = cols.bit(layout.frames[f].plane, static_cast<uint32_t>(col[i])) ? 1.0 : -1.0;
+    const double midv = s.black + s.contrast / 2;
+    frames[f].set(i, midv + sign * frac * s.contrast / 2, s);
+    frames[f + 1].set(i, midv - sign * frac * s.contrast / 2, s);
+  };
+  set(finest, weak, 0.05);
+  set(finest, tie, 0.0);
+  set(mid, coarse, 0.05);
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
+  dec.set_uncertain_output(true);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult r = dec.finish(0.03, 0.1, 3.0);
+  const auto c = static_cast<uint32_t>(col[weak]);
+  EXPECT_EQ(r.cols.valid[weak], 255);
+  EXPECT_EQ(r.cols.coord[weak], static_cast<float>(c / 2 * 2) + 0.5f);
+  EXPECT_EQ(r.cols.uncertainty[weak], 0.5f);
+  EXPECT_LE(r.cols.confidence[weak], 0.1f) << "lower than a certain pixel's";
+  EXPECT_EQ(r.cols.valid[tie], 0) << "an exact tie carries no information";
+  EXPECT_TRUE(std::isnan(r.cols.uncertainty[tie]));
+  EXPECT_EQ(r.cols.valid[coarse], 0);
+  EXPECT_TRUE(std::isnan(r.cols.uncertainty[coarse]));
+  size_t exact = 0, lit = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    if (col[i] < 0 || i == weak || i == tie || i == coarse) continue;
+    ++lit;
+    exact += r.cols.coord[i] == static_cast<float>(col[i]) && r.cols.uncertainty[i] == 0.0f ? 1u : 0u;
+  }
+  EXPECT_EQ(exact, lit);
+  EXPECT_EQ(r.cols_weak, 1u);
+}
+
+// One strict plane nearly tied (margin 2 DN, below 3 sigma_d and 0.1 C): at
+// that plane's stripe edge the pixel sees both columns, so it gets the
+// two-column interval; away from the edge the flip would jump by 2^k columns
+// and the pixel stays invalid.
+TEST(UncertainPlanes, SingleStrictPlaneTieOnlyAtItsStripeEdge) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[0].sensor;
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 37);
+  const uint32_t plane = 4;  // bit position bits - 5: stripes of 32 columns
+  const size_t f = 2 + 2 * plane;
+  ASSERT_EQ(layout.frames[f].label, "col bit " + std::to_string(cols.bits - 1 - plane));
+  // Find, on row 60, a pixel whose column c and c + 1 differ exactly in this
+  // plane (its stripe edge), and one whose neighbours do not.
+  size_t edge = 0, inner = 0;
+  for (uint32_t x = 200; x < 600 && (edge == 0 || inner == 0); ++x) {
+    const size_t i = 60 * kCamW + x;
+    const auto c = static_cast<uint32_t>(col[i]);
+    const bool at_edge = cols.bit(plane, c) != cols.bit(plane, c + 1);
+    const bool near_edge = at_edge || cols.bit(plane, c) != cols.bit(plane, c - 1);
+    if (at_edge && edge == 0) edge = i;
+    if (!near_edge && inner == 0) inner = i;
+  }
+  ASSERT_NE(edge, 0u);
+  ASSERT_NE(inner, 0u);
+  for (size_t i : {edge, inner}) {  // near tie, either sign
+    frames[f].set(i, s.black + s.contrast / 2 + 1, s);
+    frames[f + 1].set(i, s.black + s.contrast / 2 - 1, s);
+  }
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
+  dec.set_uncertain_output(true);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult r = dec.finish(0.03, 0.1, 3.0);
+  EXPECT_EQ(r.cols.valid[edge], 255);
+  EXPECT_EQ(r.cols.coord[edge], static_cast<float>(col[edge]) + 0.5f);
+  EXPECT_EQ(r.cols.uncertainty[edge], 0.5f);
+  EXPECT_NEAR(r.cols.confidence[edge], 0.01f, 0.0005f) << "the tied plane's margin 2 / C, C = 200 +- 6";
+  EXPECT_EQ(r.cols.valid[inner], 0) << "a flip away from the edge is a 2^k jump: not an interval";
+  EXPECT_TRUE(std::isnan(r.cols.coord[inner]));
+}
+
 }  // namespace
 }  // namespace procam::sl

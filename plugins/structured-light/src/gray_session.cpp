@@ -37,6 +37,7 @@ struct GrayConfig {
   double min_contrast = 0.03;  // fraction of full scale
   double min_bit_margin = 0.1; // fraction of the pixel's contrast
   uint32_t max_weak_error_px = 1;  // tolerated weak planes (decode.hpp)
+  double noise_k = 3.0;            // noise rule (decode.hpp): margins within k sigma_d rejected
 };
 
 class GraySession final : public StreamingSession<BinaryRoundDecoder> {
@@ -68,6 +69,7 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     decoder_.emplace(std::move(layout), cols_, rows, cam.width, cam.height, rig_.threads,
                      cfg_.max_weak_error_px);
+    decoder_->set_uncertain_output(true);
     pattern_count_ = plan.size();
     round_started_ = true;
     has_round = true;
@@ -76,7 +78,7 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
 
   sdk::Error end_round() override {
     const ScopedMs timed(decode_ms_);
-    result_ = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin);
+    result_ = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin, cfg_.noise_k);
     decoder_.reset();  // releases the accumulators
     const sdk::RigCamera& cam = rig_.cameras.at(0);
     if (rig_.can_triangulate(0))
@@ -106,6 +108,10 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
                   w, h, std::move(subpx));
     out.add_image("proj_col_px", "px", "decoded projector column per camera pixel (NaN: invalid)",
                   w, h, std::move(result_.cols.coord));
+    out.add_image("proj_col_uncertainty_px", "px",
+                  "half-width of the column interval the uncertain finest planes allow "
+                  "(proj_col_px is its centre); 0: every plane certain; NaN: invalid",
+                  w, h, std::move(result_.cols.uncertainty));
     if (cfg_.rows)
       out.add_image("proj_row_px", "px", "decoded projector row per camera pixel (NaN: invalid)",
                     w, h, std::move(result_.rows.coord));
@@ -128,6 +134,14 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
         {"min_bit_margin", cfg_.min_bit_margin},
         {"max_weak_error_px", cfg_.max_weak_error_px},
         {"error_bound_px", plane_error_bounds(cols_)},
+        {"noise_k", cfg_.noise_k},
+        {"noise", {{"measured", result_.noise.measured},
+                   {"model", "sigma_d^2 = a + b * (white + black), input units"},
+                   {"a", result_.noise.a},
+                   {"b", result_.noise.b},
+                   {"pairs", result_.noise.pairs},
+                   {"sample_pixels", result_.noise.pixels}}},
+        {"uncertain_pixels", result_.cols_weak},
         {"weak_plane_pixels", result_.cols_weak},
         {"row_weak_plane_pixels", result_.rows_weak},
         {"input_full_scale", result_.full_scale},
@@ -172,6 +186,11 @@ const std::vector<sdk::ParamSpec>& gray_param_specs() {
        "global light/defocus, while keeping a 3.5-sigma margin over sensor noise at 100 DN "
        "contrast"},
       {"max_weak_error_px", sdk::ParamType::integer, 1, 0.0, 1024.0, {}, kMaxWeakErrorHelp},
+      {"noise_k", sdk::ParamType::number, 3.0, 0.0, 100.0, {},
+       "a bit is also rejected when |L - L_inv| <= noise_k * sigma_d, sigma_d^2 = a + b * "
+       "(white + black) fitted to this capture's pattern/inverse pairs (their sum is the same "
+       "for every pattern, so its spread is noise); 3 lets a pure-noise bit through 0.27% of "
+       "the time (Gaussian). 0 = off; binarize=white has no pairs to measure and skips it"},
   };
   return specs;
 }
@@ -187,7 +206,7 @@ sdk::MethodDescription describe_gray() {
   d.patterns_formula = "2 + 2*bits (binarize=inverse) or 2 + bits (binarize=white), bits = "
                        "ceil(log2 projector width); rows add 2*row_bits or row_bits";
   d.rounds = 1;
-  d.outputs = {"proj_col_px", "proj_col_subpx", "proj_row_px", "valid", "confidence", "depth_mm", "points",
+  d.outputs = {"proj_col_px", "proj_col_subpx", "proj_col_uncertainty_px", "proj_row_px", "valid", "confidence", "depth_mm", "points",
                "valid_fraction", "decode_ms", "pattern_count", "report"};
   d.params = gray_param_specs();
   return d;
@@ -207,6 +226,7 @@ sdk::Error create_gray_session(const sdk::CreateArgs& args, std::unique_ptr<sdk:
   cfg.min_contrast = params.get_number("min_contrast");
   cfg.min_bit_margin = params.get_number("min_bit_margin");
   cfg.max_weak_error_px = static_cast<uint32_t>(params.get_int("max_weak_error_px"));
+  cfg.noise_k = params.get_number("noise_k");
   out = std::make_unique<GraySession>(cfg, std::move(rig));
   return sdk::ok();
 }

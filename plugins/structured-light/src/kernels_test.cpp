@@ -272,6 +272,48 @@ TEST(Kernels, GrayRoundSimdEqualsScalar) {
   }
 }
 
+// The noise rule (per-pixel threshold from W + B, gathered from a table in
+// the SIMD decode_base) and the uncertain-plane intervals: SIMD == scalar.
+TEST(Kernels, GrayRoundNoiseRuleSimdEqualsScalar) {
+  constexpr uint32_t kW = 141, kH = 17;  // 4 x 32 + 13: SIMD steps and tails; 3 noise sample rows
+  const StripeCode cols = make_gray_code(1000), rows = make_gray_code(600);
+  const Layout layout = make_layout(cols, &rows, true);
+  const Frames f = random_frames(layout.frames.size(), kW, kH, PROCAM_PIXEL_U8, 8, 11);
+  auto run = [&](double noise_k) {
+    BinaryRoundDecoder dec(layout, cols, &rows, kW, kH, 2, 3);
+    dec.set_uncertain_output(true);
+    for (uint32_t i = 0; i < f.views.size(); ++i) EXPECT_TRUE(dec.add_frame(i, f.views[i]).ok());
+    return dec.finish(0.03, 0.0, noise_k);
+  };
+  RoundResult b, off;
+  {
+    ScalarOnly guard;
+    b = run(3.0);
+    off = run(0.0);
+  }
+  ASSERT_TRUE(b.noise.measured);
+  ASSERT_GT(b.noise.a + b.noise.b, 0.0);
+  // The rule is active: it invalidates or degrades some pixels the margin > 0 rule keeps exact.
+  size_t changed = 0;
+  for (size_t i = 0; i < b.cols.uncertainty.size(); ++i)
+    changed += !same_float(b.cols.uncertainty[i], off.cols.uncertainty[i]) ? 1u : 0u;
+  ASSERT_GT(changed, 0u);
+  for (const SimdLevel& level : kLevels) {
+    SCOPED_TRACE(level.name);
+    RoundResult a;
+    {
+      const Level guard(level);
+      a = run(3.0);
+    }
+    expect_same_maps(a.cols.coord, b.cols.coord);
+    expect_same_maps(a.cols.confidence, b.cols.confidence);
+    expect_same_maps(a.cols.uncertainty, b.cols.uncertainty);
+    expect_same_maps(a.rows.coord, b.rows.coord);
+    ASSERT_EQ(a.cols.valid, b.cols.valid);
+    ASSERT_EQ(a.cols_weak, b.cols_weak);
+  }
+}
+
 TEST(Kernels, IntegerVoteEqualsFloatVote) {
   std::mt19937 rng(5);
   std::uniform_int_distribution<int> col(0, 40), pick(0, 5);

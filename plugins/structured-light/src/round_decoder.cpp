@@ -37,6 +37,8 @@ BinaryRoundDecoder::BinaryRoundDecoder(Layout layout, const StripeCode& cols,
       height_(height),
       stream_(stream_layout(layout_, cols, rows, max_weak_error_px), width, height, threads) {
   if (rows != nullptr) rows_ = *rows;
+  tolerable_[0] = tolerable_planes(plane_error_bounds(cols), max_weak_error_px);
+  if (rows != nullptr) tolerable_[1] = tolerable_planes(plane_error_bounds(*rows), max_weak_error_px);
   allocate_result();
   stream_.set_intensity_output(result_.intensity.data());
 }
@@ -64,29 +66,59 @@ void recycle_maps(RoundResult&& r) noexcept {
     sdk::give_map(std::move(m->coord));
     sdk::give_map(std::move(m->valid));
     sdk::give_map(std::move(m->confidence));
+    sdk::give_map(std::move(m->uncertainty));
   }
   sdk::give_map(std::move(r.intensity));
 }
 
-RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margin) {
+RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margin,
+                                       double noise_k) {
   stream_.require_complete("BinaryRoundDecoder");
-  if (result_.intensity.size() != size_t{width_} * height_) allocate_result();
+  const size_t n = size_t{width_} * height_;
+  if (result_.intensity.size() != n) allocate_result();
   RoundResult& r = result_;
   r.full_scale = static_cast<double>(stream_.full_scale());
   DecodeThresholds t;
   t.min_contrast_abs = static_cast<float>(min_contrast * r.full_scale);
   t.min_bit_margin = static_cast<float>(min_bit_margin);
+  if (noise_k > 0) {
+    r.noise = stream_.fit_noise();
+    if (r.noise.measured) {
+      r.noise_k = noise_k;
+      t.noise_k = static_cast<float>(noise_k);
+      t.noise_a = static_cast<float>(r.noise.a);
+      t.noise_b = static_cast<float>(r.noise.b);
+    }
+  }
   const DecodeContext ctx(stream_, t);
   const WordMap maps[2] = {word_map(cols_), has_rows_ ? word_map(rows_) : WordMap{}};
+  const bool uncertain[2] = {uncertain_, uncertain_ && has_rows_};
+  CoarseMap coarse[2];
+  if (uncertain[0] && stream_.code(0).has_weak) coarse[0] = coarse_map(cols_, tolerable_[0]);
+  if (uncertain[1] && stream_.code(1).has_weak) coarse[1] = coarse_map(rows_, tolerable_[1]);
+  if (uncertain_) allocate_map(r.cols.uncertainty, n);
+  std::vector<float> row_unc;  // rows: the interval is not reported, only its centre
+  if (uncertain[1]) row_unc.resize(n);
   std::vector<size_t> weak;
   decode_rows(stream_, ctx, nullptr, stream_.intensity_to_write(r.intensity), has_rows_ ? 2 : 1,
               weak, [&](size_t b, size_t e, const BaseRow& base, int32_t* idx, size_t* band_weak) {
                 for (size_t axis = 0; axis < (has_rows_ ? 2u : 1u); ++axis) {
                   AxisMaps& m = axis == 0 ? r.cols : r.rows;
-                  band_weak[axis] += decode_code_maps(
+                  const size_t tolerated = decode_code_maps(
                       ctx, axis, maps[axis], b, e, base, idx, m.coord.data() + b,
                       m.valid.empty() ? nullptr : m.valid.data() + b,
                       m.confidence.empty() ? nullptr : m.confidence.data() + b);
+                  if (uncertain[axis]) {
+                    float* unc = axis == 0 ? r.cols.uncertainty.data() : row_unc.data();
+                    band_weak[axis] += decode_uncertain(
+                        ctx, axis, maps[axis], coarse[axis], b, e, base, m.coord.data() + b,
+                        m.valid.empty() ? nullptr : m.valid.data() + b, unc + b);
+                  } else {
+                    band_weak[axis] += tolerated;
+                    if (axis == 0 && uncertain_)  // no tolerable planes: exact or invalid
+                      for (size_t i = b; i < e; ++i)
+                        r.cols.uncertainty[i] = std::isnan(m.coord[i]) ? std::numeric_limits<float>::quiet_NaN() : 0.0f;
+                  }
                 }
               });
   r.cols_weak = weak[0];

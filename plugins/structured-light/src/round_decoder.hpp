@@ -36,6 +36,10 @@ struct AxisMaps {
   std::vector<float> coord;       // projector column/row, NaN where invalid
   std::vector<uint8_t> valid;     // 255 valid, 0 invalid
   std::vector<float> confidence;  // [0, 1], see decode.hpp
+  // Columns with set_uncertain_output(true): half-width of the interval the
+  // uncertain tolerable planes allow (decode_uncertain), 0 where exact, NaN
+  // where invalid; empty otherwise.
+  std::vector<float> uncertainty;
 };
 
 struct RoundResult {
@@ -45,6 +49,9 @@ struct RoundResult {
   std::vector<float> intensity;   // white image / full scale, clipped to [0, 1] (0 if not finite)
   double full_scale = 0;          // of the input frames
   size_t cols_weak = 0, rows_weak = 0;  // valid pixels kept through a tolerated weak plane
+                                        // (with uncertain output: given an interval)
+  NoiseFit noise;                       // the capture's noise model (bitplane_stream.hpp)
+  double noise_k = 0;                   // the noise rule's k (0: off or not measured)
 };
 
 class BinaryRoundDecoder {
@@ -69,7 +76,20 @@ class BinaryRoundDecoder {
   // Decodes all pixels (requires complete(); throws std::logic_error if not).
   // min_contrast is a fraction of full scale; see decode.hpp for the rules.
   // Moves the pre-allocated maps out (a second call allocates new ones).
-  RoundResult finish(double min_contrast, double min_bit_margin);
+  // noise_k > 0 adds the noise rule (decode.hpp) with the noise fitted to
+  // this capture's pattern/inverse pairs; without pairs ("white" mode) it
+  // has nothing to measure and only min_bit_margin applies.
+  RoundResult finish(double min_contrast, double min_bit_margin, double noise_k = 0);
+
+  // With true, pixels whose tolerable planes are uncertain, or exactly one
+  // strict plane at one of its stripe edges, get the interval centre and
+  // cols.uncertainty (decode_uncertain) instead of the tolerated bit or
+  // nothing (rows: the centre; coord only). Call before the first frame.
+  // Also tracks single uncertain strict planes (decode_uncertain).
+  void set_uncertain_output(bool on) {
+    uncertain_ = on;
+    stream_.track_single_planes(on);
+  }
 
   const Layout& layout() const { return layout_; }
 
@@ -79,6 +99,8 @@ class BinaryRoundDecoder {
   Layout layout_;
   StripeCode cols_, rows_;
   bool has_rows_ = false;
+  bool uncertain_ = false;
+  std::vector<uint8_t> tolerable_[2];
   uint32_t width_, height_;
   BitPlaneStream stream_;
   RoundResult result_;

@@ -68,8 +68,15 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
 //    by file name); a multi-round method reads later rounds from sub-folders
 //    "round2", "round3", ...
 // Errors list the files expected (by plan label) versus found.
+// `layout` (plain folders only): which file is which plan frame —
+// frame_layout.hpp ("procam" = plan order, "opencv-graycode", "gupta-pairs" or
+// a JSON layout file); white / black missing from the capture are synthesized
+// from the pattern/inverse frames.
+struct OfflineOptions {
+  std::string layout = "procam";
+};
 Result<ScanOutcome> run_offline(host::Session& session, const std::string& frames_dir,
-                                const ProgressFn& progress);
+                                const ProgressFn& progress, const OfflineOptions& options = {});
 
 // Image files in a folder, sorted by name (png, jpg, jpeg, tif, tiff, exr, pgm, ppm, bmp).
 std::vector<std::string> list_image_files(const std::string& dir);
