@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <variant>
@@ -30,7 +31,12 @@ Server::Server(engine::ScanService& service, const host::PluginHost& plugins)
   // Drop (with a log line in libzmq) anything absurdly large before it is
   // buffered; requests between 1 MiB and this get a too_large reply.
   router_.set(zmq::sockopt::maxmsgsize, int64_t{8} << 20);
-  router_.set(zmq::sockopt::router_mandatory, false);
+  // Outgoing memory per client is bounded: at most kReplyQueueMessages
+  // replies wait in a client's queue (a fetch reply is <= 8 MiB, so <= 128 MiB
+  // per connection). router_mandatory makes a full queue an EAGAIN we can
+  // count and log instead of a silent drop inside libzmq.
+  router_.set(zmq::sockopt::sndhwm, kReplyQueueMessages);
+  router_.set(zmq::sockopt::router_mandatory, true);
   // Heartbeats let clients tell a dead daemon from a slow one.
   router_.set(zmq::sockopt::heartbeat_ivl, 2000);
   router_.set(zmq::sockopt::heartbeat_timeout, 6000);
@@ -248,12 +254,31 @@ void Server::run(int stop_fd) {
 }
 
 void Server::reply(const Envelope& env, const std::string& body, const std::string* extra) {
+  // Never block the loop on one client: a full queue (EAGAIN) drops this
+  // reply. The first frame decides: once it is queued, ZeroMQ accepts the
+  // rest of the multipart message atomically.
+  const auto more = zmq::send_flags::sndmore | zmq::send_flags::dontwait;
   try {
-    for (const auto& f : env) router_.send(zmq::buffer(f), zmq::send_flags::sndmore);
-    router_.send(zmq::buffer(body), extra ? zmq::send_flags::sndmore : zmq::send_flags::none);
-    if (extra) router_.send(zmq::buffer(*extra), zmq::send_flags::none);
+    // env[0] is the routing id: it picks the client's queue and fails if full.
+    if (!env.empty() && router_.send(zmq::buffer(env[0]), more).has_value()) {
+      for (size_t k = 1; k < env.size(); ++k) router_.send(zmq::buffer(env[k]), more);
+      router_.send(zmq::buffer(body), extra ? more : zmq::send_flags::dontwait);
+      if (extra) router_.send(zmq::buffer(*extra), zmq::send_flags::dontwait);
+      return;
+    }
+    ++replies_dropped_;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - dropped_window_ > std::chrono::minutes(1)) {
+      dropped_window_ = now;
+      dropped_logged_ = 0;
+    }
+    if (dropped_logged_++ < 10)
+      PROCAM_LOG(daemon, warn) << "a client is not reading its replies: " << kReplyQueueMessages
+                               << " are waiting, so this one was dropped (" << replies_dropped_
+                               << " dropped since start)";
   } catch (const zmq::error_t& e) {
-    PROCAM_LOG(daemon, warn) << "reply not sent: " << e.what();
+    // EHOSTUNREACH: the client went away (router_mandatory reports it).
+    PROCAM_LOG(daemon, debug) << "reply not sent: " << e.what();
   }
 }
 
@@ -338,10 +363,13 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
             if (!d.contains("params") || !d["params"].is_array()) d["params"] = nlohmann::json::array();
             methods.push_back(std::move(d));
           }
-          plugins.push_back({{"name", p.name}, {"version", p.version}, {"file", p.file}, {"methods", methods}});
+          // PROTOCOL.md: a bare file name; the daemon's folders are not the client's business.
+          plugins.push_back({{"name", p.name}, {"version", p.version},
+                             {"file", std::filesystem::path(p.file).filename().string()}, {"methods", methods}});
         }
         for (const auto& r : plugins_.rejected())
-          rejected.push_back({{"file", r.file}, {"error", proto::error_to_json(r.error)}});
+          rejected.push_back({{"file", std::filesystem::path(r.file).filename().string()},
+                              {"error", proto::error_to_json(r.error)}});
         ok({{"plugins", plugins}, {"rejected", rejected}});
       },
       [&](const proto::DescribeRig&) { ok({{"rig", service_.rig_description()}}); },
@@ -380,6 +408,7 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
           auto d = service_.daemon_status();
           d["metrics"]["requests"] = requests_;
           d["metrics"]["bad_requests"] = bad_requests_;
+          d["metrics"]["replies_dropped"] = replies_dropped_;
           d["metrics"]["curve"] = curve_;
           return ok({{"daemon", std::move(d)}});
         }

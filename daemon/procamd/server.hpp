@@ -34,6 +34,11 @@
 
 namespace procam::daemon {
 
+// Replies that may wait in one client's outgoing queue (ZMQ_SNDHWM). Fetch
+// replies are at most 8 MiB, so one connection can hold at most ~128 MiB of
+// daemon memory however many fetches it sends without reading them.
+inline constexpr int kReplyQueueMessages = 16;
+
 class Server {
 public:
   Server(engine::ScanService& service, const host::PluginHost& plugins);
@@ -68,6 +73,11 @@ private:
   std::map<std::string, std::vector<Envelope>> subscribers_;
   std::map<std::string, uint64_t> seq_;
   uint64_t requests_ = 0, bad_requests_ = 0;  // main thread only
+  // Replies (or events) not sent because the client's queue was full: it is
+  // not reading what it asked for (see kReplyQueueMessages). Main thread only.
+  uint64_t replies_dropped_ = 0;
+  std::chrono::steady_clock::time_point dropped_window_{};
+  uint64_t dropped_logged_ = 0;
   bool curve_ = false;
   // ZAP handler (CURVE only): its own thread and REP socket.
   std::string authorized_keys_path_;

@@ -315,14 +315,47 @@ Result<RequestBody> decode_fetch(const Fields& f) {
   return RequestBody{std::move(r)};
 }
 
+// A request too broken to parse may still carry its id: find a top-level-looking
+// "id": "<text>" in the raw bytes so the error reply can be correlated. Only a
+// plain id (printable ASCII, no escapes, 1..kMaxIdBytes) is taken; anything
+// else leaves the id unknown rather than guessing.
+std::string salvage_id(std::string_view bytes) {
+  static constexpr std::string_view key = "\"id\"";
+  for (size_t at = bytes.find(key); at != std::string_view::npos; at = bytes.find(key, at + 1)) {
+    size_t i = at + key.size();
+    while (i < bytes.size() && (bytes[i] == ' ' || bytes[i] == '\t' || bytes[i] == '\r' || bytes[i] == '\n')) ++i;
+    if (i >= bytes.size() || bytes[i] != ':') continue;
+    ++i;
+    while (i < bytes.size() && (bytes[i] == ' ' || bytes[i] == '\t' || bytes[i] == '\r' || bytes[i] == '\n')) ++i;
+    if (i >= bytes.size() || bytes[i] != '"') continue;
+    const size_t begin = ++i;
+    while (i < bytes.size() && bytes[i] != '"' && bytes[i] != '\\' && bytes[i] >= 0x20 && bytes[i] < 0x7f) ++i;
+    if (i >= bytes.size() || bytes[i] != '"') continue;
+    const size_t n = i - begin;
+    if (n >= 1 && n <= kMaxIdBytes) return std::string(bytes.substr(begin, n));
+  }
+  return {};
+}
+
 Result<Request> decode_request_impl(std::string_view bytes, std::string* id_out) {
+  // The spec forbids a byte-order mark (PROTOCOL.md section 3); nlohmann's
+  // parser would skip it silently, so check before parsing.
+  if (bytes.size() >= 3 && static_cast<unsigned char>(bytes[0]) == 0xEF &&
+      static_cast<unsigned char>(bytes[1]) == 0xBB && static_cast<unsigned char>(bytes[2]) == 0xBF) {
+    if (id_out) *id_out = salvage_id(bytes);
+    return Error(Code::bad_message, "the body starts with a UTF-8 byte-order mark (EF BB BF)",
+                 "send plain UTF-8 JSON without a byte-order mark");
+  }
   if (bytes.size() > kMaxRequestBytes)
     return Error(Code::too_large,
                  "request is " + std::to_string(bytes.size()) + " bytes; the limit is " +
                      std::to_string(kMaxRequestBytes),
                  "params and rig_options are limited to 64 KiB each");
   auto parsed = parse_strict(bytes, kMaxMessageDepth);
-  PROCAM_TRY(parsed);
+  if (!parsed) {
+    if (id_out) *id_out = salvage_id(bytes);
+    return parsed.status();
+  }
   const json& obj = *parsed;
   if (!obj.is_object())
     return Error(Code::bad_message,

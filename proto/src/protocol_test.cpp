@@ -515,7 +515,15 @@ TEST(ProtoReply, DecodeRequestErrorsBecomeErrorRepliesWithTheirId) {
            {R"({"procam":9,"id":"keep-me","type":"status"})", "keep-me"},
            {R"({"procam":1,"id":"keep-me","type":"fetch","scan_id":"s","file":"../x"})", "keep-me"},
            {R"({"procam":1,"id":7,"type":"status"})", std::nullopt},
-           {"not json", std::nullopt}}) {
+           {"not json", std::nullopt},
+           // Unparsable bodies: a plain id in the raw bytes is still echoed.
+           {R"({"procam":1,"id":"broken-1","type":"status",)", "broken-1"},
+           {R"({"procam":1, "id" :  "spaced" ,"type":"ping" garbage)", "spaced"},
+           {"{\"procam\":1,\"id\":\"bad\xff\",\"type\":\"ping\",}", std::nullopt},   // not printable ASCII
+           {R"({"procam":1,"id":"esc\"aped","type":)", std::nullopt},                // escapes: not guessed
+           {R"({"procam":1,"id":"","type":)", std::nullopt},
+           {"{\"id\":\"" + std::string(129, 'a') + "\",", std::nullopt},              // over kMaxIdBytes
+           {"\xEF\xBB\xBF{\"procam\":1,\"id\":\"bom-id\",\"type\":\"ping\"}", "bom-id"}}) {
     std::string id;
     bool have_id = false;
     auto req = decode_request(bytes, &id);
@@ -525,6 +533,22 @@ TEST(ProtoReply, DecodeRequestErrorsBecomeErrorRepliesWithTheirId) {
     EXPECT_EQ(r.id, want_id.value_or("")) << bytes;
     EXPECT_EQ(r.error.code(), req.status().code());
   }
+}
+
+// PROTOCOL.md section 3: a body is UTF-8 JSON without a byte-order mark.
+TEST(ProtoRequest, RejectsAByteOrderMark) {
+  const std::string body = R"({"procam":1,"id":"a","type":"ping"})";
+  ASSERT_TRUE(decode_request(body).ok());
+  std::string id;
+  auto r = decode_request("\xEF\xBB\xBF" + body, &id);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Code::bad_message);
+  EXPECT_NE(r.status().message().find("byte-order mark"), std::string::npos) << r.status().message();
+  EXPECT_EQ(id, "a");
+  // A BOM-like sequence later in the text (inside a string) is ordinary UTF-8.
+  auto in_label = decode_request(
+      "{\"procam\":1,\"id\":\"a\",\"type\":\"scan\",\"plugin\":\"p\",\"method\":\"m\",\"label\":\"\xEF\xBB\xBF\"}");
+  EXPECT_TRUE(in_label.ok()) << in_label.status().message();
 }
 
 TEST(ProtoEvent, EncodeEventDecodesBack) {

@@ -72,9 +72,13 @@ TEST_F(DaemonTest, HelloPluginsAndRig) {
   auto p = client_.call(proto::ListPlugins{});
   ASSERT_TRUE(p.ok());
   bool found = false;
-  for (const auto& pl : (*p)["plugins"])
+  for (const auto& pl : (*p)["plugins"]) {
+    // PROTOCOL.md: `file` is a bare file name, never a path on the daemon's host.
+    EXPECT_EQ(pl["file"].get<std::string>().find('/'), std::string::npos) << pl["file"];
+    EXPECT_EQ(pl["file"].get<std::string>().rfind("procam-", 0), 0u) << pl["file"];
     if (pl["name"] == "structured-light")
       for (const auto& m : pl["methods"]) found |= m["name"] == "gray";
+  }
   EXPECT_TRUE(found) << p->dump(2);
 
   auto r = client_.call(proto::DescribeRig{});

@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <set>
@@ -513,6 +514,80 @@ TEST(ServiceSecurity, ResultFilesCannotEscapeTheResultsFolder) {
       s, {json{{"procam", 1}, {"id", "e2"}, {"type", "fetch"}, {"scan_id", "../" + id}, {"file", "depth_mm.exr"}}.dump()});
   EXPECT_NE(body2.find("\"ok\":false"), std::string::npos) << body2;
   EXPECT_EQ(body2.find("secret"), std::string::npos);
+}
+
+long rss_kib(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+// A client that asks for many large fetches and never reads them must not grow
+// the daemon without bound (issue 17: 200 unread 8 MiB fetches grew it by
+// ~0.9 GB). The daemon keeps at most kReplyQueueMessages (16) replies per
+// client, drops the rest with a log line and a metric, and serves everyone else.
+TEST(ServiceRobustness, SlowReadersCannotGrowTheDaemon) {
+  ConfigOptions o;
+  o.tiny_rig = false;  // full-size outputs: points.ply is several MiB
+  ServiceDaemon sd(o);
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 60s);
+  auto fin = c.scan(tiny_scan(), nullptr);
+  ASSERT_TRUE(fin.ok()) << fin.status().to_string();
+  const std::string id = (*fin)["scan_id"];
+  auto m = c.call(proto::ResultQuery{id});
+  ASSERT_TRUE(m.ok());
+  std::string big;
+  uint64_t big_size = 0;
+  for (const auto& f : (*m)["manifest"]["files"])
+    if (f.value("size_bytes", uint64_t{0}) > big_size) {
+      big_size = f["size_bytes"];
+      big = f["name"];
+    }
+  ASSERT_GE(big_size, uint64_t{4} << 20) << "need a large result file; largest is " << big;
+  const uint64_t reply_bytes = std::min<uint64_t>(big_size, proto::kMaxFetchBytes);
+
+  const long before = rss_kib(sd.d->pid);
+  ASSERT_GT(before, 0);
+  zmq::context_t ctx;
+  zmq::socket_t slow(ctx, zmq::socket_type::dealer);
+  slow.set(zmq::sockopt::linger, 0);
+  slow.set(zmq::sockopt::rcvhwm, 1);       // its I/O thread stops reading almost at once
+  slow.set(zmq::sockopt::rcvbuf, 65536);
+  slow.connect(sd.endpoint());
+  const int kFetches = 120;
+  for (int i = 0; i < kFetches; ++i) {
+    const std::string body = json{{"procam", 1}, {"id", "f" + std::to_string(i)}, {"type", "fetch"},
+                                  {"scan_id", id}, {"file", big}, {"max_bytes", reply_bytes}}.dump();
+    slow.send(zmq::message_t(), zmq::send_flags::sndmore);
+    slow.send(zmq::buffer(body), zmq::send_flags::none);
+  }
+  // Let the daemon answer them all (a fresh client's status call is queued behind).
+  client::Client other(sd.endpoint(), 30s);
+  json st;
+  for (int k = 0; k < 300; ++k) {
+    auto r = other.call(proto::StatusQuery{});
+    ASSERT_TRUE(r.ok()) << r.status().to_string();
+    st = *r;
+    if (st["daemon"]["metrics"]["requests"].get<uint64_t>() >= static_cast<uint64_t>(kFetches)) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  const long after = rss_kib(sd.d->pid);
+  const double grown_mib = static_cast<double>(after - before) / 1024.0;
+  // Unbounded, 120 replies would hold ~120 x reply_bytes; bounded, at most 16
+  // queued plus what the kernel socket buffers hold.
+  const double unbounded_mib = kFetches * static_cast<double>(reply_bytes) / (1 << 20);
+  std::printf("slow reader: %d fetches of %.1f MiB; daemon RSS grew %.1f MiB (unbounded would be ~%.0f MiB)\n",
+              kFetches, static_cast<double>(reply_bytes) / (1 << 20), grown_mib, unbounded_mib);
+  EXPECT_LT(grown_mib, 20.0 * static_cast<double>(reply_bytes) / (1 << 20) + 64.0);
+  EXPECT_GT(st["daemon"]["metrics"]["replies_dropped"].get<uint64_t>(), 0u) << st.dump();
+  EXPECT_NE(sd.d->log().find("is not reading its replies"), std::string::npos);
+  // Everyone else is still served, fetches included.
+  auto f = other.call(proto::Fetch{id, "manifest.json", 0, 1000});
+  EXPECT_TRUE(f.ok()) << f.status().to_string();
+  EXPECT_TRUE(sd.d->alive());
 }
 
 TEST(ServiceRobustness, OversizedAndMalformedMessagesNeverStopTheDaemon) {

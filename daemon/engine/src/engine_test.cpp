@@ -10,6 +10,7 @@
 
 #include "procam/core/image_io.hpp"
 #include "procam/engine/evaluate.hpp"
+#include "procam/engine/previews.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
 
@@ -99,6 +100,120 @@ TEST_F(TempDir, WriteOutputsMakesFilesPreviewsAndManifestEntries) {
   EXPECT_EQ(w->previews.size(), 3u);  // depth, column, valid
   auto files = list_files(dir.string());
   EXPECT_EQ(files.size(), 7u);
+}
+
+// A float map's preview keeps the map's pixels and adds a colour bar below
+// that runs from Turbo(0) on the left to Turbo(1) on the right.
+TEST(Preview, ScalarMapHasTheMapAndAColourBarBelow) {
+  Image f(200, 50, PixelType::f32);
+  for (uint32_t y = 0; y < 50; ++y)
+    for (uint32_t x = 0; x < 200; ++x) f.at<float>(x, y) = 500.0f + static_cast<float>(x);
+  f.at<float>(3, 3) = NAN;
+  const Image map = colormap_preview(f);
+  const Image p = scalar_map_preview(f, "mm", "depth_mm");
+  ASSERT_EQ(p.width(), 200u);
+  ASSERT_GT(p.height(), 50u + 20u);  // bar and labels
+  for (uint32_t y = 0; y < 50; ++y)
+    for (uint32_t x = 0; x < 200; ++x)
+      for (uint32_t c = 0; c < 3; ++c) ASSERT_EQ(p.at<uint8_t>(x, y, c), map.at<uint8_t>(x, y, c)) << x << "," << y;
+  // Find the bar: the first row below the map whose middle pixel is not white.
+  uint32_t bar = 0;
+  for (uint32_t y = 50; y < p.height() && bar == 0; ++y) {
+    const uint32_t x = 100;
+    if (p.at<uint8_t>(x, y, 0) + p.at<uint8_t>(x, y, 1) + p.at<uint8_t>(x, y, 2) < 3 * 250 &&
+        p.at<uint8_t>(8, y, 0) + p.at<uint8_t>(8, y, 1) + p.at<uint8_t>(8, y, 2) < 3 * 250 &&
+        p.at<uint8_t>(190, y, 0) + p.at<uint8_t>(190, y, 1) + p.at<uint8_t>(190, y, 2) < 3 * 250)
+      bar = y;
+  }
+  ASSERT_GT(bar, 50u) << "no colour bar under the map";
+  uint8_t left[3], right[3];
+  turbo(0.0, left);
+  turbo(1.0, right);
+  for (uint32_t c = 0; c < 3; ++c) {
+    EXPECT_NEAR(p.at<uint8_t>(6, bar + 2, c), left[c], 12) << c;
+    EXPECT_NEAR(p.at<uint8_t>(193, bar + 2, c), right[c], 12) << c;
+  }
+  // No valid pixel: still an image, the same width, no crash.
+  Image empty(10, 4, PixelType::f32);
+  for (size_t i = 0; i < empty.pixel_count(); ++i) empty.ptr<float>()[i] = NAN;
+  EXPECT_EQ(scalar_map_preview(empty, "mm", "x").width(), 10u);
+}
+
+// A class map's raw values (0..5) look black; its preview colours each class
+// and puts a key beside it.
+TEST(Preview, ClassMapIsColouredWithAKey) {
+  Image m(60, 40, PixelType::u8);
+  for (uint32_t y = 0; y < 40; ++y)
+    for (uint32_t x = 0; x < 60; ++x) m.at<uint8_t>(x, y) = static_cast<uint8_t>(x / 20);  // classes 0, 1, 2
+  const auto legend = parse_class_legend(nlohmann::json::parse(
+      R"({"classes":[{"value":0,"name":"unlit"},{"value":1,"name":"all_agree"},{"value":2,"name":"interreflection"},
+                     {"value":"x"},{"value":300,"name":"bad"}]})"));
+  ASSERT_EQ(legend.size(), 3u);  // the malformed entries are skipped
+  EXPECT_EQ(legend[2].name, "interreflection");
+  const Image p = class_map_preview(m, legend, "transport_class");
+  ASSERT_GT(p.width(), 60u);  // key to the right
+  for (uint32_t x : {5u, 25u, 45u}) {
+    uint8_t rgb[3];
+    class_color(static_cast<int>(x / 20), rgb);
+    for (uint32_t c = 0; c < 3; ++c) EXPECT_EQ(p.at<uint8_t>(x, 10, c), rgb[c]) << x;
+  }
+  uint8_t c1[3], c2[3];
+  class_color(1, c1);
+  class_color(2, c2);
+  EXPECT_NE(std::vector<uint8_t>(c1, c1 + 3), std::vector<uint8_t>(c2, c2 + 3));
+  // Each class's swatch appears in the key.
+  auto key_has = [&](const uint8_t rgb[3]) {
+    for (uint32_t y = 0; y < p.height(); ++y)
+      for (uint32_t x = 61; x < p.width(); ++x)
+        if (p.at<uint8_t>(x, y, 0) == rgb[0] && p.at<uint8_t>(x, y, 1) == rgb[1] && p.at<uint8_t>(x, y, 2) == rgb[2])
+          return true;
+    return false;
+  };
+  EXPECT_TRUE(key_has(c1));
+  EXPECT_TRUE(key_has(c2));
+  EXPECT_TRUE(parse_class_legend(nlohmann::json()).empty());
+  EXPECT_TRUE(parse_class_legend(nlohmann::json::parse(R"({"classes":7})")).empty());
+}
+
+TEST_F(TempDir, ClassMapWithLegendGetsAColouredPreview) {
+  Image cls(4, 2, PixelType::u8);
+  cls.at<uint8_t>(1, 0) = 3;
+  std::vector<host::Output> outs(2);
+  outs[0].name = "transport_class"; outs[0].kind = PROCAM_OUTPUT_IMAGE; outs[0].unit = "class"; outs[0].image = cls.view();
+  const std::string legend = R"({"classes":[{"value":3,"name":"subsurface"}]})";
+  outs[1].name = "transport_class_legend"; outs[1].kind = PROCAM_OUTPUT_JSON; outs[1].json = legend;
+  auto w = write_outputs(dir.string(), outs);
+  ASSERT_TRUE(w.ok()) << w.status().to_string();
+  EXPECT_TRUE(fs::exists(dir / "transport_class.png"));  // raw values for tools
+  ASSERT_TRUE(fs::exists(dir / "transport_class.preview.png"));
+  ASSERT_EQ(w->previews.size(), 1u);
+  EXPECT_EQ(w->previews[0]["file"], "transport_class.preview.png");
+  auto p = read_image((dir / "transport_class.preview.png").string());
+  ASSERT_TRUE(p.ok());
+  uint8_t rgb[3];
+  class_color(3, rgb);
+  EXPECT_EQ(p->at<uint8_t>(1, 0, 0), rgb[0]);
+}
+
+TEST_F(TempDir, ScanReportShowsWhatWasRunTheNumbersAndTheMaps) {
+  const nlohmann::json m = nlohmann::json::parse(R"({
+    "scan_id": "20261122-000000-abcdef", "state": "done", "plugin": "structured-light", "method": "gray",
+    "label": "<script>", "params": {"bits": 10},
+    "plan": {"patterns": 24, "rounds": [{"frames": 24, "note": "Gray code"}]},
+    "timing_ms": {"capture": 400.5, "decode": 12.25},
+    "evaluation": {"within_1col_fraction": 0.9981, "lit_pixels": 1000},
+    "outputs": [{"name": "decode_ms", "kind": "scalar", "value": 12.25, "unit": "ms", "description": "decode time"},
+                {"name": "depth_mm", "kind": "image", "description": "z of the point"},
+                {"name": "report", "kind": "json", "value": {"method": "gray"}}],
+    "previews": [{"of": "depth_mm", "file": "depth_mm.preview.png"}]})");
+  ASSERT_TRUE(write_scan_report(dir.string(), m).ok());
+  std::ifstream in(dir / "report.html");
+  const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const char* want : {"20261122-000000-abcdef", "structured-light / gray", "24 in 1 round(s)", "0.9981",
+                           "within_1col_fraction", "decode_ms", "12.25", "<img src=\"depth_mm.preview.png\"",
+                           "z of the point", "&lt;script&gt;", "&quot;method&quot;"})
+    EXPECT_NE(html.find(want), std::string::npos) << want;
+  EXPECT_EQ(html.find("<script>"), std::string::npos);  // client text is escaped
 }
 
 hw::GroundTruth make_truth(uint32_t w, uint32_t h) {

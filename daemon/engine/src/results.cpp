@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "procam/core/image_io.hpp"
+#include "procam/engine/previews.hpp"
 #include "procam/engine/rig_json.hpp"
 
 namespace procam::engine {
@@ -82,6 +83,16 @@ Status write_ply(const std::string& path, const float* pts, uint64_t count, uint
   return write_file_atomic(path, header + body);
 }
 
+namespace {
+// The legend a plugin gave a class map (JSON output "<map>_legend"), if any.
+nlohmann::json legend_for(const std::vector<host::Output>& outputs, const std::string& map) {
+  for (const auto& o : outputs)
+    if (o.kind == PROCAM_OUTPUT_JSON && o.name == map + "_legend")
+      return nlohmann::json::parse(o.json, nullptr, /*allow_exceptions=*/false);
+  return nullptr;
+}
+}  // namespace
+
 Result<WrittenOutputs> write_outputs(const std::string& dir, const std::vector<host::Output>& outputs) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -103,7 +114,7 @@ Result<WrittenOutputs> write_outputs(const std::string& dir, const std::vector<h
           e["format"] = "exr-f32";
           PROCAM_TRY(write_image(base + ".exr", img, {{"procam:unit", o.unit}, {"procam:name", o.name}}));
           if (img.channels() == 1) {
-            PROCAM_TRY(write_image(base + ".preview.png", colormap_preview(img)));
+            PROCAM_TRY(write_image(base + ".preview.png", scalar_map_preview(img, o.unit, o.name)));
             w.previews.push_back({{"of", o.name}, {"file", o.name + ".preview.png"}});
             if (o.unit == "px") {
               // Correspondence maps also as 16-bit PNG in 1/16 px fixed point
@@ -126,8 +137,15 @@ Result<WrittenOutputs> write_outputs(const std::string& dir, const std::vector<h
           e["format"] = img.type() == PixelType::u8 ? "png-u8" : "png-u16";
           e["bit_depth"] = img.bit_depth();
           PROCAM_TRY(write_image(base + ".png", img));
-          if (img.channels() == 1 && img.type() == PixelType::u8)
+          if (img.channels() == 1 && img.type() == PixelType::u8 && o.unit == "class") {
+            // Raw class values (0..N) look black in a viewer: the preview is
+            // coloured, with a key naming each class and its share.
+            const auto classes = parse_class_legend(legend_for(outputs, o.name));
+            PROCAM_TRY(write_image(base + ".preview.png", class_map_preview(img, classes, o.name)));
+            w.previews.push_back({{"of", o.name}, {"file", o.name + ".preview.png"}});
+          } else if (img.channels() == 1 && img.type() == PixelType::u8) {
             w.previews.push_back({{"of", o.name}, {"file", o.name + ".png"}});
+          }
         }
         break;
       }

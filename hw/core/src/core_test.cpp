@@ -50,6 +50,31 @@ TEST(Log, ConfigureSpec) {
   EXPECT_TRUE(log::configure("info"));
 }
 
+// Client and plugin text reaches log lines; it must not split or forge them.
+TEST(Log, EscapeKeepsOneValidUtf8Line) {
+  using procam::log::escape;
+  EXPECT_EQ(escape("plain text"), "plain text");
+  EXPECT_EQ(escape("a\nb\r\tc"), "a\\nb\\r\\tc");                    // no line breaks survive
+  EXPECT_EQ(escape(std::string("x\0y", 3)), "x\\x00y");                   // NUL
+  EXPECT_EQ(escape("\x1b[31m"), "\\x1b[31m");                             // terminal escape
+  EXPECT_EQ(escape("\x7f"), "\\x7f");                                     // DEL
+  EXPECT_EQ(escape("back\\slash"), "back\\\\slash");                   // escapes stay unambiguous
+  EXPECT_EQ(escape("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80"),
+            "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80");                   // valid UTF-8 passes
+  EXPECT_EQ(escape("\xc3"), "\\xc3");                                     // truncated sequence
+  EXPECT_EQ(escape("\xc0\xaf"), "\\xc0\\xaf");                         // overlong '/'
+  EXPECT_EQ(escape("\xed\xa0\x80"), "\\xed\\xa0\\x80");             // UTF-16 surrogate
+  EXPECT_EQ(escape("\xf4\x90\x80\x80"), "\\xf4\\x90\\x80\\x80"); // past U+10FFFF
+  EXPECT_EQ(escape("\xef\xbb\xbfid"), "\xef\xbb\xbfid");               // a BOM is valid UTF-8 text
+  const std::string all = [] {
+    std::string b;
+    for (int c = 0; c < 256; ++c) b += static_cast<char>(c);
+    return b;
+  }();
+  const std::string e = escape(all);
+  for (char c : e) EXPECT_FALSE(c == '\n' || c == '\r' || static_cast<unsigned char>(c) < 0x20);
+}
+
 TEST(Image, ViewRoundTripAndValidation) {
   Image img(5, 3, PixelType::u16, 1, 12);
   img.at<uint16_t>(4, 2) = 4095;

@@ -20,7 +20,16 @@ bool parse_level(std::string_view text, Level& out);
 // Returns false (and changes nothing) if the spec is malformed.
 bool configure(std::string_view spec);
 bool enabled(std::string_view category, Level level);
+// Writes one line. The message is passed through escape() first, so text
+// that came from a client or a plugin cannot forge or split log lines.
 void write(std::string_view category, Level level, const std::string& message);
+
+// One-line, valid-UTF-8 rendering of arbitrary bytes for a log line: control
+// characters become \n, \r, \t or \xNN; a backslash becomes \\; bytes
+// that are not part of a valid UTF-8 sequence (overlong forms, surrogates,
+// code points past U+10FFFF, truncated sequences) become \xNN; valid
+// multi-byte UTF-8 passes through unchanged. Reentrant.
+std::string escape(std::string_view bytes);
 
 class Line {
 public:
