@@ -7,7 +7,7 @@
 //
 // Units: digital numbers (DN) of the camera, as the host delivers them (a
 // 12-bit camera in U16 gives 0..4095); F32 frames keep their stored values.
-// Threads: a session is thread-bound (SDK rule); nothing here is global but
+// Threads: a session is thread-bound (docs/threading.md) (SDK rule); nothing here is global but
 // the immutable method list. Errors: sdk::Error, never exceptions out of a
 // session call (the SDK's barrier catches std::bad_alloc).
 #pragma once

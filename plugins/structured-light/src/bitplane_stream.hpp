@@ -31,7 +31,7 @@
 // Errors: add_frame returns INVALID_ARGUMENT (index out of range), STATE
 // (frame added twice) or BAD_FRAME (size, channels, format differing from
 // earlier frames); nothing changes on error.
-// Thread-safety: thread-bound (one session); per-pixel loops run on its own
+// Thread-safety: thread-bound (docs/threading.md) (one session); per-pixel loops run on its own
 // WorkPool of `threads` threads.
 #pragma once
 

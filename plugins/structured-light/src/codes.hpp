@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // The projected column codes of the structured-light plugin (thesis §3.2–3.3,
-// TECHNIQUES.md C1–C3) as ProjectedCode: a StripeCode over *code indices* plus
+// docs/techniques.md C1–C3) as ProjectedCode: a StripeCode over *code indices* plus
 // the map between projector coordinates and code indices.
 //
 // - "gray": binary-reflected Gray code, ceil(log2 W) planes (C1), identity map.

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT
 // Methods "xor02", "xor04", "minsw" (one code each, thesis §3.3.1–3.3.2) and
 // "ensemble" (the four codes with vote, classification map, error detection
-// and error-correction rounds, thesis §3.3.3–3.4; TECHNIQUES.md C2–C7) as
+// and error-correction rounds, thesis §3.3.3–3.4; docs/techniques.md C2–C7) as
 // sdk::Sessions built on MultiCodeDecoder (finish_vote: decode + vote in one
 // pass) and the streaming_session.hpp helpers; "auto" starts with
 // xor04 + minsw and adds the rest of the ensemble only where they disagree.
 // Errors: create_codes_session() returns INVALID_ARGUMENT for bad params/rig;
 // sessions return BAD_FRAME for frames of the wrong size or format.
-// Thread-safety: thread-bound like every Session; uses rig.threads threads.
+// Thread-safety: thread-bound (docs/threading.md) like every Session; uses rig.threads threads.
 #pragma once
 
 #include <memory>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Binary-reflected Gray code (thesis §3.2, TECHNIQUES.md C1): consecutive
+// Binary-reflected Gray code (thesis §3.2, docs/techniques.md C1): consecutive
 // coordinates differ in exactly one bit, so a one-pixel blur across a stripe
 // edge corrupts at most one bit and the error stays within one column.
 // Thread-safety: pure functions.

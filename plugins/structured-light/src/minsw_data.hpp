@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// The embedded 10-bit max-min-SW Gray code (thesis §3.3.2, TECHNIQUES.md C3;
+// The embedded 10-bit max-min-SW Gray code (thesis §3.3.2, docs/techniques.md C3;
 // Goddyn & Gvozdjak 2003), generated at configure time from
 // data/maxminsw-gray-10bit.txt. Provenance and integrity: data/PROVENANCE.md.
 // Thread-safety: immutable static data.

@@ -19,7 +19,7 @@
 // Inputs: one-channel U8 / U16 (bit_depth 1..16) / F32 frames of one format.
 // Streaming and per-pixel state: the shared engine of bitplane_stream.hpp
 // (the same as BinaryRoundDecoder's).
-// Thread-safety: thread-bound; uses `threads` workers (a WorkPool owned by
+// Thread-safety: thread-bound (docs/threading.md); uses `threads` workers (a WorkPool owned by
 // the decoder) for per-pixel loops.
 #pragma once
 

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Baselines the thesis compares against (§3.3.3 results; TECHNIQUES.md C8):
+// Baselines the thesis compares against (§3.3.3 results; docs/techniques.md C8):
 //   "phase-shift": sinusoids of 3 frequencies x 6 shifts (18 images),
 //     temporal phase unwrapping from the single-period frequency down;
 //   "modulated-phase-shift" (Chen et al. 2008): every phase-shift pattern is
@@ -8,7 +8,7 @@
 //     modulated images (fast direct/global separation), and the phases are
 //     computed from those direct components.
 // Errors: INVALID_ARGUMENT for bad params/rig; BAD_FRAME for bad frames.
-// Thread-safety: thread-bound like every Session; uses rig.threads threads.
+// Thread-safety: thread-bound (docs/threading.md) like every Session; uses rig.threads threads.
 #pragma once
 
 #include <memory>

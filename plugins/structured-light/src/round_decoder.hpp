@@ -16,7 +16,7 @@
 // is also the saturation level.
 // Output maps are allocated and touched by the constructor (while frames are
 // still being captured) and moved out by finish().
-// Thread-safety: thread-bound (one session); uses `threads` worker threads
+// Thread-safety: thread-bound (docs/threading.md) (one session); uses `threads` worker threads
 // (a WorkPool owned by the decoder) for per-pixel loops.
 #pragma once
 

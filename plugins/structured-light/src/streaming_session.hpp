@@ -5,7 +5,7 @@
 // into decode_ms with sdk::ScopedMs (procam/sdk/timing.hpp). Triangulated
 // outputs: sdk::add_depth_outputs (procam/sdk/triangulate.hpp); valid_fraction
 // comes with sdk::add_standard_outputs.
-// Thread-safety: thread-bound, like the sessions.
+// Thread-safety: thread-bound (docs/threading.md), like the sessions.
 #pragma once
 
 #include <cstdint>

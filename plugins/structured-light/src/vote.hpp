@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Ensemble vote, light-transport classification and error detection
-// (thesis §3.3.3 and §3.4; TECHNIQUES.md C4–C6).
+// (thesis §3.3.3 and §3.4; docs/techniques.md C4–C6).
 //
 // Inputs per pixel: the projector columns decoded by the four codes in the
 // order gray, xor02, xor04, minsw (NaN = that code's decode was invalid) and

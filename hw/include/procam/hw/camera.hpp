@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Camera interface: configure, capture a frame with id and timestamp.
 //
-// Threads: thread-bound to the rig's capture thread; info() is thread-safe.
+// Threads: thread-bound (docs/threading.md) to the rig's capture thread; info() is thread-safe.
 #pragma once
 
 #include <chrono>

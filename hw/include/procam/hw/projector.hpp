@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Projector interface: show a pattern frame, report when it is on screen.
 //
-// Threads: a Projector is thread-bound to the rig's capture thread (the scan
+// Threads: a Projector is thread-bound (docs/threading.md) to the rig's capture thread (the scan
 // worker); info() is thread-safe. Errors are returned, never thrown.
 #pragma once
 

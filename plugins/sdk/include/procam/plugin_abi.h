@@ -29,7 +29,7 @@
  *     valid until the next call on that session or its destruction. Everything
  *     the host passes in (frames, JSON strings) is owned by the host and valid
  *     only during the call: copy what you keep.
- *   - Threads: one session is used by one host thread at a time (thread-bound
+ *   - Threads: one session is used by one host thread at a time (thread-bound (docs/threading.md)
  *     between calls, never concurrent). Different sessions may run concurrently
  *     on different threads, so plugin globals must be immutable or locked.
  *     A plugin may use threads internally; `threads` in the rig JSON is the

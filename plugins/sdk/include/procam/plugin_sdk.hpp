@@ -39,7 +39,7 @@
 //     BAD_FRAME/INVALID_ARGUMENT is not counted and may be added again.
 //
 // Threads: every Session method is called on one host thread at a time
-// (thread-bound). Sessions may run concurrently, so plugin globals must be
+// (thread-bound (docs/threading.md)). Sessions may run concurrently, so plugin globals must be
 // immutable; a session may use threads internally (sdk::parallel_rows).
 #pragma once
 

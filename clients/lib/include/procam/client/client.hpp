@@ -2,7 +2,7 @@
 // procam client library: talks to procamd over ZeroMQ using proto/'s codec.
 // Used by the `procam` CLI; usable by any C++ program.
 //
-// Threads: a Client is thread-bound (one ZeroMQ DEALER socket); use one per thread.
+// Threads: a Client is thread-bound (docs/threading.md) (one ZeroMQ DEALER socket); use one per thread.
 // Errors: every call returns Result/Status; a daemon that does not answer in
 // time gives `unavailable` with a hint, a daemon error reply is returned as
 // its Status (code, message, hint from the daemon). Nothing throws.

@@ -10,7 +10,7 @@
 // Errors: the add_* functions throw std::invalid_argument for a plugin bug (bad
 // name, duplicate, size mismatch) and std::bad_alloc; the SDK's ABI wrapper
 // turns both into error codes.
-// Thread-safety: thread-bound, like the session that owns it.
+// Thread-safety: thread-bound (docs/threading.md), like the session that owns it.
 #pragma once
 
 #include <cstdint>

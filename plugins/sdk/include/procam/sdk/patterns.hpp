@@ -14,7 +14,7 @@
 // Errors: std::invalid_argument for a plugin bug (period or square size 0,
 // amplitude/offset outside [0, 1], bad bracket range) and std::out_of_range
 // for a frame index outside the plan; the SDK's ABI wrapper turns them into
-// error codes. Thread-safety: the Plan is thread-bound; the functions are
+// error codes. Thread-safety: the Plan is thread-bound (docs/threading.md); the functions are
 // reentrant.
 #pragma once
 

@@ -8,7 +8,7 @@
 // next_plan call that returned it until the following next_plan call or
 // session_destroy — longer than the ABI's "until the next call" minimum, so a
 // host may keep reading pattern i while it adds frames.
-// Thread-safety: thread-bound, like the session that owns it.
+// Thread-safety: thread-bound (docs/threading.md), like the session that owns it.
 #pragma once
 
 #include <cmath>

@@ -6,7 +6,7 @@
 // Errors: as Outputs::add_* (std::invalid_argument when a name is already
 // used or the report is not a JSON object — a plugin bug — and std::bad_alloc;
 // the SDK's ABI wrapper turns both into error codes).
-// Thread-safety: reentrant; the Outputs object is thread-bound.
+// Thread-safety: reentrant; the Outputs object is thread-bound (docs/threading.md).
 #pragma once
 
 #include <cstddef>

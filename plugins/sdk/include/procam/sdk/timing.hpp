@@ -3,7 +3,7 @@
 // a running total, e.g. a session's decode_ms (add_frame work, end_round,
 // triangulation), which sdk::add_standard_outputs then reports.
 // Thread-safety: the total is a plain double owned by the caller; use one
-// ScopedMs per thread-bound total.
+// ScopedMs per thread-bound (docs/threading.md) total.
 #pragma once
 
 #include <chrono>

@@ -6,7 +6,7 @@
 //
 // Ownership: AravisCamera owns its ArvCamera, ArvStream and buffers; nothing
 // Aravis leaks out of this header (no GLib types here).
-// Threads: thread-bound like every hw::Camera (the rig's capture thread);
+// Threads: thread-bound (docs/threading.md) like every hw::Camera (the rig's capture thread);
 // Aravis runs its own stream thread internally. A FillFn (in-process Fake
 // device only) is called on Aravis's stream thread.
 // Errors: every GError becomes a Status carrying the GError message; nothing

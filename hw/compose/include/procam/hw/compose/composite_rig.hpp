@@ -23,7 +23,7 @@
 //            "camera_latency_ms": y, "retries": n, ...}   (see daemon sync engine)
 //   "cameras": [{"backend": "aravis", "intrinsics": {...}, "cam_from_proj": {...},
 //                ...backend keys..., "feed": {...}?}]
-// Threads: thread-bound like every Rig. Errors: Status naming the field.
+// Threads: thread-bound (docs/threading.md) like every Rig. Errors: Status naming the field.
 #pragma once
 
 #include <memory>

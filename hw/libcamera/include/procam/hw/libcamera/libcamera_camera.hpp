@@ -8,7 +8,7 @@
 // not_found "no libcamera camera ..." listing what was looked for.
 //
 // Ownership: owns its CameraManager, Camera, allocator and requests; no
-// libcamera types leak through this header. Threads: thread-bound like every
+// libcamera types leak through this header. Threads: thread-bound (docs/threading.md) like every
 // Camera; completion arrives on libcamera's thread and is handed over with a
 // condition variable. Errors: Status (libcamera's negative errno → message).
 #pragma once

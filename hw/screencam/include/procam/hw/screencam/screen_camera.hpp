@@ -5,7 +5,7 @@
 // be tested end to end with exact pixels. Frames are grey (the green channel:
 // the glfw projector draws grey as R = G = B).
 //
-// Ownership: owns its X connection. Threads: thread-bound like every Camera.
+// Ownership: owns its X connection. Threads: thread-bound (docs/threading.md) like every Camera.
 // Errors: no display → unavailable naming DISPLAY; a region outside the
 // screen → invalid_argument. Units: pixels; ns CLOCK_MONOTONIC stamps (taken
 // just before the grab: the grab shows the screen at or after that time).

@@ -23,7 +23,7 @@
 //
 // Coordinates: pixel centres at integers; lengths in mm; radiance in ru
 // (models.hpp). Threads: PreparedView/DefocusMap are plain data. A Renderer is
-// thread-bound (one frame at a time); it may use `threads` worker threads
+// thread-bound (docs/threading.md) (one frame at a time); it may use `threads` worker threads
 // internally. Errors are returned, never thrown.
 #pragma once
 

@@ -8,7 +8,7 @@
 // SimCamera::capture renders what the projector shows now at the projector's
 // current focus. Noise is deterministic per (rig seed, camera, frame id).
 //
-// Threads: thread-bound like every Rig (one thread at a time uses the rig and
+// Threads: thread-bound (docs/threading.md) like every Rig (one thread at a time uses the rig and
 // its devices; the renderer may use `threads` workers inside a call);
 // info()/describe() results are plain data. Errors are returned, never thrown.
 #pragma once
