@@ -188,7 +188,7 @@ Image class_map_preview(const Image& u8, const std::vector<ClassLabel>& classes,
     key_w = std::max(key_w, text_width(t, s));
   }
   key_w += line + 24;
-  const int rows = static_cast<int>(std::max<uint32_t>(h, static_cast<uint32_t>((shown.size() + 2) * line)));
+  const int rows = std::max(static_cast<int>(h), static_cast<int>(shown.size() + 2) * line);
   cv::Mat m(rows, static_cast<int>(w) + key_w, CV_8UC3, cv::Scalar(255, 255, 255));
   if (ok)
     for (uint32_t y = 0; y < h; ++y)
