@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "cli.hpp"
+#include "procam/engine/previews.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
 #include "procam/engine/scan_runner.hpp"
@@ -61,6 +62,7 @@ int cmd_decode(const Args& a) {
                       {"timing_ms", {{"decode", outcome->decode_ms},
                                      {"total", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count()}}},
                       {"outputs", written->outputs}, {"previews", written->previews}, {"error", nullptr}};
+  if (auto s = engine::write_scan_report(out, m); !s) return report(s);
   m["files"] = engine::list_files(out);
   if (auto s = engine::write_file_atomic((fs::path(out) / "manifest.json").string(), m.dump(2)); !s) return report(s);
   if (a.json) std::cout << m.dump(2) << "\n";

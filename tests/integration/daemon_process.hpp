@@ -16,7 +16,7 @@
 #include <thread>
 #include <vector>
 
-#include "../support/child_process.hpp"  // fork/exec/stop/reap
+#include "../../hw/core/testing/child_process.hpp"  // fork/exec/stop/reap
 #include "procam/client/client.hpp"
 
 namespace procam::testing {

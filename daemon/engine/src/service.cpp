@@ -17,6 +17,7 @@
 
 #include "procam/core/log.hpp"
 #include "procam/engine/evaluate.hpp"
+#include "procam/engine/previews.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
 #include "procam/proto/protocol.hpp"
@@ -378,6 +379,10 @@ void ScanService::finish(Record& rec, const Status& status, nlohmann::json manif
   manifest["error"] = error_json(status);
   std::error_code ec;
   fs::create_directories(dir, ec);
+  // The one-page report (previews + numbers) goes beside the outputs, failed
+  // scans included (it then says why); listed in "files" like every output.
+  if (Status rs = write_scan_report(dir, manifest); !rs)
+    PROCAM_LOG(engine, warn) << "scan " << rec.id << ": report.html: " << rs.to_string();
   manifest["files"] = scan_files(dir);  // manifest.json itself is the `result` reply
   Status ws = write_file_atomic((fs::path(dir) / "manifest.json").string(), manifest.dump(2));
   if (!ws) PROCAM_LOG(engine, error) << "scan " << rec.id << ": " << ws.to_string();

@@ -23,7 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "procam/client/client.hpp"
-#include "support/child_process.hpp"  // tests/support: fork/exec/stop/reap
+#include "core/testing/child_process.hpp"  // hw/core/testing: fork/exec/stop/reap
 
 namespace {
 namespace fs = std::filesystem;

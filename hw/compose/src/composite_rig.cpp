@@ -144,7 +144,8 @@ public:
   std::vector<size_t> sim_index_;       // index of the feeding sim camera
 };
 
-Result<CameraCalibration> parse_calibration(const nlohmann::json& cam, const std::string& field) {
+// Unused in a sim-only build (no device camera backend compiled in).
+[[maybe_unused]] Result<CameraCalibration> parse_calibration(const nlohmann::json& cam, const std::string& field) {
   CameraCalibration c;
   try {
     if (!cam.contains("intrinsics") || !cam.contains("cam_from_proj"))

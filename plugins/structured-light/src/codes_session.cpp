@@ -252,11 +252,19 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                            : "min over bits of |L - L_inv| / (white - black), clipped to [0, 1]",
                   w, h, std::move(confidence_));
     if (ensemble)
-      out.add_image("transport_class", "",
-                    "light-transport class (thesis Fig. 3.1j): 0 unlit, 1 all codes agree, 2 only "
-                    "XOR codes agree (inter-reflection), 3 only Gray codes agree (sub-surface), 4 "
-                    "partial agreement, 5 error (no two codes agree)",
-                    w, h, std::move(cls_));
+      out.add_class_map("transport_class",
+                        "light-transport class (thesis Fig. 3.1j): 0 unlit, 1 all codes agree, 2 only "
+                        "XOR codes agree (inter-reflection), 3 only Gray codes agree (sub-surface), 4 "
+                        "partial agreement, 5 error (no two codes agree)",
+                        w, h, std::move(cls_),
+                        {{kUnlit, transport_class_name(kUnlit), "no projector light reaches the pixel"},
+                         {kAllAgree, transport_class_name(kAllAgree), "all four codes agree: direct light dominates"},
+                         {kInterreflection, transport_class_name(kInterreflection),
+                          "only the XOR codes agree: inter-reflections (long range)"},
+                         {kSubsurface, transport_class_name(kSubsurface),
+                          "only the Gray codes agree: sub-surface scattering or defocus (short range)"},
+                         {kPartial, transport_class_name(kPartial), "some codes agree"},
+                         {kError, transport_class_name(kError), "no two codes agree: error pixel (thesis §3.4)"}});
     if (cfg_.code_maps)
       for (size_t k = 0; k < stage_maps_.size(); ++k)
         out.add_image(std::string("proj_col_px_") + kCodeIds[k], "px",
@@ -485,7 +493,10 @@ sdk::MethodDescription describe_codes_method(const std::string& method) {
   d.patterns_formula = patterns;  // patterns: null (depends on the projector width) except minsw
   d.outputs = {"proj_col_px", "proj_col_subpx", "valid", "confidence", "depth_mm", "points",
                "valid_fraction", "error_fraction", "decode_ms", "pattern_count", "rounds", "report"};
-  if (method == "ensemble" || method == "auto") d.outputs.push_back("transport_class");
+  if (method == "ensemble" || method == "auto") {
+    d.outputs.push_back("transport_class");
+    d.outputs.push_back("transport_class_legend");
+  }
   d.rounds = 1;
   if (method == "ensemble") d.rounds_formula = "1 + up to correction_rounds";
   if (method == "auto") d.rounds_formula = "1-2 + up to correction_rounds";

@@ -20,6 +20,8 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "procam/plugin_abi.h"
 #include "procam/sdk/image.hpp"
 
@@ -111,6 +113,24 @@ class Outputs {
   void add_json(std::string name, std::string description, std::string json) {
     Entry& e = add(std::move(name), PROCAM_OUTPUT_JSON, "", std::move(description));
     e.json = std::move(json);
+  }
+
+  // A categorical map (one class value per pixel) and its key: the image gets
+  // unit "class" and a JSON output "<name>_legend" =
+  // {"classes": [{"value", "name", "meaning"}, ...]} names each value, so
+  // hosts can show a coloured preview with a key instead of raw numbers.
+  struct ClassName {
+    uint8_t value;
+    std::string name;     // short, lower_snake_case, e.g. "interreflection"
+    std::string meaning;  // one line for the key
+  };
+  void add_class_map(const std::string& name, std::string description, uint32_t width, uint32_t height,
+                     std::vector<uint8_t> pixels, const std::vector<ClassName>& classes) {
+    add_image(name, "class", std::move(description), width, height, std::move(pixels));
+    nlohmann::json legend = {{"classes", nlohmann::json::array()}};
+    for (const ClassName& c : classes)
+      legend["classes"].push_back({{"value", c.value}, {"name", c.name}, {"meaning", c.meaning}});
+    add_json(name + "_legend", "the classes of " + name + " (value, name, meaning)", legend.dump());
   }
 
   uint32_t size() const noexcept { return static_cast<uint32_t>(entries_.size()); }
