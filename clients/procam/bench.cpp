@@ -170,12 +170,24 @@ int cmd_bench(const Args& a) {
     for (const auto& e : fs::directory_iterator(scenes_dir))
       if (e.path().extension() == ".json") scenes.push_back(e.path().stem().string());
   std::sort(scenes.begin(), scenes.end());
-  for (const auto& s : a.list("scene")) scenes.push_back(s);
+  // Scan options take scene names only (a rig never opens a path a client
+  // names); a --scene FILE adds its folder to the rig's scene folders and is
+  // run by its name.
+  std::vector<std::string> scene_dirs{scenes_dir.string()};
+  for (const auto& s : a.list("scene")) {
+    const fs::path p(s);
+    if (p.extension() == ".json" || s.find('/') != std::string::npos) {
+      scene_dirs.push_back(fs::absolute(p).parent_path().string());
+      scenes.push_back(p.stem().string());
+    } else {
+      scenes.push_back(s);
+    }
+  }
   if (scenes.empty()) return usage_error("bench: no scenes in " + scenes_dir.string() + " and none given with --scene");
 
   unsigned threads = 2;
   if (a.has("threads")) threads = static_cast<unsigned>(std::max(1, std::atoi(a.get("threads").c_str())));
-  hw::RigContext ctx{fs::path(rig_path).parent_path().string(), {scenes_dir.string()}};
+  hw::RigContext ctx{fs::path(rig_path).parent_path().string(), scene_dirs};
   auto rig = hw::create_rig(*rig_cfg, ctx);
   if (!rig) return report(rig.status());
   const nlohmann::json rig_json = engine::plugin_rig_json(**rig, threads);

@@ -148,6 +148,9 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
                    "the queue holds " + std::to_string(cfg_.max_queue) + " scans; retry later with back-off");
     }
   }
+  // rig_options are checked now, not when the scan runs: a bad one is the
+  // client's error (invalid_argument) and must never be queued.
+  PROCAM_TRY(rig_->check_scan_options(req.rig_options));
   auto session = plugins_.create_session(req.plugin, req.method, req.params.dump(), plugin_rig_json_.dump());
   if (!session) return session.status();
   auto rec = std::make_shared<Record>();
@@ -289,7 +292,7 @@ void ScanService::run_one(Record& rec) {
                        {"state", rig_description_.value("state", nlohmann::json::object())}};
   }
   if (!st) {
-    finish(rec, st.with_context("rig_options"), manifest);
+    finish(rec, st, manifest);  // its message names rig_options already
     return;
   }
   host::Session& session = *rec.session;

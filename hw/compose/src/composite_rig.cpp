@@ -100,6 +100,15 @@ public:
     return j;
   }
 
+  Status check_scan_options(const nlohmann::json& options) const override {
+    if (sim_) return sim_->check_scan_options(options);  // reads config only: no lock needed
+    if (options.is_null() || (options.is_object() && options.empty())) return Status::Ok();
+    if (!options.is_object())
+      return Error(Code::invalid_argument, std::string("rig_options must be a JSON object, got ") + options.type_name());
+    return Error(Code::invalid_argument, "rig_options: unknown key '" + options.begin().key() + "' for rig '" + name_ + "'",
+                 "this hardware rig takes no rig_options");
+  }
+
   Status apply_scan_options(const nlohmann::json& options) override {
     if (sim_) {
       std::lock_guard lock(mu_);

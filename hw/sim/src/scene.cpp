@@ -215,6 +215,36 @@ std::vector<std::string> list_scenes(const std::vector<std::string>& scene_dirs)
   return {names.begin(), names.end()};
 }
 
+Result<std::string> resolve_scene_name(const std::string& name, const std::vector<std::string>& scene_dirs) {
+  auto known = [&] {
+    std::string k;
+    for (const auto& n : list_scenes(scene_dirs)) k += (k.empty() ? "" : ", ") + n;
+    return k.empty() ? std::string("no scene files in the rig's scene folders") : "scenes: " + k;
+  };
+  bool ok = !name.empty() && name.size() <= 128;
+  size_t seg = 0;
+  for (size_t i = 0; ok && i <= name.size(); ++i) {
+    if (i == name.size() || name[i] == '/') {
+      const std::string part = name.substr(seg, i - seg);
+      ok = !part.empty() && part != "." && part != "..";
+      seg = i + 1;
+      continue;
+    }
+    const char c = name[i];
+    ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+  }
+  if (!ok)
+    return Error(Code::invalid_argument,
+                 "scene '" + name + "' is not a scene name (letters, digits, '_', '-', '/' between parts)",
+                 "name a scene of the rig's scene folders, not a file; " + known());
+  for (const auto& dir : scene_dirs) {
+    const fs::path p = fs::path(dir) / (name + ".json");
+    std::error_code ec;
+    if (fs::is_regular_file(p, ec)) return p.string();
+  }
+  return Error(Code::invalid_argument, "scene '" + name + "' is not one of the rig's scenes", known());
+}
+
 Result<Scene> load_scene(const std::string& name_or_path, const std::vector<std::string>& scene_dirs,
                          const std::string& base_dir) {
   try {

@@ -409,24 +409,40 @@ nlohmann::json SimRig::describe() const {
   return j;
 }
 
-Status SimRig::apply_scan_options(const nlohmann::json& options) {
+Status SimRig::check_scan_options(const nlohmann::json& options) const {
   try {
-    if (options.is_null()) return set_scene(config_.scene);
+    if (options.is_null()) return Status::Ok();
     if (!options.is_object())
       return Error(Code::invalid_argument,
                    std::string("rig_options must be a JSON object, got ") + options.type_name(),
-                   "for the sim rig: {\"scene\": \"<name or path>\"}");
+                   "for the sim rig: {\"scene\": \"<scene name>\"}");
     for (auto it = options.begin(); it != options.end(); ++it) {
       if (it.key() != "scene")
         return Error(Code::invalid_argument, "rig_options: unknown key '" + it.key() + "' for the sim rig",
                      "known keys: scene");
     }
     auto it = options.find("scene");
-    if (it == options.end()) return set_scene(config_.scene);
+    if (it == options.end()) return Status::Ok();
     if (!it->is_string())
       return Error(Code::invalid_argument, std::string("rig_options.scene: must be a string, got ") + it->type_name(),
-                   "give a scene name such as \"tilted-box\" or a path to a scene .json file");
-    return set_scene(it->get<std::string>()).with_context("rig_options.scene");
+                   "give a scene name such as \"tilted-box\"");
+    auto file = resolve_scene_name(it->get<std::string>(), scene_dirs_);
+    if (!file.ok()) return file.status().with_context("rig_options.scene");
+    return Status::Ok();
+  } catch (const std::exception& e) {
+    return Error(Code::internal, std::string("sim rig: check_scan_options: ") + e.what());
+  }
+}
+
+Status SimRig::apply_scan_options(const nlohmann::json& options) {
+  try {
+    PROCAM_TRY(check_scan_options(options));
+    if (options.is_null()) return set_scene(config_.scene);
+    auto it = options.find("scene");
+    if (it == options.end()) return set_scene(config_.scene);
+    auto file = resolve_scene_name(it->get<std::string>(), scene_dirs_);
+    if (!file.ok()) return file.status().with_context("rig_options.scene");
+    return set_scene(*file).with_context("rig_options.scene");
   } catch (const std::exception& e) {
     return Error(Code::internal, std::string("sim rig: apply_scan_options: ") + e.what());
   }

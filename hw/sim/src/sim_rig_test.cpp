@@ -324,13 +324,25 @@ TEST(SimRig, DescribeScanOptionsAndErrors) {
   EXPECT_EQ(st.code(), Code::invalid_argument);
   EXPECT_NE(st.message().find("rig_options.scene"), std::string::npos);
   st = rig->apply_scan_options({{"scene", "no-such-scene"}});
-  EXPECT_EQ(st.code(), Code::not_found);
+  EXPECT_EQ(st.code(), Code::invalid_argument);  // the client named something that is not a scene
   EXPECT_NE(st.hint().find("tilted-box"), std::string::npos);
+  // Names only: rig_options come from remote clients and never name host files.
+  for (const char* bad : {"/etc/passwd", "../scenes/plane", "plane.json", "a/../b", "", "sp ace"}) {
+    st = rig->check_scan_options({{"scene", bad}});
+    EXPECT_EQ(st.code(), Code::invalid_argument) << bad;
+    EXPECT_NE(st.message().find("not a scene name"), std::string::npos) << bad << ": " << st.message();
+  }
+  EXPECT_TRUE(rig->check_scan_options({{"scene", "sphere"}}).ok());
+  EXPECT_EQ(rig->check_scan_options({{"scene", "nope"}}).code(), Code::invalid_argument);
+  EXPECT_EQ(rig->check_scan_options(nlohmann::json::array()).code(), Code::invalid_argument);
   EXPECT_EQ(rig->describe()["state"]["scene"], "sphere");  // a failed switch keeps the scene
   ASSERT_TRUE(rig->apply_scan_options(nlohmann::json::object()).ok());
   EXPECT_EQ(rig->describe()["state"]["scene"], "plane");  // no "scene": the configured default
-  // A scene given by path.
-  ASSERT_TRUE(rig->apply_scan_options({{"scene", test::configs_dir() + "/scenes/tilted-box.json"}}).ok());
+  // A path is not a scene name, even to a real scene file (local tools load
+  // files with set_scene or add the folder to the rig's scene folders).
+  st = rig->apply_scan_options({{"scene", test::configs_dir() + "/scenes/tilted-box.json"}});
+  EXPECT_EQ(st.code(), Code::invalid_argument);
+  ASSERT_TRUE(rig->set_scene(test::configs_dir() + "/scenes/tilted-box.json").ok());
   EXPECT_EQ(rig->scene().name, "tilted-box");
 
   auto gt = rig->ground_truth(3);

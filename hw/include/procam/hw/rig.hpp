@@ -64,6 +64,16 @@ public:
   // {"scene": "v-groove"}. Unknown keys are an invalid_argument error naming
   // the key. Applies until the next call.
   virtual Status apply_scan_options(const nlohmann::json& options) = 0;
+  // Checks `options` without applying them, so a service can refuse a bad
+  // request when it arrives instead of when its scan runs. Same errors as
+  // apply_scan_options would give (invalid_argument naming the key). Must be
+  // thread-safe (docs/threading.md): it may run while another thread uses the
+  // rig. Default: accepts only null or an empty object (a rig with no options).
+  virtual Status check_scan_options(const nlohmann::json& options) const {
+    if (options.is_null() || (options.is_object() && options.empty())) return Status::Ok();
+    return Error(Code::invalid_argument, "rig_options: this rig takes no options, got " + options.dump(),
+                 "send the scan without rig_options");
+  }
 
   // Ground truth for camera `index` of the current scene; not_found/unavailable
   // on hardware rigs.

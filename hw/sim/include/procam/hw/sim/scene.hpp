@@ -134,4 +134,11 @@ Result<Scene> load_scene(const std::string& name_or_path,
 // Names (file stems) of the scenes in `scene_dirs`, sorted, without duplicates.
 std::vector<std::string> list_scenes(const std::vector<std::string>& scene_dirs);
 
+// A scene name a remote client may give: 1..128 bytes of [A-Za-z0-9_-]
+// segments joined by '/', no empty, "." or ".." segment, no ".json". Returns
+// the file it names in the first scene folder that has it, or
+// invalid_argument (bad name, or no such scene: the message lists the known
+// ones). Never reads a file outside `scene_dirs`. Reentrant.
+Result<std::string> resolve_scene_name(const std::string& name, const std::vector<std::string>& scene_dirs);
+
 }  // namespace procam::sim

@@ -143,9 +143,16 @@ public:
   // {"scene", "scene_file", "projector_focus_mm", "seed"} and, when any fault
   // injection is configured, "faults": {"projector": counters, "cameras": [counters]}.
   nlohmann::json describe() const override;
-  // Keys: "scene" (name or path). A call without "scene" (or with null/{})
-  // restores the configured default scene. Unknown key → invalid_argument.
+  // Keys: "scene": the NAME of a scene in the rig's scene folders (a file
+  // <folder>/<name>.json; names are [A-Za-z0-9_-] segments, '/' allowed
+  // between segments, never a path: rig_options come from remote clients, so
+  // they must not name host files). A call without "scene" (or with null/{})
+  // restores the configured default scene (the rig config may give a path).
+  // Errors: invalid_argument naming the key, listing the known scenes.
   Status apply_scan_options(const nlohmann::json& options) override;
+  // The same checks without loading anything; thread-safe (reads the config
+  // and the scene folders only).
+  Status check_scan_options(const nlohmann::json& options) const override;
   Result<hw::GroundTruth> ground_truth(size_t index) override;
 
   // Load and prepare a scene (no-op if the same file is already loaded).
