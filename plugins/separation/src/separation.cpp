@@ -1,0 +1,224 @@
+// SPDX-License-Identifier: MIT
+// Direct–global separation: per-pixel equations and map loops (see separation.hpp).
+#include "separation.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <memory>
+
+namespace procam::separation {
+
+Extremum gaussian_extremum(const float* y, size_t n, bool maximum, double tie) noexcept {
+  Extremum r;
+  if (n < 3) return r;
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isfinite(y[i])) return r;
+  const auto better = [maximum](double a, double b) { return maximum ? a > b : a < b; };
+  size_t k = 1;
+  for (size_t i = 2; i + 1 < n; ++i)
+    if (better(y[i], y[k])) k = i;
+  const double yk = y[k];
+  // An end sample beating the interior extremum by more than `tie`: the
+  // extremum lies outside the sweep; never extrapolate.
+  for (double end : {double(y[0]), double(y[n - 1])})
+    if (maximum ? end > yk + tie : end < yk - tie) return r;
+  r.valid = true;
+  r.value = yk;
+  r.index = double(k);
+  const double a = y[k - 1], c = y[k + 1];
+  if (!(a > 0) || !(yk > 0) || !(c > 0)) return r;  // ln undefined: keep the sample
+  const double lm = std::log(a), l0 = std::log(yk), lp = std::log(c);
+  const double curv = lp - 2.0 * l0 + lm;  // < 0 at a maximum, > 0 at a minimum
+  // Flat or wrongly curved triple (possible only through near-ties with an
+  // end-excluded neighbour): the sample itself.
+  if (maximum ? !(curv < -1e-12) : !(curv > 1e-12)) return r;
+  const double t = std::clamp((lm - lp) / (2.0 * curv), -0.5, 0.5);
+  r.index = double(k) + t;
+  r.value = std::exp(l0 - (lp - lm) * (lp - lm) / (8.0 * curv));
+  return r;
+}
+
+namespace {
+
+// Per-row scratch for the map loops: one float row per input map.
+struct Rows {
+  explicit Rows(size_t maps, uint32_t width) : data(maps * width), w(width) {}
+  float* operator[](size_t i) { return data.data() + i * w; }
+  std::vector<float> data;
+  size_t w;
+};
+
+void size_maps(Maps& out, size_t n, bool best_focus) {
+  out.direct.assign(n, kNaN);
+  out.global.assign(n, kNaN);
+  if (best_focus)
+    out.best_focus.assign(n, kNaN);
+  else
+    out.best_focus.clear();
+  out.valid = 0;
+}
+
+// Normalisation (N) of separation.hpp for one pixel.
+struct Normaliser {
+  const Settings& s;
+  double inv_1mb() const { return 1.0 / (1.0 - s.black_level); }
+  bool saturated(float raw_max) const { return s.integer_frames && double(raw_max) >= s.full_scale; }
+  // (N): the signal v over the black frame k.
+  double operator()(float v, float k) const { return (double(v) - double(k)) * inv_1mb(); }
+  double dark_limit() const { return s.dark_fraction * s.full_scale * inv_1mb(); }
+};
+
+// Runs fn(y, x0_index, rows) per row band and counts valid pixels.
+template <class Fn>
+size_t for_rows(uint32_t width, uint32_t height, uint32_t threads, size_t maps, Maps& out, Fn&& fn) {
+  std::atomic<size_t> valid{0};
+  sdk::parallel_rows(height, std::max(1u, threads), [&](uint32_t y0, uint32_t y1) {
+    Rows rows(maps, width);
+    size_t v = 0;
+    for (uint32_t y = y0; y < y1; ++y) {
+      fn(y, rows);
+      const size_t base = size_t{y} * width;
+      for (uint32_t x = 0; x < width; ++x)
+        v += (std::isfinite(out.direct[base + x]) && std::isfinite(out.global[base + x])) ? 1u : 0u;
+    }
+    valid.fetch_add(v, std::memory_order_relaxed);
+  });
+  return valid.load();
+}
+
+}  // namespace
+
+void separate_checker(const Extrema& checker, const Extrema* black, const Settings& s, Maps& out) {
+  const uint32_t w = checker.width(), h = checker.height();
+  size_maps(out, size_t{w} * h, false);
+  const Normaliser nz{s};
+  const double b = s.black_level, k1 = nz.inv_1mb(), dark = nz.dark_limit();
+  out.valid = for_rows(w, h, s.threads, 3, out, [&](uint32_t y, Rows& r) {
+    float *mx = r[0], *mn = r[1], *bk = r[2];
+    checker.max_row(y, mx);
+    checker.min_row(y, mn);
+    if (black != nullptr)
+      black->max_row(y, bk);
+    else
+      std::fill(bk, bk + w, 0.f);
+    for (uint32_t x = 0; x < w; ++x) {
+      if (nz.saturated(mx[x])) continue;
+      double sp, sm;
+      if (black != nullptr) {
+        sp = nz(mx[x], bk[x]);  // (N)
+        sm = nz(mn[x], bk[x]);
+      } else {  // Nayar et al. 2006 with black level b: e⁻ − b e⁺ = ½ (1 + b)(1 − b) L_g
+        sp = (double(mx[x]) - double(mn[x])) * k1 + (double(mn[x]) - b * double(mx[x])) / (1.0 - b * b);
+        sm = (double(mn[x]) - b * double(mx[x])) / (1.0 - b * b);
+      }
+      if (!(sp >= dark)) continue;
+      const Components c = from_extrema(sp, sm);
+      out.direct[size_t{y} * w + x] = c.direct;
+      out.global[size_t{y} * w + x] = c.global;
+    }
+  });
+}
+
+void separate_multi_focal(std::span<const Extrema> per_focus, const Extrema* black, const Settings& s, Maps& out) {
+  const size_t nf = per_focus.size();
+  const uint32_t w = per_focus.empty() ? 0 : per_focus[0].width(), h = per_focus.empty() ? 0 : per_focus[0].height();
+  size_maps(out, size_t{w} * h, true);
+  if (nf < 3) return;
+  const Normaliser nz{s};
+  const double k1 = nz.inv_1mb(), dark = nz.dark_limit(), tie = s.tie_fraction * s.full_scale * k1;
+  out.valid = for_rows(w, h, s.threads, 2 * nf + 1, out, [&](uint32_t y, Rows& r) {
+    float* bk = r[2 * nf];
+    std::vector<float> ep(nf), em(nf);  // e⁺(f), e⁻(f) of one pixel
+    for (size_t f = 0; f < nf; ++f) {
+      per_focus[f].max_row(y, r[f]);
+      per_focus[f].min_row(y, r[nf + f]);
+    }
+    if (black != nullptr)
+      black->max_row(y, bk);
+    else
+      std::fill(bk, bk + w, 0.f);
+    for (uint32_t x = 0; x < w; ++x) {
+      bool bad = false;
+      for (size_t f = 0; f < nf; ++f) {
+        const float raw = r[f][x];
+        bad |= nz.saturated(raw);
+        ep[f] = static_cast<float>(nz(raw, bk[x]));  // (N)
+        em[f] = static_cast<float>(nz(r[nf + f][x], bk[x]));
+      }
+      if (bad) continue;
+      const Extremum hi = gaussian_extremum(ep.data(), nf, true, tie);   // ē⁺, Eq. 2.15
+      const Extremum lo = gaussian_extremum(em.data(), nf, false, tie);  // ē⁻, Eq. 2.16
+      if (!hi.valid || !lo.valid || !(hi.value >= dark)) continue;
+      const Components c = from_extrema(hi.value, lo.value);
+      out.direct[size_t{y} * w + x] = c.direct;
+      out.global[size_t{y} * w + x] = c.global;
+      out.best_focus[size_t{y} * w + x] = static_cast<float>(hi.index);
+    }
+  });
+}
+
+void separate_one_focal(const Extrema& checker, const Extrema& white, const Extrema* black,
+                        std::span<const float> depth_mm, const sdk::CalibrationTable& contrast_from_depth,
+                        const Settings& s, Maps& out) {
+  const uint32_t w = checker.width(), h = checker.height();
+  size_maps(out, size_t{w} * h, false);
+  if (depth_mm.size() != size_t{w} * h) return;
+  const Normaliser nz{s};
+  const double dark = nz.dark_limit();
+  out.valid = for_rows(w, h, s.threads, 4, out, [&](uint32_t y, Rows& r) {
+    float *mx = r[0], *mn = r[1], *wh = r[2], *bk = r[3];
+    checker.max_row(y, mx);
+    checker.min_row(y, mn);
+    white.max_row(y, wh);
+    if (black != nullptr)
+      black->max_row(y, bk);
+    else
+      std::fill(bk, bk + w, 0.f);
+    for (uint32_t x = 0; x < w; ++x) {
+      if (nz.saturated(mx[x]) || nz.saturated(wh[x])) continue;
+      const double sw = nz(wh[x], bk[x]);  // (N)
+      if (!(sw >= dark)) continue;
+      const double contrast = contrast_from_depth.lookup(depth_mm[size_t{y} * w + x]);  // Eq. 2.19 table
+      const Components c =
+          from_contrast(nz(mx[x], bk[x]), nz(mn[x], bk[x]), sw, contrast, s.min_contrast);
+      out.direct[size_t{y} * w + x] = c.direct;
+      out.global[size_t{y} * w + x] = c.global;
+    }
+  });
+}
+
+void plane_contrast_samples(const Extrema& checker, const Extrema& white, const Extrema* black,
+                            std::span<const float> depth_mm, const Settings& s, std::vector<float>& depths,
+                            std::vector<float>& contrasts) {
+  const uint32_t w = checker.width(), h = checker.height();
+  const size_t n = size_t{w} * h;
+  depths.assign(n, kNaN);
+  contrasts.assign(n, kNaN);
+  if (depth_mm.size() != n) return;
+  const Normaliser nz{s};
+  const double dark = nz.dark_limit();
+  sdk::parallel_rows(h, std::max(1u, s.threads), [&](uint32_t y0, uint32_t y1) {
+    Rows r(4, w);
+    for (uint32_t y = y0; y < y1; ++y) {
+      checker.max_row(y, r[0]);
+      checker.min_row(y, r[1]);
+      white.max_row(y, r[2]);
+      if (black != nullptr)
+        black->max_row(y, r[3]);
+      else
+        std::fill(r[3], r[3] + w, 0.f);
+      for (uint32_t x = 0; x < w; ++x) {
+        const size_t i = size_t{y} * w + x;
+        if (nz.saturated(r[0][x]) || nz.saturated(r[2][x]) || !std::isfinite(depth_mm[i])) continue;
+        const double sw = nz(r[2][x], r[3][x]);
+        if (!(sw >= dark)) continue;
+        const double c = plane_contrast(nz(r[0][x], r[3][x]), nz(r[1][x], r[3][x]), sw);
+        if (!std::isfinite(c)) continue;
+        depths[i] = depth_mm[i];
+        contrasts[i] = static_cast<float>(c);
+      }
+    }
+  });
+}
+
+}  // namespace procam::separation
