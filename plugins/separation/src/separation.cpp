@@ -188,8 +188,8 @@ void separate_one_focal(const Extrema& checker, const Extrema& white, const Extr
 }
 
 void plane_contrast_samples(const Extrema& checker, const Extrema& white, const Extrema* black,
-                            std::span<const float> depth_mm, const Settings& s, std::vector<float>& depths,
-                            std::vector<float>& contrasts) {
+                            std::span<const float> depth_mm, const Settings& s, uint32_t window_px,
+                            std::vector<float>& depths, std::vector<float>& contrasts) {
   const uint32_t w = checker.width(), h = checker.height();
   const size_t n = size_t{w} * h;
   depths.assign(n, kNaN);
@@ -219,6 +219,38 @@ void plane_contrast_samples(const Extrema& checker, const Extrema& white, const 
       }
     }
   });
+  box_mean_finite(contrasts, w, h, window_px);
+}
+
+void box_mean_finite(std::vector<float>& v, uint32_t w, uint32_t h, uint32_t window) {
+  if (window <= 1 || v.size() != size_t{w} * h) return;
+  // Summed-area tables of the finite values and of their count, (w+1)×(h+1).
+  const size_t W = size_t{w} + 1;
+  std::vector<double> sum(W * (size_t{h} + 1), 0.0), cnt(W * (size_t{h} + 1), 0.0);
+  for (uint32_t y = 0; y < h; ++y) {
+    double row_s = 0, row_c = 0;
+    for (uint32_t x = 0; x < w; ++x) {
+      const float f = v[size_t{y} * w + x];
+      if (std::isfinite(f)) {
+        row_s += double(f);
+        row_c += 1;
+      }
+      sum[(y + 1) * W + x + 1] = sum[y * W + x + 1] + row_s;
+      cnt[(y + 1) * W + x + 1] = cnt[y * W + x + 1] + row_c;
+    }
+  }
+  const uint32_t lo = window / 2, hi = window - lo;  // box [x - lo, x + hi)
+  for (uint32_t y = 0; y < h; ++y) {
+    const size_t y0 = y >= lo ? y - lo : 0, y1 = std::min<size_t>(h, size_t{y} + hi);
+    for (uint32_t x = 0; x < w; ++x) {
+      float& out = v[size_t{y} * w + x];
+      if (!std::isfinite(out)) continue;
+      const size_t x0 = x >= lo ? x - lo : 0, x1 = std::min<size_t>(w, size_t{x} + hi);
+      const double c = cnt[y1 * W + x1] - cnt[y0 * W + x1] - cnt[y1 * W + x0] + cnt[y0 * W + x0];
+      const double t = sum[y1 * W + x1] - sum[y0 * W + x1] - sum[y1 * W + x0] + sum[y0 * W + x0];
+      out = static_cast<float>(t / c);  // c >= 1: the pixel itself is finite
+    }
+  }
 }
 
 }  // namespace procam::separation

@@ -134,9 +134,17 @@ void separate_one_focal(const Extrema& checker, const Extrema& white, const Extr
 
 // Calibration (Eq. 2.19): per valid pixel of a plane without global light,
 // the pair (depth mm, β⁺ − β⁻), NaN where invalid; fit with
-// sdk::fit_monotonic(depths, contrasts, ...).
+// sdk::fit_monotonic(depths, contrasts, ...). β⁺ − β⁻ also depends on where
+// the pixel falls on the checker grid (the best of the shifts is 0–1.5 px
+// off a square's centre); on an inclined plane that phase runs with depth and
+// would ripple the table, so the contrast is averaged over a window of
+// `window_px` × `window_px` camera pixels (one pattern period) first.
 void plane_contrast_samples(const Extrema& checker, const Extrema& white, const Extrema* black,
-                            std::span<const float> depth_mm, const Settings& s, std::vector<float>& depths,
-                            std::vector<float>& contrasts);
+                            std::span<const float> depth_mm, const Settings& s, uint32_t window_px,
+                            std::vector<float>& depths, std::vector<float>& contrasts);
+
+// In-place mean of the finite values of a w×h map over a window × window box
+// centred on each pixel (summed-area tables); pixels that were NaN stay NaN.
+void box_mean_finite(std::vector<float>& v, uint32_t w, uint32_t h, uint32_t window);
 
 }  // namespace procam::separation

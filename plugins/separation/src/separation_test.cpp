@@ -217,10 +217,26 @@ TEST(SeparateOneFocal, DividesByTheTablesContrastAtEachDepth) {
   });
   const Extrema plane_white = series(3, 1, [&](uint32_t, int) { return a + ld; });
   const Extrema plane_black = series(3, 1, [&](uint32_t, int) { return a + b * ld; });
-  plane_contrast_samples(plane, plane_white, &plane_black, depth, s, zs, cs);
+  plane_contrast_samples(plane, plane_white, &plane_black, depth, s, 1, zs, cs);
   EXPECT_NEAR(cs[0], 0.9, 1e-5);
   EXPECT_NEAR(cs[1], 0.7, 1e-5);
   EXPECT_EQ(zs[2], 1100.f);
+}
+
+TEST(BoxMeanFinite, AveragesFiniteNeighboursAndKeepsNaN) {
+  const float nan = std::nanf("");
+  // 4x1 row: box of 3 centred (1 left, 1 right).
+  std::vector<float> v = {1.f, 2.f, nan, 6.f};
+  box_mean_finite(v, 4, 1, 3);
+  EXPECT_FLOAT_EQ(v[0], 1.5f);  // (1 + 2) / 2, clipped at the border
+  EXPECT_FLOAT_EQ(v[1], 1.5f);  // (1 + 2) / 2, NaN neighbour skipped
+  EXPECT_TRUE(std::isnan(v[2]));
+  EXPECT_FLOAT_EQ(v[3], 6.f);
+  // A ripple of period 4 averages to its mean over a window of 4.
+  std::vector<float> r(16 * 4);
+  for (size_t i = 0; i < r.size(); ++i) r[i] = 0.5f + ((i % 16) % 4 < 2 ? 0.1f : -0.1f);
+  box_mean_finite(r, 16, 4, 4);
+  for (uint32_t x = 2; x < 14; ++x) EXPECT_NEAR(r[16 + x], 0.5f, 1e-6) << x;
 }
 
 }  // namespace
