@@ -42,6 +42,15 @@ class Extrema {
   // Row y of the max (or min) map as floats in frame units. count() > 0.
   void max_row(uint32_t y, float* dst) const noexcept { row(max_, y, dst); }
   void min_row(uint32_t y, float* dst) const noexcept { row(min_, y, dst); }
+  // Row y of the max (min) map in its own sample type (pixel_type()). count() > 0.
+  template <class T>
+  const T* max_data(uint32_t y) const noexcept {
+    return reinterpret_cast<const T*>(max_.data()) + size_t{y} * width_;
+  }
+  template <class T>
+  const T* min_data(uint32_t y) const noexcept {
+    return reinterpret_cast<const T*>(min_.data()) + size_t{y} * width_;
+  }
 
  private:
   void row(const std::vector<uint8_t>& m, uint32_t y, float* dst) const noexcept;

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <type_traits>
+
+#include "procam/sdk/simd.hpp"
 #include <memory>
 
 namespace procam::separation {
@@ -48,11 +51,13 @@ struct Rows {
   size_t w;
 };
 
+// Output maps from the plugin's map cache (stale contents: every loop below
+// writes every pixel).
 void size_maps(Maps& out, size_t n, bool best_focus) {
-  out.direct.assign(n, kNaN);
-  out.global.assign(n, kNaN);
+  sdk::take_map(out.direct, n);
+  sdk::take_map(out.global, n);
   if (best_focus)
-    out.best_focus.assign(n, kNaN);
+    sdk::take_map(out.best_focus, n);
   else
     out.best_focus.clear();
   out.valid = 0;
@@ -60,73 +65,144 @@ void size_maps(Maps& out, size_t n, bool best_focus) {
 
 // Normalisation (N) of separation.hpp for one pixel.
 struct Normaliser {
+  explicit Normaliser(const Settings& settings) : s(settings), inv(1.0 / (1.0 - settings.black_level)) {}
   const Settings& s;
-  double inv_1mb() const { return 1.0 / (1.0 - s.black_level); }
+  double inv;
+  double inv_1mb() const { return inv; }
   bool saturated(float raw_max) const { return s.integer_frames && double(raw_max) >= s.full_scale; }
   // (N): the signal v over the black frame k.
   double operator()(float v, float k) const { return (double(v) - double(k)) * inv_1mb(); }
   double dark_limit() const { return s.dark_fraction * s.full_scale * inv_1mb(); }
 };
 
-// Runs fn(y, x0_index, rows) per row band and counts valid pixels.
+// Runs fn(y, rows) -> valid pixels of row y, over row bands; returns the total.
 template <class Fn>
-size_t for_rows(uint32_t width, uint32_t height, uint32_t threads, size_t maps, Maps& out, Fn&& fn) {
+size_t for_rows(uint32_t width, uint32_t height, uint32_t threads, size_t maps, Fn&& fn) {
   std::atomic<size_t> valid{0};
   sdk::parallel_rows(height, std::max(1u, threads), [&](uint32_t y0, uint32_t y1) {
     Rows rows(maps, width);
     size_t v = 0;
-    for (uint32_t y = y0; y < y1; ++y) {
-      fn(y, rows);
-      const size_t base = size_t{y} * width;
-      for (uint32_t x = 0; x < width; ++x)
-        v += (std::isfinite(out.direct[base + x]) && std::isfinite(out.global[base + x])) ? 1u : 0u;
-    }
+    for (uint32_t y = y0; y < y1; ++y) v += fn(y, rows);
     valid.fetch_add(v, std::memory_order_relaxed);
   });
   return valid.load();
 }
 
+size_t count_valid(const float* d, const float* g, uint32_t n) {
+  size_t v = 0;
+  for (uint32_t x = 0; x < n; ++x) v += (std::isfinite(d[x]) && std::isfinite(g[x])) ? 1u : 0u;
+  return v;
+}
+
 }  // namespace
+
+namespace {
+template <class T, bool kBlack>
+size_t checker_row_impl(const CheckerRowConstants& k, const T* __restrict mx, const T* __restrict mn,
+                        const T* __restrict bk, float* __restrict d, float* __restrict g, uint32_t n) noexcept {
+  // Branch-free, constants in locals and restrict pointers, so the compiler
+  // vectorises it. (N) with a black frame; Nayar et al.'s black-level
+  // correction without (e⁻ − b e⁺ = ½ (1 + b)(1 − b) L_g). NaN input fails
+  // every comparison and yields NaN.
+  const float b = k.b, inv = k.inv_1mb, inv2 = k.inv_1mb2, dark = k.dark, sat = k.saturation;
+  uint32_t valid = 0;
+  for (uint32_t x = 0; x < n; ++x) {
+    const float hi = static_cast<float>(mx[x]), lo = static_cast<float>(mn[x]);
+    const float dd = (hi - lo) * inv;  // Eq. 2.15 − 2.16: L_d = ē⁺ − ē⁻
+    const float sm = kBlack ? (lo - static_cast<float>(bk[x])) * inv : (lo - b * hi) * inv2;  // ē⁻
+    const bool ok = (dd + sm >= dark) & (hi < sat);
+    // max(v, 0) written as the SIMD kernel's max_ps(v, 0): v > 0 ? v : 0.
+    d[x] = ok ? (dd > 0.f ? dd : 0.f) : kNaN;
+    const float g2 = 2.f * sm;
+    g[x] = ok ? (g2 > 0.f ? g2 : 0.f) : kNaN;  // Eq. 2.16: L_g = 2 ē⁻
+    valid += ok ? 1u : 0u;
+  }
+  return valid;
+}
+}  // namespace
+
+#ifdef PROCAM_SDK_X86
+// The default 8-bit path (with a black frame) in AVX2, 8 pixels at a time: the
+// same float operations in the same order as checker_row_impl, so results
+// are bit-identical (checked by separation_test).
+__attribute__((target("avx2"))) size_t checker_row_u8_avx2(const CheckerRowConstants& k, const uint8_t* mx,
+                                                            const uint8_t* mn, const uint8_t* bk, float* d, float* g,
+                                                            uint32_t n) noexcept {
+  const __m256 inv = _mm256_set1_ps(k.inv_1mb), dark = _mm256_set1_ps(k.dark), sat = _mm256_set1_ps(k.saturation);
+  const __m256 nan = _mm256_set1_ps(kNaN), zero = _mm256_setzero_ps(), two = _mm256_set1_ps(2.f);
+  size_t valid = 0;
+  uint32_t x = 0;
+  for (; x + 8 <= n; x += 8) {
+    const __m256 hi = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mx + x))));
+    const __m256 lo = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mn + x))));
+    const __m256 b = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(bk + x))));
+    const __m256 dd = _mm256_mul_ps(_mm256_sub_ps(hi, lo), inv);
+    const __m256 sm = _mm256_mul_ps(_mm256_sub_ps(lo, b), inv);
+    const __m256 ok = _mm256_and_ps(_mm256_cmp_ps(_mm256_add_ps(dd, sm), dark, _CMP_GE_OQ),
+                                    _mm256_cmp_ps(hi, sat, _CMP_LT_OQ));
+    _mm256_storeu_ps(d + x, _mm256_blendv_ps(nan, _mm256_max_ps(dd, zero), ok));
+    _mm256_storeu_ps(g + x, _mm256_blendv_ps(nan, _mm256_max_ps(_mm256_mul_ps(two, sm), zero), ok));
+    valid += static_cast<size_t>(__builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(ok))));
+  }
+  return valid + checker_row_impl<uint8_t, true>(k, mx + x, mn + x, bk + x, d + x, g + x, n - x);
+}
+#endif
+
+template <class T>
+size_t checker_row(const CheckerRowConstants& k, const T* mx, const T* mn, const T* bk, float* d, float* g,
+                   uint32_t n) noexcept {
+#ifdef PROCAM_SDK_X86
+  if constexpr (std::is_same_v<T, uint8_t>)
+    if (bk != nullptr && sdk::cpu_has_avx2()) return checker_row_u8_avx2(k, mx, mn, bk, d, g, n);
+#endif
+  return bk != nullptr ? checker_row_impl<T, true>(k, mx, mn, bk, d, g, n)
+                       : checker_row_impl<T, false>(k, mx, mn, bk, d, g, n);
+}
+
+size_t checker_row_scalar(const CheckerRowConstants& k, const uint8_t* mx, const uint8_t* mn, const uint8_t* bk,
+                          float* d, float* g, uint32_t n) noexcept {
+  return bk != nullptr ? checker_row_impl<uint8_t, true>(k, mx, mn, bk, d, g, n)
+                       : checker_row_impl<uint8_t, false>(k, mx, mn, bk, d, g, n);
+}
+template size_t checker_row<uint8_t>(const CheckerRowConstants&, const uint8_t*, const uint8_t*, const uint8_t*,
+                                     float*, float*, uint32_t) noexcept;
+template size_t checker_row<uint16_t>(const CheckerRowConstants&, const uint16_t*, const uint16_t*, const uint16_t*,
+                                      float*, float*, uint32_t) noexcept;
+template size_t checker_row<float>(const CheckerRowConstants&, const float*, const float*, const float*, float*,
+                                   float*, uint32_t) noexcept;
 
 void separate_checker(const Extrema& checker, const Extrema* black, const Settings& s, Maps& out) {
   const uint32_t w = checker.width(), h = checker.height();
   size_maps(out, size_t{w} * h, false);
-  const Normaliser nz{s};
-  const double b = s.black_level, k1 = nz.inv_1mb(), dark = nz.dark_limit();
-  out.valid = for_rows(w, h, s.threads, 3, out, [&](uint32_t y, Rows& r) {
-    float *mx = r[0], *mn = r[1], *bk = r[2];
-    checker.max_row(y, mx);
-    checker.min_row(y, mn);
-    if (black != nullptr)
-      black->max_row(y, bk);
-    else
-      std::fill(bk, bk + w, 0.f);
-    for (uint32_t x = 0; x < w; ++x) {
-      if (nz.saturated(mx[x])) continue;
-      double sp, sm;
-      if (black != nullptr) {
-        sp = nz(mx[x], bk[x]);  // (N)
-        sm = nz(mn[x], bk[x]);
-      } else {  // Nayar et al. 2006 with black level b: e⁻ − b e⁺ = ½ (1 + b)(1 − b) L_g
-        sp = (double(mx[x]) - double(mn[x])) * k1 + (double(mn[x]) - b * double(mx[x])) / (1.0 - b * b);
-        sm = (double(mn[x]) - b * double(mx[x])) / (1.0 - b * b);
-      }
-      if (!(sp >= dark)) continue;
-      const Components c = from_extrema(sp, sm);
-      out.direct[size_t{y} * w + x] = c.direct;
-      out.global[size_t{y} * w + x] = c.global;
-    }
-  });
+  const CheckerRowConstants k = checker_constants(s);
+  const auto run = [&](auto sample) {
+    using T = decltype(sample);
+    return for_rows(w, h, s.threads, 0, [&](uint32_t y, Rows&) {
+      return checker_row<T>(k, checker.max_data<T>(y), checker.min_data<T>(y),
+                            black != nullptr ? black->max_data<T>(y) : nullptr, out.direct.data() + size_t{y} * w,
+                            out.global.data() + size_t{y} * w, w);
+    });
+  };
+  switch (checker.pixel_type()) {
+    case PROCAM_PIXEL_U8: out.valid = run(uint8_t{}); break;
+    case PROCAM_PIXEL_U16: out.valid = run(uint16_t{}); break;
+    default: out.valid = run(0.f); break;
+  }
 }
 
 void separate_multi_focal(std::span<const Extrema> per_focus, const Extrema* black, const Settings& s, Maps& out) {
   const size_t nf = per_focus.size();
   const uint32_t w = per_focus.empty() ? 0 : per_focus[0].width(), h = per_focus.empty() ? 0 : per_focus[0].height();
   size_maps(out, size_t{w} * h, true);
-  if (nf < 3) return;
-  const Normaliser nz{s};
+  if (nf < 3) {
+    std::fill(out.direct.begin(), out.direct.end(), kNaN);
+    std::fill(out.global.begin(), out.global.end(), kNaN);
+    std::fill(out.best_focus.begin(), out.best_focus.end(), kNaN);
+    return;
+  }
+  const Normaliser nz(s);
   const double k1 = nz.inv_1mb(), dark = nz.dark_limit(), tie = s.tie_fraction * s.full_scale * k1;
-  out.valid = for_rows(w, h, s.threads, 2 * nf + 1, out, [&](uint32_t y, Rows& r) {
+  out.valid = for_rows(w, h, s.threads, 2 * nf + 1, [&](uint32_t y, Rows& r) {
     float* bk = r[2 * nf];
     std::vector<float> ep(nf), em(nf);  // e⁺(f), e⁻(f) of one pixel
     for (size_t f = 0; f < nf; ++f) {
@@ -145,15 +221,21 @@ void separate_multi_focal(std::span<const Extrema> per_focus, const Extrema* bla
         ep[f] = static_cast<float>(nz(raw, bk[x]));  // (N)
         em[f] = static_cast<float>(nz(r[nf + f][x], bk[x]));
       }
-      if (bad) continue;
-      const Extremum hi = gaussian_extremum(ep.data(), nf, true, tie);   // ē⁺, Eq. 2.15
-      const Extremum lo = gaussian_extremum(em.data(), nf, false, tie);  // ē⁻, Eq. 2.16
-      if (!hi.valid || !lo.valid || !(hi.value >= dark)) continue;
-      const Components c = from_extrema(hi.value, lo.value);
+      Components c;  // NaN: invalid
+      float best = kNaN;
+      if (!bad) {
+        const Extremum hi = gaussian_extremum(ep.data(), nf, true, tie);   // ē⁺, Eq. 2.15
+        const Extremum lo = gaussian_extremum(em.data(), nf, false, tie);  // ē⁻, Eq. 2.16
+        if (hi.valid && lo.valid && hi.value >= dark) {
+          c = from_extrema(hi.value, lo.value);
+          best = static_cast<float>(hi.index);
+        }
+      }
       out.direct[size_t{y} * w + x] = c.direct;
       out.global[size_t{y} * w + x] = c.global;
-      out.best_focus[size_t{y} * w + x] = static_cast<float>(hi.index);
+      out.best_focus[size_t{y} * w + x] = c.valid() ? best : kNaN;
     }
+    return count_valid(out.direct.data() + size_t{y} * w, out.global.data() + size_t{y} * w, w);
   });
 }
 
@@ -162,10 +244,14 @@ void separate_one_focal(const Extrema& checker, const Extrema& white, const Extr
                         const Settings& s, Maps& out) {
   const uint32_t w = checker.width(), h = checker.height();
   size_maps(out, size_t{w} * h, false);
-  if (depth_mm.size() != size_t{w} * h) return;
-  const Normaliser nz{s};
+  if (depth_mm.size() != size_t{w} * h) {
+    std::fill(out.direct.begin(), out.direct.end(), kNaN);
+    std::fill(out.global.begin(), out.global.end(), kNaN);
+    return;
+  }
+  const Normaliser nz(s);
   const double dark = nz.dark_limit();
-  out.valid = for_rows(w, h, s.threads, 4, out, [&](uint32_t y, Rows& r) {
+  out.valid = for_rows(w, h, s.threads, 4, [&](uint32_t y, Rows& r) {
     float *mx = r[0], *mn = r[1], *wh = r[2], *bk = r[3];
     checker.max_row(y, mx);
     checker.min_row(y, mn);
@@ -175,15 +261,16 @@ void separate_one_focal(const Extrema& checker, const Extrema& white, const Extr
     else
       std::fill(bk, bk + w, 0.f);
     for (uint32_t x = 0; x < w; ++x) {
-      if (nz.saturated(mx[x]) || nz.saturated(wh[x])) continue;
+      Components c;  // NaN: invalid
       const double sw = nz(wh[x], bk[x]);  // (N)
-      if (!(sw >= dark)) continue;
-      const double contrast = contrast_from_depth.lookup(depth_mm[size_t{y} * w + x]);  // Eq. 2.19 table
-      const Components c =
-          from_contrast(nz(mx[x], bk[x]), nz(mn[x], bk[x]), sw, contrast, s.min_contrast);
+      if (!nz.saturated(mx[x]) && !nz.saturated(wh[x]) && sw >= dark) {
+        const double contrast = contrast_from_depth.lookup(depth_mm[size_t{y} * w + x]);  // Eq. 2.19 table
+        c = from_contrast(nz(mx[x], bk[x]), nz(mn[x], bk[x]), sw, contrast, s.min_contrast);
+      }
       out.direct[size_t{y} * w + x] = c.direct;
       out.global[size_t{y} * w + x] = c.global;
     }
+    return count_valid(out.direct.data() + size_t{y} * w, out.global.data() + size_t{y} * w, w);
   });
 }
 
@@ -195,7 +282,7 @@ void plane_contrast_samples(const Extrema& checker, const Extrema& white, const 
   depths.assign(n, kNaN);
   contrasts.assign(n, kNaN);
   if (depth_mm.size() != n) return;
-  const Normaliser nz{s};
+  const Normaliser nz(s);
   const double dark = nz.dark_limit();
   sdk::parallel_rows(h, std::max(1u, s.threads), [&](uint32_t y0, uint32_t y1) {
     Rows r(4, w);

@@ -116,6 +116,31 @@ struct Maps {
   size_t valid = 0;                   // pixels with both components finite
 };
 
+// S1's per-row kernel (exposed for tests): direct/global of n pixels from the
+// max, min and (optional, nullptr = none) black-frame rows, in float.
+struct CheckerRowConstants {
+  float b = 0, inv_1mb = 1, inv_1mb2 = 1;  // b, 1/(1 − b), 1/(1 − b²)
+  float dark = 0;                          // smallest valid peak signal
+  float saturation = INFINITY;             // raw max at or above: saturated (integer frames)
+};
+inline CheckerRowConstants checker_constants(const Settings& s) noexcept {
+  CheckerRowConstants k;
+  k.b = static_cast<float>(s.black_level);
+  k.inv_1mb = static_cast<float>(1.0 / (1.0 - s.black_level));
+  k.inv_1mb2 = static_cast<float>(1.0 / (1.0 - s.black_level * s.black_level));
+  k.dark = static_cast<float>(s.dark_fraction * s.full_scale / (1.0 - s.black_level));
+  k.saturation = s.integer_frames ? static_cast<float>(s.full_scale) : INFINITY;
+  return k;
+}
+// Samples in the frames' own type (U8, U16 or F32); bk may be nullptr (no
+// black frame). Returns the number of valid pixels.
+template <class T>
+size_t checker_row(const CheckerRowConstants& k, const T* mx, const T* mn, const T* bk, float* d, float* g,
+                   uint32_t n) noexcept;
+// The portable 8-bit kernel, for the SIMD-vs-scalar test.
+size_t checker_row_scalar(const CheckerRowConstants& k, const uint8_t* mx, const uint8_t* mn, const uint8_t* bk,
+                          float* d, float* g, uint32_t n) noexcept;
+
 // S1 (Nayar et al. 2006; Eq. 2.15–2.16 with β⁺ = 1, β⁻ = 0). `black`: the
 // all-black frame (count() == 1) or nullptr (see the header comment).
 void separate_checker(const Extrema& checker, const Extrema* black, const Settings& s, Maps& out);

@@ -226,10 +226,13 @@ class SeparationSession final : public sdk::Session {
                    table_json_.dump());
     } else {
       std_out.valid_pixels = maps_.valid;
+      // The maps move into the outputs (outputs() runs once per round; the
+      // SDK keeps the result) and go back to the map cache at session_destroy.
+      out.set_release(sdk::give_map, sdk::give_map);
       out.add_image("direct_dn", "DN", "direct component L_d under full-white light (NaN: invalid)", cam.width,
-                    cam.height, maps_.direct);
+                    cam.height, std::move(maps_.direct));
       out.add_image("global_dn", "DN", "global component L_g under full-white light (NaN: invalid)", cam.width,
-                    cam.height, maps_.global);
+                    cam.height, std::move(maps_.global));
       if (!maps_.best_focus.empty()) out.add_image("best_focus_mm", "mm", best_focus_description(), cam.width,
                                                    cam.height, best_focus_mm());
     }

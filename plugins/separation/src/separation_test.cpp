@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <random>
 #include <vector>
 
 namespace procam::separation {
@@ -237,6 +239,28 @@ TEST(BoxMeanFinite, AveragesFiniteNeighboursAndKeepsNaN) {
   for (size_t i = 0; i < r.size(); ++i) r[i] = 0.5f + ((i % 16) % 4 < 2 ? 0.1f : -0.1f);
   box_mean_finite(r, 16, 4, 4);
   for (uint32_t x = 2; x < 14; ++x) EXPECT_NEAR(r[16 + x], 0.5f, 1e-6) << x;
+}
+
+TEST(CheckerRow, DispatchedKernelMatchesScalarBitForBit) {
+  std::mt19937 rng(11);
+  for (uint32_t n : {1u, 7u, 8u, 9u, 1921u}) {
+    std::vector<uint8_t> mx(n), mn(n), bk(n);
+    for (uint32_t i = 0; i < n; ++i) {
+      const auto a = uint8_t(rng()), b = uint8_t(rng());
+      mx[i] = std::max(a, b);
+      mn[i] = std::min(a, b);
+      bk[i] = uint8_t(mn[i] / (1 + rng() % 4));
+      if (i % 13 == 0) mx[i] = 255;  // saturated
+    }
+    Settings s;
+    const CheckerRowConstants k = checker_constants(s);
+    std::vector<float> d1(n), g1(n), d2(n), g2(n);
+    const size_t v1 = checker_row<uint8_t>(k, mx.data(), mn.data(), bk.data(), d1.data(), g1.data(), n);
+    const size_t v2 = checker_row_scalar(k, mx.data(), mn.data(), bk.data(), d2.data(), g2.data(), n);
+    EXPECT_EQ(v1, v2) << n;
+    EXPECT_EQ(0, std::memcmp(d1.data(), d2.data(), n * sizeof(float))) << n;
+    EXPECT_EQ(0, std::memcmp(g1.data(), g2.data(), n * sizeof(float))) << n;
+  }
 }
 
 }  // namespace
