@@ -1,128 +1,109 @@
 // SPDX-License-Identifier: MIT
-// `procam calibrate PLUGIN/METHOD --out FILE`: make a calibration table
-// through the product (docs/calibration.md). Two scans on procamd:
-//   1. the reference (default structured-light/gray) measures the plane's
-//      depth_mm by triangulation;
-//   2. PLUGIN/METHOD runs with that depth_mm as its input and outputs the
-//      JSON output calibration_table;
-// then the table (with "made" completed: rig, scene, scans, date) is checked
-// and written to FILE, and the line to add to the rig config is printed.
-// FILE is never overwritten without --force 1 (checked before scanning).
+// `procam calibrate-geometry`: camera + projector intrinsics with distortion
+// and cam_from_proj from chessboard captures under Gray codes, offline
+// (daemon/calibration; docs/calibration.md "Geometric calibration").
 #include <cstdio>
 #include <filesystem>
-#include <iostream>
+#include <string>
+#include <vector>
 
 #include "cli.hpp"
-#include "procam/engine/calibration_tables.hpp"
+#include "procam/calibration/captures.hpp"
+#include "procam/calibration/geometric.hpp"
 #include "procam/engine/rig_json.hpp"
-#include "procam/engine/service.hpp"
+#include "procam/engine/scan_runner.hpp"
 
 namespace procam::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-// "plugin/method" -> {plugin, method}; empty on a malformed target.
-std::pair<std::string, std::string> split_target(const std::string& t) {
-  const size_t slash = t.find('/');
-  if (slash == std::string::npos || slash == 0 || slash + 1 == t.size() || t.find('/', slash + 1) != std::string::npos)
-    return {};
-  return {t.substr(0, slash), t.substr(slash + 1)};
+// "AxB" -> (A, B), both > 0.
+bool parse_pair(const std::string& s, uint32_t& a, uint32_t& b) {
+  unsigned x = 0, y = 0;
+  char sep = 0;
+  if (std::sscanf(s.c_str(), "%u%c%u", &x, &sep, &y) != 3 || (sep != 'x' && sep != 'X') || x == 0 || y == 0)
+    return false;
+  a = x;
+  b = y;
+  return true;
 }
-
-// Runs one scan to its end; its manifest when done, else the scan's error.
-Result<nlohmann::json> run_to_end(client::Client& c, const proto::Scan& s, const char* what) {
-  std::fprintf(stderr, "%s: %s/%s\n", what, s.plugin.c_str(), s.method.c_str());
-  auto fin = c.scan(s, progress_line);
-  if (!fin) return fin.status().with_context(what);
-  const std::string id = fin->value("scan_id", "");
-  if (fin->value("state", "") != "done") {
-    auto err = proto::error_from_json(fin->value("error", nlohmann::json()));
-    return (err ? *err : Status(Error(Code::internal, "scan " + id + " ended " + fin->value("state", ""))))
-        .with_context(std::string(what) + " (scan " + id + ")");
-  }
-  auto r = c.call(proto::ResultQuery{id});
-  if (!r) return r.status().with_context(what);
-  return r->value("manifest", nlohmann::json::object());
-}
-
 }  // namespace
 
-int cmd_calibrate(const Args& a) {
-  const auto [plugin, method] = split_target(a.positional);
-  if (plugin.empty()) return usage_error("calibrate needs PLUGIN/METHOD, e.g. procam calibrate defocus/two-focal --out t.json");
-  if (!a.has("out")) return usage_error("calibrate needs --out FILE for the table");
+int cmd_calibrate_geometry(const Args& a) {
+  for (const char* k : {"captures", "projector", "board", "square-mm", "out"})
+    if (!a.has(k)) return usage_error(std::string("calibrate-geometry needs --") + k);
+  calibration::DecodeOptions dec;
+  if (!parse_pair(a.get("projector"), dec.projector_width, dec.projector_height))
+    return usage_error("--projector must be WIDTHxHEIGHT in projector pixels, e.g. 1024x768");
+  uint32_t cols = 0, rows = 0;
+  if (!parse_pair(a.get("board"), cols, rows))
+    return usage_error("--board must be COLSxROWS inner corners, e.g. 9x7");
+  calibration::BoardSpec board{static_cast<int>(cols), static_cast<int>(rows), 0.0};
+  try {
+    board.square_mm = std::stod(a.get("square-mm"));
+  } catch (...) {
+    board.square_mm = 0;
+  }
+  if (!(board.square_mm > 0)) return usage_error("--square-mm must be the square size in mm, e.g. 75");
+  if (a.has("layout")) dec.layout = a.get("layout");
   const std::string out = a.get("out");
-  const bool force = a.has("force") && a.get("force") != "0";
-  std::error_code ec;
-  if (fs::exists(out, ec) && !force)
-    return report(Error(Code::failed_precondition, "'" + out + "' exists; not overwriting it",
-                        "choose another --out, or add --force 1 to replace it"));
-  const auto [ref_plugin, ref_method] = split_target(a.get("reference", "structured-light/gray"));
-  if (ref_plugin.empty()) return usage_error("--reference must be PLUGIN/METHOD, e.g. structured-light/gray");
-  auto params = kv_object(a.list("param"), "--param");
-  if (!params) return report(params.status());
-
-  client::Client c = a.connect();
-  nlohmann::json rig_options = nlohmann::json::object();
-  if (a.has("scene")) rig_options["scene"] = a.get("scene");
-  const std::string label = a.get("label", "calibration " + a.positional);
-
-  proto::Scan ref;
-  ref.plugin = ref_plugin;
-  ref.method = ref_method;
-  ref.rig_options = rig_options;
-  ref.label = label + " (reference)";
-  auto ref_manifest = run_to_end(c, ref, "reference scan");
-  if (!ref_manifest) return report(ref_manifest.status());
-  const std::string ref_id = ref_manifest->value("scan_id", "");
-
-  proto::Scan cal;
-  cal.plugin = plugin;
-  cal.method = method;
-  cal.params = *params;
-  cal.rig_options = rig_options;
-  cal.label = label;
-  cal.inputs["depth_mm"] = {ref_id, "depth_mm"};
-  auto cal_manifest = run_to_end(c, cal, "calibration scan");
-  if (!cal_manifest) return report(cal_manifest.status());
-  const std::string cal_id = cal_manifest->value("scan_id", "");
-
-  nlohmann::json table;
-  for (const auto& o : cal_manifest->value("outputs", nlohmann::json::array()))
-    if (o.value("name", "") == "calibration_table" && o.value("kind", "") == "json") table = o.value("value", nlohmann::json());
-  if (table.is_null())
-    return report(Error(Code::not_found, "scan " + cal_id + " (" + a.positional + ") has no JSON output 'calibration_table'",
-                        "is " + a.positional + " a calibration method? `procam plugins` lists each method's outputs"));
-  // Complete "made" with what only this side knows; keep what the plugin wrote.
-  nlohmann::json& made = table["made"];
-  if (!made.is_object()) made = nlohmann::json::object();
-  const nlohmann::json rig_state = cal_manifest->value("rig", nlohmann::json::object());
-  const nlohmann::json defaults = {
-      {"plugin", plugin},
-      {"method", method},
-      {"rig", rig_state.value("name", "")},
-      {"scene", rig_state.value("state", nlohmann::json::object()).value("scene", "")},
-      {"from_scan", cal_id},
-      {"reference_scan", ref_id},
-      {"reference", ref_plugin + "/" + ref_method},
-      {"date", engine::utc_now()}};
-  for (const auto& [k, v] : defaults.items())
-    if (!made.contains(k)) made[k] = v;
-  if (Status st = engine::check_calibration_table(table, "the calibration_table of scan " + cal_id); !st)
-    return report(st);
-  if (fs::path(out).has_parent_path()) fs::create_directories(fs::path(out).parent_path(), ec);
-  if (Status st = engine::write_file_atomic(out, table.dump(2) + "\n"); !st) return report(st);
-  const std::string name = table["name"].get<std::string>();
+  if (fs::exists(out) && a.get("force") != "1")
+    return usage_error(out + " exists; pass --force 1 to replace it");
+  // Capture folders: each --captures DIR is one pose, or, when it holds no
+  // images, a folder of pose folders.
+  std::vector<std::string> dirs;
+  for (const std::string& d : a.list("captures")) {
+    if (!fs::is_directory(d)) return usage_error("--captures " + d + " is not a folder");
+    if (!engine::list_image_files(d).empty()) {
+      dirs.push_back(d);
+      continue;
+    }
+    std::vector<std::string> sub;
+    for (const auto& e : fs::directory_iterator(d))
+      if (e.is_directory() && !engine::list_image_files(e.path().string()).empty()) sub.push_back(e.path().string());
+    std::sort(sub.begin(), sub.end());
+    if (sub.empty()) return usage_error("--captures " + d + " holds no images and no capture folders");
+    dirs.insert(dirs.end(), sub.begin(), sub.end());
+  }
+  host::PluginHost host;
+  host.load_directories(plugin_search_dirs(a));
+  std::vector<calibration::View> views;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    std::fprintf(stderr, "\r  decoding capture %zu/%zu %-40.40s", i + 1, dirs.size(), dirs[i].c_str());
+    auto v = calibration::decode_capture(host, dirs[i], dec);
+    if (!v) {
+      std::fprintf(stderr, "\n");
+      return report(v.status().with_context(dirs[i]));
+    }
+    if (!views.empty() && (v->width != views[0].width || v->height != views[0].height)) {
+      // e.g. the folder of projector patterns next to the captures
+      std::fprintf(stderr, "\n  skipped %s: %ux%u images, not the %ux%u camera images of %s\n", dirs[i].c_str(),
+                   v->width, v->height, views[0].width, views[0].height, views[0].name.c_str());
+      continue;
+    }
+    views.push_back(std::move(*v));
+  }
+  std::fprintf(stderr, "\n  calibrating %zu views\n", views.size());
+  auto r = calibration::calibrate(views, board, dec.projector_width, dec.projector_height);
+  if (!r) return report(r.status());
+  nlohmann::json j = calibration::to_rig_json(*r);
+  if (auto s = engine::write_file_atomic(out, j.dump(2) + "\n"); !s) return report(s);
   if (a.json) {
-    std::cout << nlohmann::json{{"file", out}, {"table", table}, {"reference_scan", ref_id}, {"scan", cal_id}}.dump(2)
-              << "\n";
+    std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }
-  std::printf("wrote %s\n  %s\n", out.c_str(), engine::describe_calibration_table(name, table).c_str());
-  std::printf("add to the rig config (path relative to the config file), then restart procamd:\n"
-              "  \"calibration_tables\": {\"%s\": \"%s\"}\n",
-              name.c_str(), out.c_str());
+  std::printf("%s\n", calibration::report_markdown(*r).c_str());
+  std::printf("camera    %ux%u fx %.2f fy %.2f cx %.2f cy %.2f  k1 %.4f k2 %.4f p1 %.5f p2 %.5f k3 %.4f\n",
+              r->camera.width, r->camera.height, r->camera.fx, r->camera.fy, r->camera.cx, r->camera.cy,
+              r->camera.distortion[0], r->camera.distortion[1], r->camera.distortion[2], r->camera.distortion[3],
+              r->camera.distortion[4]);
+  std::printf("projector %ux%u fx %.2f fy %.2f cx %.2f cy %.2f  k1 %.4f k2 %.4f p1 %.5f p2 %.5f k3 %.4f\n",
+              r->projector.width, r->projector.height, r->projector.fx, r->projector.fy, r->projector.cx,
+              r->projector.cy, r->projector.distortion[0], r->projector.distortion[1], r->projector.distortion[2],
+              r->projector.distortion[3], r->projector.distortion[4]);
+  const auto& t = r->cam_from_proj_translation_mm;
+  std::printf("cam_from_proj translation (%.2f, %.2f, %.2f) mm\n", t[0], t[1], t[2]);
+  std::printf("\nwrote %s: copy its \"projector\" and \"cameras\" calibration into your rig config\n", out.c_str());
   return 0;
 }
 

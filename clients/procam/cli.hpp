@@ -68,6 +68,7 @@ int cmd_keygen(const Args&);  // service.cpp (issue 6): CURVE keys, cancel, ping
 int cmd_cancel(const Args&);
 int cmd_ping(const Args&);
 int cmd_calibrate_latency(const Args&);  // hw.cpp (issue 5): display/camera latency of a rig
-int cmd_calibrate(const Args&);  // calibrate.cpp (issue 12): a calibration table from a reference scan
+int cmd_calibrate(const Args&);  // calibrate_table.cpp (issue 12): a calibration table from a reference scan
+int cmd_calibrate_geometry(const Args&);  // calibrate.cpp (issue 16): intrinsics, distortion, cam_from_proj
 
 }  // namespace procam::cli

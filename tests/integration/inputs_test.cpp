@@ -258,7 +258,8 @@ TEST_F(InputsTest, CalibrateWritesATableTheRigThenShows) {
   EXPECT_FALSE(bad.wait_ready(std::chrono::seconds(10)));
   EXPECT_NE(bad.stop(), 0);
   EXPECT_TRUE(contains(bad.log(), "'calibration_tables.inputs-fixture.calibrate'")) << bad.log();
-  EXPECT_TRUE(contains(bad.log(), "samples[1]: x must increase strictly")) << bad.log();
+  EXPECT_TRUE(contains(bad.log(), "samples[1]")) << bad.log();
+  EXPECT_TRUE(contains(bad.log(), "x must increase strictly")) << bad.log();
 }
 
 TEST_F(InputsTest, OfflineDecodeTakesInputFiles) {

@@ -7,53 +7,18 @@
 #include <filesystem>
 
 #include "procam/engine/rig_json.hpp"
+#include "procam/sdk/calibration_table.hpp"
 
 namespace procam::engine {
 namespace fs = std::filesystem;
 
 Status check_calibration_table(const nlohmann::json& t, const std::string& what) {
-  // Format v1 as fixed in docs/calibration.md. (The SDK's parse_table reads
-  // the same format on the plugin side.)
-  auto bad = [&](const std::string& m) {
-    return Error(Code::invalid_argument, what + ": " + m,
+  // The SDK's reader is the one definition of format v1: what the daemon
+  // accepts here is exactly what plugins can parse.
+  sdk::CalibrationTable parsed;
+  if (sdk::Error e = sdk::parse_table(t, parsed); !e.ok())
+    return Error(Code::invalid_argument, what + ": " + e.message,
                  "make tables with `procam calibrate` (docs/calibration.md); do not edit samples by hand");
-  };
-  if (!t.is_object()) return bad("a table must be a JSON object");
-  if (t.value("format", "") != "procam-calibration-table")
-    return bad("\"format\" must be \"procam-calibration-table\"");
-  if (!t.contains("version") || !t["version"].is_number_integer() || t["version"].get<int64_t>() != 1)
-    return bad("\"version\" must be 1 (the only table format this procam reads)");
-  if (!t.contains("name") || !t["name"].is_string() || t["name"].get<std::string>().empty())
-    return bad("\"name\" must be a non-empty string");
-  for (const char* axis : {"x", "y"}) {
-    const auto it = t.find(axis);
-    if (it == t.end() || !it->is_object() || !(*it)["name"].is_string() || !(*it)["unit"].is_string())
-      return bad(std::string("\"") + axis + "\" must be {\"name\": <string>, \"unit\": <string>}");
-  }
-  for (const char* obj : {"extra", "made"})
-    if (t.contains(obj) && !t[obj].is_object()) return bad(std::string("\"") + obj + "\" must be an object");
-  const auto samples = t.find("samples");
-  if (samples == t.end() || !samples->is_array() || samples->size() < 2)
-    return bad("\"samples\" must be an array of at least 2 [x, y] pairs");
-  double px = 0, py = 0;
-  int dir = 0;  // +1 / -1 once y's direction is known
-  for (size_t i = 0; i < samples->size(); ++i) {
-    const auto& s = (*samples)[i];
-    const std::string at = "samples[" + std::to_string(i) + "]";
-    if (!s.is_array() || s.size() != 2 || !s[0].is_number() || !s[1].is_number())
-      return bad(at + " must be [x, y], two numbers");
-    const double x = s[0].get<double>(), y = s[1].get<double>();
-    if (!std::isfinite(x) || !std::isfinite(y)) return bad(at + " is not finite");
-    if (i > 0) {
-      if (!(x > px)) return bad(at + ": x must increase strictly (" + std::to_string(px) + " then " + std::to_string(x) + ")");
-      const int d = y > py ? 1 : y < py ? -1 : 0;
-      if (d == 0 || (dir != 0 && d != dir))
-        return bad(at + ": y must be strictly monotonic (" + std::to_string(py) + " then " + std::to_string(y) + ")");
-      dir = d;
-    }
-    px = x;
-    py = y;
-  }
   return {};
 }
 

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "procam/plugin_sdk.hpp"
+#include "procam/sdk/calibration_table.hpp"
 
 namespace {
 
@@ -79,27 +80,24 @@ class FixtureSession final : public sdk::Session {
     // calibrate: quantiles of the input as a table.
     if (valid.size() < 2) return sdk::invalid_argument("calibrate: the input depth map has < 2 valid pixels");
     std::sort(valid.begin(), valid.end());
-    nlohmann::json samples = nlohmann::json::array();
+    sdk::CalibrationTable table;
+    table.name = "inputs-fixture.calibrate";
+    table.x_name = "quantile";
+    table.x_unit = "fraction";
     double last = -INFINITY;
     for (int k = 0; k <= 10; ++k) {
       const double q = k / 10.0;
-      const double y = valid[static_cast<size_t>(std::lround(q * double(valid.size() - 1)))];
+      const double y = double(valid[static_cast<size_t>(std::lround(q * double(valid.size() - 1)))]);
       if (!(y > last)) continue;
-      samples.push_back({q, y});
+      table.samples.emplace_back(q, y);
       last = y;
     }
-    if (samples.size() < 2)
+    if (table.samples.size() < 2)
       return sdk::invalid_argument("calibrate: the input depth is constant; scan an inclined plane");
-    const nlohmann::json table = {
-        {"format", "procam-calibration-table"},
-        {"version", 1},
-        {"name", "inputs-fixture.calibrate"},
-        {"x", {{"name", "quantile"}, {"unit", "fraction"}}},
-        {"y", {{"name", "depth"}, {"unit", "mm"}}},
-        {"samples", samples},
-        {"extra", {{"valid_pixels", valid.size()}}},
-        {"made", {{"plugin", "inputs-fixture"}, {"method", "calibrate"}}}};
-    out.add_json("calibration_table", "depth quantiles of the input as a calibration table", table.dump());
+    table.extra = {{"valid_pixels", valid.size()}};
+    table.made = {{"plugin", "inputs-fixture"}, {"method", "calibrate"}};
+    out.add_json("calibration_table", "depth quantiles of the input as a calibration table",
+                 sdk::to_json(table).dump());
     return sdk::ok();
   }
 

@@ -20,10 +20,11 @@
 
 namespace procam::engine {
 
-// Checks one table document against format v1: "format", "version" 1,
+// Checks one table document against format v1 with the SDK's reader
+// (procam/sdk/calibration_table.hpp parse_table: "format", "version" 1,
 // "name", "x"/"y" {name, unit}, >= 2 finite "samples" [x, y] with x strictly
-// increasing and y strictly monotonic, optional objects "extra" and "made".
-// `what` prefixes messages (e.g. "table file tables/a.json").
+// increasing and y strictly monotonic, optional "extra" and "made", no other
+// keys). `what` prefixes messages (e.g. "rig config 'r.json': ...").
 Status check_calibration_table(const nlohmann::json& table, const std::string& what);
 
 // The rig config's "calibration_tables" (absent: an empty object), each file
