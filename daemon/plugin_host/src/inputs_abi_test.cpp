@@ -8,6 +8,7 @@
 // values) and sdk_inputs.cpp ("inputs-fixture").
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -28,16 +29,11 @@ std::string inputs_fixture() { return std::string(PROCAM_INPUTS_FIXTURE_DIR) + "
 // A rig description with a 4x3 camera and a 4x3 projector.
 const char* kRig = R"({"projector":{"width":4,"height":3},"cameras":[{"width":4,"height":3,"bit_depth":8}]})";
 
-procam_image f32_view(const std::vector<float>& px, uint32_t w, uint32_t h) {
-  procam_image v{};
-  v.width = w;
-  v.height = h;
-  v.channels = 1;
-  v.pixel_type = PROCAM_PIXEL_F32;
-  v.bit_depth = 32;
-  v.stride_bytes = w * sizeof(float);
-  v.data = px.data();
-  return v;
+// A width x height F32 map holding `values` (row-major).
+Image f32_map(const std::vector<float>& values, uint32_t w, uint32_t h) {
+  Image m(w, h, PixelType::f32);
+  std::copy(values.begin(), values.end(), m.ptr<float>());
+  return m;
 }
 
 // Runs the single round of a session whose plan is one 4x3 frame; returns the outputs.
@@ -71,7 +67,7 @@ TEST(InputsAbi, TableSizesOfEachVersion) {
 }
 
 TEST(InputsAbi, Abi1PluginsOfBothTableSizesLoadRunAndRefuseInputs) {
-  const std::vector<float> depth(12, 800.f);
+  const Image depth = f32_map(std::vector<float>(12, 800.f), 4, 3);
   for (const char* name : {"v1_table", "v1_host"}) {
     for (bool probe : {true, false}) {
       SCOPED_TRACE(std::string(name) + (probe ? " probed" : " in-process"));
@@ -89,7 +85,7 @@ TEST(InputsAbi, Abi1PluginsOfBothTableSizesLoadRunAndRefuseInputs) {
       EXPECT_DOUBLE_EQ(mean->scalar, 7.0);
       // Inputs are refused with the reason, before any plugin call.
       auto refused = host.create_session(name, "null", "{}", "{}",
-                                         {{"depth_mm", "mm", "test", f32_view(depth, 4, 3)}});
+                                         {{"depth_mm", "mm", "test", depth.view()}});
       ASSERT_FALSE(refused.ok());
       EXPECT_EQ(refused.status().code(), Code::invalid_argument);
       EXPECT_TRUE(contains(refused.status().message(), "was built for plugin ABI 1")) << refused.status().message();
@@ -128,11 +124,11 @@ TEST_F(InputsFixture, TheInputReachesThePluginAndIsCopied) {
   int n = 0;
   for (float v : depth)
     if (std::isfinite(v)) sum += double(v), ++n;
-  auto s = host_.create_session("inputs-fixture", "stats", "{}", kRig,
-                                {{"depth_mm", "mm", "test map", f32_view(depth, 4, 3)}});
+  Image map = f32_map(depth, 4, 3);
+  auto s = host_.create_session("inputs-fixture", "stats", "{}", kRig, {{"depth_mm", "mm", "test map", map.view()}});
   ASSERT_TRUE(s.ok()) << s.status().to_string();
   // The host's memory is only lent during create: scribble over it now.
-  std::fill(depth.begin(), depth.end(), -1.f);
+  std::fill(map.ptr<float>(), map.ptr<float>() + map.pixel_count(), -1.f);
   const auto outs = run_round(*s, 3);
   const Output* mean = find(outs, "input_mean_mm");
   const Output* count = find(outs, "input_valid_count");
@@ -148,8 +144,8 @@ TEST_F(InputsFixture, TheInputReachesThePluginAndIsCopied) {
 }
 
 TEST_F(InputsFixture, MismatchesAreRefusedBeforeThePluginRuns) {
-  const std::vector<float> depth(12, 800.f);
-  const std::vector<float> small(4, 800.f);
+  const Image depth = f32_map(std::vector<float>(12, 800.f), 4, 3);
+  const Image small = f32_map(std::vector<float>(4, 800.f), 2, 2);
   Image u8(4, 3, PixelType::u8);
   auto refuse = [&](const std::string& method, const std::vector<InputImage>& in, Code code,
                     const std::string& part) {
@@ -159,22 +155,22 @@ TEST_F(InputsFixture, MismatchesAreRefusedBeforeThePluginRuns) {
     EXPECT_TRUE(contains(s.status().to_string(), part)) << s.status().to_string();
   };
   // A method that takes none.
-  refuse("plain", {{"depth_mm", "mm", "", f32_view(depth, 4, 3)}}, Code::invalid_argument,
+  refuse("plain", {{"depth_mm", "mm", "", depth.view()}}, Code::invalid_argument,
          "method 'inputs-fixture/plain' takes no inputs, but the request gives 'depth_mm'");
   // A name the method does not declare.
-  refuse("stats", {{"depth_mm", "mm", "", f32_view(depth, 4, 3)}, {"ref_mm", "mm", "", f32_view(depth, 4, 3)}},
+  refuse("stats", {{"depth_mm", "mm", "", depth.view()}, {"ref_mm", "mm", "", depth.view()}},
          Code::invalid_argument, "has no input 'ref_mm' (it takes: depth_mm)");
   // The required one absent: says how to give it.
   refuse("stats", {}, Code::invalid_argument, "needs input 'depth_mm' (image_f32, mm");
   refuse("stats", {}, Code::invalid_argument, "procam scan --input depth_mm=SCAN_ID");
   // Twice.
-  refuse("stats", {{"depth_mm", "mm", "", f32_view(depth, 4, 3)}, {"depth_mm", "mm", "", f32_view(depth, 4, 3)}},
+  refuse("stats", {{"depth_mm", "mm", "", depth.view()}, {"depth_mm", "mm", "", depth.view()}},
          Code::invalid_argument, "input 'depth_mm' is given twice");
   // Wrong kind: an 8-bit mask.
   refuse("stats", {{"depth_mm", "", "", u8.view()}}, Code::invalid_argument,
          "must be a 1-channel float map (image_f32), got 1-channel 8-bit pixels");
   // Wrong size: the plugin's own check (sdk::Inputs::image_f32).
-  refuse("stats", {{"depth_mm", "mm", "", f32_view(small, 2, 2)}}, Code::invalid_argument,
+  refuse("stats", {{"depth_mm", "mm", "", small.view()}}, Code::invalid_argument,
          "input 'depth_mm' is 2x2, this method needs 4x3");
   // The host still works afterwards.
   auto ok = host_.create_session("inputs-fixture", "plain", "{}", kRig);

@@ -29,6 +29,7 @@
 
 #include "procam/plugin_abi.h"
 #include "procam/sdk/error.hpp"
+#include "procam/sdk/image.hpp"
 
 namespace procam::sdk {
 
@@ -53,15 +54,8 @@ class Inputs {
   // no pixels and image_f32() reports it as malformed).
   void add_image_f32(std::string name, uint32_t width, uint32_t height, std::vector<float> values) {
     auto data = std::make_shared<std::vector<float>>(std::move(values));
-    procam_image img{};
     const bool fits = data->size() == size_t{width} * height;
-    img.width = width;
-    img.height = height;
-    img.channels = 1;
-    img.pixel_type = PROCAM_PIXEL_F32;
-    img.bit_depth = 32;
-    img.stride_bytes = width * sizeof(float);
-    img.data = fits ? data->data() : nullptr;
+    const procam_image img = gray_view(fits ? data->data() : nullptr, width, height);
     owned_.push_back(std::move(data));
     items_.push_back({std::move(name), PROCAM_OUTPUT_IMAGE, img});
   }
