@@ -21,6 +21,12 @@ int cmd_plugins(const Args& a) {
         std::printf("      --param %s=<%s>  default %s  %s\n", prm.value("name", "").c_str(),
                     prm.value("type", "").c_str(), prm.contains("default") ? prm["default"].dump().c_str() : "-",
                     prm.value("description", "").c_str());
+      // Scan inputs (PROTOCOL.md 5.4): what --input NAME=SCAN_ID[:OUTPUT] gives it.
+      for (const auto& in : m.value("inputs", nlohmann::json::array()))
+        std::printf("      --input %s=<scan id>  %s%s%s  %s%s\n", in.value("name", "").c_str(),
+                    in.value("kind", "").c_str(), in.value("unit", "").empty() ? "" : ", ",
+                    in.value("unit", "").c_str(), in.value("required", true) ? "" : "(optional) ",
+                    in.value("description", "").c_str());
     }
   }
   for (const auto& rj : (*r)["rejected"])

@@ -304,6 +304,12 @@ TEST_F(InputsTest, OfflineDecodeTakesInputFiles) {
   EXPECT_TRUE(contains(text, "must be a 1-channel float map (image_f32)")) << text;
 }
 
+TEST_F(InputsTest, PluginsListsEachMethodsInputs) {
+  std::string text;
+  ASSERT_EQ(run_command({bin("procam"), "plugins", "--endpoint", daemon_->endpoint()}, &text), 0) << text;
+  EXPECT_TRUE(contains(text, "--input depth_mm=<scan id>  image_f32, mm  a depth map of camera 0")) << text;
+}
+
 TEST_F(InputsTest, PythonClientPassesInputs) {
   std::string text;
   const std::string script =
