@@ -247,7 +247,7 @@ struct CreateArgs {
   nlohmann::json rig;      // the rig description (null when the host passed NULL or ""); see rig.hpp
   // Outputs of earlier scans the host passed (ABI 2); empty when none. Views
   // of host memory valid only during the factory call: copy with image_f32().
-  Inputs inputs;
+  Inputs inputs{};
 };
 
 using DescribeFn = std::string (*)();

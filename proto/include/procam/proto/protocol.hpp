@@ -72,7 +72,7 @@ struct Scan {
   bool save_frames = false;  // keep the raw frames in the scan folder (frame-r<round>-<index>.png)
   // Input name (as the method declares it, [a-z0-9_]{1,64}) -> an output of a
   // finished scan; at most kMaxScanInputs. Empty: none (omitted on the wire).
-  std::map<std::string, InputRef> inputs;
+  std::map<std::string, InputRef> inputs{};
   bool operator==(const Scan&) const = default;
 };
 struct StatusQuery {
