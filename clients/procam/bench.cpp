@@ -23,6 +23,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "cli.hpp"
+#include "procam/engine/calibration_tables.hpp"
 #include "procam/engine/evaluate.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
@@ -188,7 +189,7 @@ int cmd_bench(const Args& a) {
   unsigned threads = 2;
   if (a.has("threads")) threads = static_cast<unsigned>(std::max(1, std::atoi(a.get("threads").c_str())));
   hw::RigContext ctx{fs::path(rig_path).parent_path().string(), scene_dirs};
-  auto rig = hw::create_rig(*rig_cfg, ctx);
+  auto rig = hw::create_rig(engine::without_calibration_tables(*rig_cfg), ctx);  // tables: not a device key
   if (!rig) return report(rig.status());
   const nlohmann::json rig_json = engine::plugin_rig_json(**rig, threads);
 

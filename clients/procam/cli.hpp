@@ -25,6 +25,7 @@ struct Args {
   std::map<std::string, std::string> opt;              // last value of each --key
   std::map<std::string, std::vector<std::string>> all; // every value of each --key
   bool json = false;
+  std::string positional;  // the one bare argument of commands that take one (calibrate PLUGIN/METHOD)
   bool has(const std::string& k) const { return opt.count(k) != 0; }
   std::string get(const std::string& k, const std::string& def = "") const {
     auto it = opt.find(k);
@@ -43,6 +44,9 @@ int report(const Status& s);
 // "k=v" items to an object; v parsed as JSON when it is JSON, else a string.
 Result<nlohmann::json> kv_object(const std::vector<std::string>& items, const char* what);
 std::vector<std::string> split_colon(const std::string& s);
+// `--input NAME=SCAN_ID[:OUTPUT]` items to scan inputs (OUTPUT defaults to
+// NAME): input NAME of the method gets output OUTPUT of finished scan SCAN_ID.
+Result<std::map<std::string, proto::InputRef>> input_refs(const std::vector<std::string>& items);
 // Plugin folders for offline commands: --plugins DIR..., then
 // $PROCAM_PLUGIN_PATH, else the build's and the install's plugin folders.
 std::vector<std::string> plugin_search_dirs(const Args& a);
@@ -64,5 +68,7 @@ int cmd_keygen(const Args&);  // service.cpp (issue 6): CURVE keys, cancel, ping
 int cmd_cancel(const Args&);
 int cmd_ping(const Args&);
 int cmd_calibrate_latency(const Args&);  // hw.cpp (issue 5): display/camera latency of a rig
+int cmd_calibrate(const Args&);  // calibrate_table.cpp (issue 12): a calibration table from a reference scan
+int cmd_calibrate_geometry(const Args&);  // calibrate.cpp (issue 16): intrinsics, distortion, cam_from_proj
 
 }  // namespace procam::cli

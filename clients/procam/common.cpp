@@ -54,6 +54,24 @@ Result<nlohmann::json> kv_object(const std::vector<std::string>& items, const ch
   return o;
 }
 
+Result<std::map<std::string, proto::InputRef>> input_refs(const std::vector<std::string>& items) {
+  std::map<std::string, proto::InputRef> out;
+  for (const auto& it : items) {
+    const size_t eq = it.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == it.size())
+      return Error(Code::invalid_argument, "--input '" + it + "' is not NAME=SCAN_ID[:OUTPUT]",
+                   "e.g. --input depth_mm=20261123-101500-1a2b3c (output depth_mm of that scan)");
+    const std::string name = it.substr(0, eq), ref = it.substr(eq + 1);
+    const size_t colon = ref.find(':');
+    proto::InputRef r{ref.substr(0, colon), colon == std::string::npos ? name : ref.substr(colon + 1)};
+    if (r.scan_id.empty() || r.output.empty())
+      return Error(Code::invalid_argument, "--input '" + it + "' is not NAME=SCAN_ID[:OUTPUT]");
+    if (!out.emplace(name, std::move(r)).second)
+      return Error(Code::invalid_argument, "--input '" + name + "' is given twice");
+  }
+  return out;
+}
+
 static std::string fmt_pct(const nlohmann::json& j, const char* k) {
   if (!j.contains(k) || !j[k].is_number()) return "n/a";
   char b[32];

@@ -7,6 +7,8 @@
 #include <thread>
 
 #include "cli.hpp"
+#include "procam/engine/calibration_tables.hpp"
+#include "procam/engine/inputs.hpp"
 #include "procam/engine/previews.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
@@ -34,10 +36,18 @@ int cmd_decode(const Args& a) {
   if (!rig_cfg) return report(rig_cfg.status().with_context("--rig"));
   auto rig_json = engine::plugin_rig_json_from_config(*rig_cfg, std::max(1u, std::thread::hardware_concurrency()));
   if (!rig_json) return report(rig_json.status());
+  // The rig config's calibration tables (paths relative to it), as procamd does.
+  auto tables = engine::load_calibration_tables(*rig_cfg, fs::path(rig_path).parent_path().string(), rig_path);
+  if (!tables) return report(tables.status());
+  if (!tables->empty()) (*rig_json)["calibration_tables"] = std::move(*tables);
   const std::vector<std::string> dirs = plugin_search_dirs(a);
   host::PluginHost host;
   host.load_directories(dirs);
-  auto session = host.create_session(a.get("plugin"), a.get("method"), params->dump(), rig_json->dump());
+  const auto [cam_w, cam_h] = engine::camera0_size(*rig_json);
+  auto inputs = engine::load_input_files(a.list("input"), cam_w, cam_h);  // --input NAME=FILE
+  if (!inputs) return report(inputs.status());
+  auto session =
+      host.create_session(a.get("plugin"), a.get("method"), params->dump(), rig_json->dump(), inputs->views());
   if (!session) return report(session.status());
   auto t0 = std::chrono::steady_clock::now();
   engine::OfflineOptions offline;
@@ -56,7 +66,7 @@ int cmd_decode(const Args& a) {
   for (const auto& r : outcome->rounds) rounds.push_back({{"note", r.note}, {"frames", r.frames}});
   nlohmann::json m = {{"procam", 1}, {"scan_id", "offline"}, {"state", "done"}, {"plugin", a.get("plugin")},
                       {"method", a.get("method")}, {"params", *params}, {"frames_dir", a.get("frames")},
-                      {"layout", offline.layout},
+                      {"layout", offline.layout}, {"inputs", a.list("input")},
                       {"created_utc", engine::utc_now()}, {"finished_utc", engine::utc_now()},
                       {"plan", {{"rounds", rounds}, {"patterns", outcome->patterns}}},
                       {"timing_ms", {{"decode", outcome->decode_ms},

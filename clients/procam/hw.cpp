@@ -11,6 +11,7 @@
 #include <iostream>
 
 #include "cli.hpp"
+#include "procam/engine/calibration_tables.hpp"
 #include "procam/engine/rig_json.hpp"
 #include "procam/engine/sync.hpp"
 #include "procam/hw/rig.hpp"
@@ -26,7 +27,7 @@ int cmd_calibrate_latency(const Args& a) {
   hw::RigContext ctx;
   ctx.config_dir = fs::absolute(path).parent_path().string();
   ctx.scene_dirs = {(fs::path(ctx.config_dir) / ".." / "scenes").lexically_normal().string()};
-  auto rig = hw::create_rig(*cfg, ctx);
+  auto rig = hw::create_rig(engine::without_calibration_tables(*cfg), ctx);  // tables: not a device key
   if (!rig) return report(rig.status().with_context("opening the rig (is procamd running on it? stop it first)"));
   int cycles = 5;
   try {

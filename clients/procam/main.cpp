@@ -29,19 +29,24 @@ const std::vector<Command> kCommands = {
      "rig                             describe the active rig (hardware, calibration, state)"},
     {"status", cmd_status, {"endpoint", "timeout", "scan"},
      "status [--scan ID]              daemon status, or one scan's state and progress"},
-    {"scan", cmd_scan, {"endpoint", "timeout", "plugin", "method", "param", "rig-option", "label", "save-frames", "out"},
-     "scan --plugin P --method M [--param k=v]... [--rig-option k=v]... [--label L] [--save-frames 1] --out DIR\n"
+    {"scan", cmd_scan, {"endpoint", "timeout", "plugin", "method", "param", "rig-option", "label", "save-frames", "out", "input"},
+     "scan --plugin P --method M [--param k=v]... [--rig-option k=v]... [--label L] [--save-frames 1]\n"
+     "     [--input NAME=SCAN_ID[:OUTPUT]]... --out DIR\n"
      "                                run a scan, show progress, download results, print a summary;\n"
      "                                --save-frames 1 also keeps the raw frames (frame-r<round>-<i>.png)\n"
-     "                                for `procam decode --frames DIR`"},
+     "                                for `procam decode --frames DIR`; --input feeds output OUTPUT (default\n"
+     "                                NAME) of a finished scan to the method's input NAME (procam plugins lists them)"},
     {"result", cmd_result, {"endpoint", "timeout", "scan", "out"},
      "result --scan ID --out DIR      download a finished scan's results"},
-    {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins", "layout"},
+    {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins", "layout", "input"},
      "decode --plugin P --method M --frames DIR --out DIR [--param k=v]... [--rig RIG.json] [--plugins DIR]...\n"
-     "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json]\n"
+     "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json] [--input NAME=FILE]...\n"
      "                                offline: decode a scan's saved frames (frame-r<round>-<i>.png), or\n"
      "                                image files sorted by name in plan order (later rounds in roundN/),\n"
-     "                                or in another layout (--layout; missing white/black synthesized)"},
+     "                                or in another layout (--layout; missing white/black synthesized);\n"
+     "                                --input gives the method's input NAME a float map FILE the way scans\n"
+     "                                store them: 1-channel float OpenEXR (e.g. a scan's depth_mm.exr; float\n"
+     "                                TIFF/PFM also read), camera-sized, NaN = invalid"},
     {"bench", cmd_bench, {"rig", "scenes", "scene", "method", "param", "out", "keep", "plugins", "threads", "only-listed"},
      "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
      "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs + outputs.json)\n"
@@ -50,6 +55,12 @@ const std::vector<Command> kCommands = {
      "sim --scene S --pattern white|black|gray:BIT[:inv]|checker:SIZE:DX:DY|FILE --out DIR [--rig RIG.json]\n"
      "                                offline: render a sim scene with ground truth and direct/global split;\n"
      "                                sim --list scenes; sim --scene S --pattern gray-errors (per-bit errors)"},
+    {"calibrate", cmd_calibrate, {"endpoint", "timeout", "scene", "reference", "out", "force", "param", "label"},
+     "calibrate PLUGIN/METHOD --out FILE [--scene S] [--reference structured-light/gray] [--param k=v]...\n"
+     "          [--force 1]\n"
+     "                                scan a plane with the reference method, run PLUGIN/METHOD with its depth_mm\n"
+     "                                as input, write the method's calibration_table to FILE (not over an existing\n"
+     "                                file without --force 1) and print the rig-config line (docs/calibration.md)"},
     {"cancel", cmd_cancel, {"endpoint", "timeout", "scan"},
      "cancel --scan ID                cancel a queued or running scan"},
     {"ping", cmd_ping, {"endpoint", "timeout"},
@@ -57,6 +68,12 @@ const std::vector<Command> kCommands = {
     {"calibrate-latency", cmd_calibrate_latency, {"rig", "cycles", "write"},
      "calibrate-latency --rig RIG.json [--cycles N] [--write 1]\n"
      "                                offline (stop procamd): measure display/camera latency; --write stores it in the rig config"},
+    {"calibrate-geometry", cmd_calibrate_geometry,
+     {"captures", "projector", "board", "square-mm", "layout", "out", "force", "plugins"},
+     "calibrate-geometry --captures DIR... --projector WxH --board COLSxROWS --square-mm S --out RIG.json\n"
+     "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json] [--force 1]\n"
+     "                                offline: camera + projector intrinsics with distortion and cam_from_proj\n"
+     "                                from chessboard poses under Gray codes with rows (one folder per pose)"},
     {"keygen", cmd_keygen, {"out"},
      "keygen --out NAME               new CURVE key pair: NAME.pub, NAME.secret (README \"Remote access\")"},
 };
@@ -88,7 +105,12 @@ int main(int argc, char** argv) {
     std::string s = argv[i];
     if (s == "--json") { a.json = true; continue; }
     if (s == "-h" || s == "--help") { std::printf("usage: procam %s\n", cmd->usage); return 0; }
-    if (s.rfind("--", 0) != 0) return usage_error("unexpected argument '" + s + "'");
+    if (s.rfind("--", 0) != 0) {
+      // Only `calibrate` takes one bare argument (its PLUGIN/METHOD).
+      if (a.cmd != "calibrate" || !a.positional.empty()) return usage_error("unexpected argument '" + s + "'");
+      a.positional = s;
+      continue;
+    }
     std::string k = s.substr(2), v;
     if (auto eq = k.find('='); eq != std::string::npos) {
       v = k.substr(eq + 1);

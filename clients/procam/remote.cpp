@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "cli.hpp"
+#include "procam/engine/calibration_tables.hpp"
 
 namespace procam::cli {
 
@@ -20,6 +21,12 @@ int cmd_plugins(const Args& a) {
         std::printf("      --param %s=<%s>  default %s  %s\n", prm.value("name", "").c_str(),
                     prm.value("type", "").c_str(), prm.contains("default") ? prm["default"].dump().c_str() : "-",
                     prm.value("description", "").c_str());
+      // Scan inputs (PROTOCOL.md 5.4): what --input NAME=SCAN_ID[:OUTPUT] gives it.
+      for (const auto& in : m.value("inputs", nlohmann::json::array()))
+        std::printf("      --input %s=<scan id>  %s%s%s  %s%s\n", in.value("name", "").c_str(),
+                    in.value("kind", "").c_str(), in.value("unit", "").empty() ? "" : ", ",
+                    in.value("unit", "").c_str(), in.value("required", true) ? "" : "(optional) ",
+                    in.value("description", "").c_str());
     }
   }
   for (const auto& rj : (*r)["rejected"])
@@ -44,6 +51,11 @@ int cmd_rig(const Args& a) {
     if (cam.contains("calibration")) std::printf("             calibration %s\n", cam["calibration"].dump().c_str());
   }
   if (rig.contains("state")) std::printf("  state      %s\n", rig["state"].dump().c_str());
+  // Calibration tables (docs/calibration.md): one line each.
+  const auto& tables = rig.value("calibration_tables", nlohmann::json::object());
+  if (tables.empty()) std::printf("  calibration tables: none\n");
+  for (const auto& [name, table] : tables.items())
+    std::printf("  table      %s\n", engine::describe_calibration_table(name, table).c_str());
   return 0;
 }
 
@@ -102,6 +114,9 @@ int cmd_scan(const Args& a) {
   s.rig_options = *ropts;
   s.label = a.has("label") ? a.get("label") : "";
   s.save_frames = a.has("save-frames") && a.get("save-frames") != "0";
+  auto inputs = input_refs(a.list("input"));
+  if (!inputs) return report(inputs.status());
+  s.inputs = std::move(*inputs);
   std::fprintf(stderr, "scanning with %s/%s on %s\n", s.plugin.c_str(), s.method.c_str(), c.endpoint().c_str());
   auto fin = c.scan(s, progress_line);
   if (!fin) return report(fin.status());

@@ -28,11 +28,14 @@ daemon does not answer in time):
 - hello(), list_plugins(), describe_rig(), ping(), status(scan_id=None),
   result(scan_id) -> dict; cancel(scan_id) -> dict.
 - submit_scan(plugin, method, params=None, rig_options=None, label="",
-  events=False, request_id=None, save_frames=False) -> dict   queue a scan
+  events=False, request_id=None, save_frames=False, inputs=None) -> dict   queue a scan
   ({"scan_id", "state", "queue_position"}); retried with the same request id
   on a timeout, which the daemon answers with the same scan (never runs it
   twice). save_frames=True keeps the raw frames (frame-r<round>-<i>.png) in
-  the scan's files for offline decoding.
+  the scan's files for offline decoding. inputs={"depth_mm": (scan_id,
+  "depth_mm")} feeds outputs of finished scans to a method that declares
+  inputs (list_plugins; PROTOCOL.md 5.4): name -> (scan_id, output name), or
+  name -> scan_id for an output of the same name.
 - scan(plugin, method, ..., on_event=None, limit=1800.0) -> dict   queue, wait
   for the end (events, confirmed by polling status), return the final scan
   summary.
@@ -221,18 +224,23 @@ class Client:
         return self.call("cancel", scan_id=scan_id)
 
     def submit_scan(self, plugin, method, params=None, rig_options=None, label="", events=False,
-                    request_id=None, save_frames=False):
+                    request_id=None, save_frames=False, inputs=None):
+        wire_inputs = {}
+        for name, src in (inputs or {}).items():
+            scan_id, output = (src, name) if isinstance(src, str) else tuple(src)
+            wire_inputs[name] = {"scan": scan_id, "output": output}
         fields = {"plugin": plugin, "method": method, "params": params or {},
                   "rig_options": rig_options or None, "label": label or None,
                   "events": True if events else None,
-                  "save_frames": True if save_frames else None}
+                  "save_frames": True if save_frames else None,
+                  "inputs": wire_inputs or None}
         # Same id + same content: the daemon answers a retry with the same scan.
         return self._request("scan", fields, request_id or self.new_request_id(), retries=2)[0]
 
     def scan(self, plugin, method, params=None, rig_options=None, label="", on_event=None,
-             limit=1800.0, save_frames=False):
+             limit=1800.0, save_frames=False, inputs=None):
         accepted = self.submit_scan(plugin, method, params, rig_options, label, events=True,
-                                    save_frames=save_frames)
+                                    save_frames=save_frames, inputs=inputs)
         scan_id = accepted["scan_id"]
         deadline = time.monotonic() + limit
         last_poll = time.monotonic()

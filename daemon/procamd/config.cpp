@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <set>
 
+#include "procam/engine/calibration_tables.hpp"
 #include "procam/engine/rig_json.hpp"
 
 namespace procam::daemon {
@@ -28,7 +29,7 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
                    "known keys: rig, plugin_paths, scene_dirs, endpoint, results_dir, log, threads, max_queue, "
                    "probe_plugins, curve, retention");
   Config c;
-  std::string key;
+  std::string key, rig_file;
   try {
     key = "rig";
     if (!j.contains("rig")) return Error(Code::invalid_argument, "daemon config: 'rig' is required", "e.g. \"rig\": \"rigs/sim.json\"");
@@ -38,12 +39,19 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
       if (!rig) return rig.status().with_context("daemon config 'rig'");
       c.rig = *rig;
       c.rig_dir = fs::path(path).parent_path().string();
+      rig_file = path;
     } else if (j["rig"].is_object()) {
       c.rig = j["rig"];
       c.rig_dir = base_dir;
+      rig_file = "rig object in the daemon config";
     } else {
       return Error(Code::invalid_argument, "daemon config: 'rig' must be a path or an object");
     }
+    key = "rig.calibration_tables";
+    auto tables = engine::load_calibration_tables(c.rig, c.rig_dir, rig_file);
+    if (!tables) return tables.status();
+    c.calibration_tables = std::move(*tables);
+    c.rig = engine::without_calibration_tables(std::move(c.rig));
     key = "plugin_paths";
     for (const auto& p : j.value("plugin_paths", std::vector<std::string>{})) c.plugin_paths.push_back(resolve(base_dir, p));
     key = "scene_dirs";

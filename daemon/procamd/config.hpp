@@ -21,6 +21,10 @@ struct CurveConfig {
 struct Config {
   nlohmann::json rig;                     // the rig config object (loaded if given as a path)
   std::string rig_dir;                    // folder relative rig paths resolve against
+  // The rig config's "calibration_tables", loaded and checked
+  // (engine/calibration_tables.hpp): table name -> table. The key is removed
+  // from `rig` (hardware backends do not know it).
+  nlohmann::json calibration_tables = nlohmann::json::object();
   std::vector<std::string> plugin_paths;  // folders searched for *.so plugins
   std::vector<std::string> scene_dirs;    // where sim scene names are looked up
   std::string endpoint = "tcp://127.0.0.1:5560";

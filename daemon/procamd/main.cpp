@@ -129,6 +129,9 @@ int main(int argc, char** argv) {
   scfg.retention.max_age_days = cfg->retention_max_age_days;
   scfg.retention.max_scans = cfg->retention_max_scans;
   scfg.retention.min_free_mb = cfg->retention_min_free_mb;
+  scfg.calibration_tables = cfg->calibration_tables;
+  for (const auto& [name, table] : cfg->calibration_tables.items())
+    PROCAM_LOG(daemon, info) << "calibration table " << name << " (" << table["samples"].size() << " samples)";
   engine::ScanService service(std::move(*rig), plugins, scfg,
                               [&](const std::string& id, const std::string& ev, nlohmann::json f) {
                                 if (server_ptr) server_ptr->notify_event(id, ev, std::move(f));

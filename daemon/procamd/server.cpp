@@ -374,7 +374,8 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
       },
       [&](const proto::DescribeRig&) { ok({{"rig", service_.rig_description()}}); },
       [&](const proto::Scan& s) {
-        engine::ScanRequest sr{s.plugin, s.method, s.label, s.params, s.rig_options, s.save_frames};
+        engine::ScanRequest sr{s.plugin, s.method, s.label, s.params, s.rig_options, s.save_frames, {}};
+        for (const auto& [name, ref] : s.inputs) sr.inputs[name] = {ref.scan_id, ref.output};
         auto r = service_.submit(sr, req->id);
         if (!r) return err(r.status());
         if (s.events) {

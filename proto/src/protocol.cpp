@@ -239,8 +239,53 @@ Result<RequestBody> decode_hello(const Fields& f) {
   return RequestBody{std::move(h)};
 }
 
+// scan "inputs": {"<input name>": {"scan": "<scan id>", "output": "<output name>"}, ...}
+Result<std::map<std::string, InputRef>> decode_inputs(const Fields& f) {
+  std::map<std::string, InputRef> out;
+  const json* v = f.find("inputs");
+  if (!v) return out;
+  if (!v->is_object()) return f.wrong_type("inputs", "an object", *v);
+  if (v->size() > kMaxScanInputs)
+    return Error(Code::too_large,
+                 "field 'inputs' has " + std::to_string(v->size()) + " entries; the limit is " +
+                     std::to_string(kMaxScanInputs),
+                 kSpecHint);
+  const std::string form = "each input is \"<name>\": {\"scan\": \"<scan id>\", \"output\": \"<output name>\"}";
+  for (const auto& [name, ref] : v->items()) {
+    const std::string at = "inputs." + name;
+    if (name.size() > kMaxNameBytes)
+      return Error(Code::too_large, "input name '" + name.substr(0, 16) + "...' is longer than 64 bytes", kSpecHint);
+    if (!is_output_name(name))
+      return Error(Code::invalid_argument, "input name '" + name + "' has characters outside [a-z0-9_]",
+                   "input names are the method's, e.g. depth_mm; list_plugins shows each method's inputs");
+    if (!ref.is_object())
+      return Error(Code::bad_message, "field '" + at + "' must be an object, got " + ref.type_name(), form);
+    for (const auto& [key, value] : ref.items())
+      if (key != "scan" && key != "output")
+        return Error(Code::bad_message, "unknown field '" + at + "." + key + "'", form);
+    const auto scan = ref.find("scan");
+    const auto output = ref.find("output");
+    if (scan == ref.end() || output == ref.end())
+      return Error(Code::bad_message, "field '" + at + "' needs 'scan' and 'output'", form);
+    if (!scan->is_string() || !output->is_string())
+      return Error(Code::bad_message, "'" + at + ".scan' and '" + at + ".output' must be strings", form);
+    InputRef r{scan->get<std::string>(), output->get<std::string>()};
+    if (r.scan_id.empty())
+      return Error(Code::bad_message, "field '" + at + ".scan' must not be empty", form);
+    if (r.scan_id.size() > kMaxIdBytes)
+      return Error(Code::too_large, "field '" + at + ".scan' is longer than 128 bytes", kSpecHint);
+    if (r.output.size() > kMaxNameBytes)
+      return Error(Code::too_large, "field '" + at + ".output' is longer than 64 bytes", kSpecHint);
+    if (!is_output_name(r.output))
+      return Error(Code::invalid_argument, "field '" + at + ".output' has characters outside [a-z0-9_]: '" + r.output + "'",
+                   "name an output listed in that scan's manifest, e.g. depth_mm");
+    out.emplace(name, std::move(r));
+  }
+  return out;
+}
+
 Result<RequestBody> decode_scan(const Fields& f) {
-  PROCAM_TRY(f.only({"plugin", "method", "params", "rig_options", "events", "label", "save_frames"}));
+  PROCAM_TRY(f.only({"plugin", "method", "params", "rig_options", "events", "label", "save_frames", "inputs"}));
   Scan s;
   auto plugin = f.name("plugin");
   PROCAM_TRY(plugin);
@@ -263,6 +308,9 @@ Result<RequestBody> decode_scan(const Fields& f) {
   auto save_frames = f.boolean("save_frames");
   PROCAM_TRY(save_frames);
   s.save_frames = save_frames->value_or(false);
+  auto inputs = decode_inputs(f);
+  PROCAM_TRY(inputs);
+  s.inputs = std::move(*inputs);
   return RequestBody{std::move(s)};
 }
 
@@ -438,6 +486,11 @@ json request_fields(const RequestBody& body) {
       if (s.events) j["events"] = true;
       if (!s.label.empty()) j["label"] = s.label;
       if (s.save_frames) j["save_frames"] = true;
+      if (!s.inputs.empty()) {
+        json in = json::object();
+        for (const auto& [name, ref] : s.inputs) in[name] = {{"scan", ref.scan_id}, {"output", ref.output}};
+        j["inputs"] = std::move(in);
+      }
       return j;
     }
     json operator()(const StatusQuery& s) const {
@@ -686,6 +739,13 @@ bool is_valid_name(std::string_view name) {
   if (name.empty() || name.size() > kMaxNameBytes) return false;
   return std::all_of(name.begin(), name.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+  });
+}
+
+bool is_output_name(std::string_view name) {
+  if (name.empty() || name.size() > kMaxNameBytes) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
   });
 }
 

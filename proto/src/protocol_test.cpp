@@ -55,6 +55,7 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
   scan.rig_options = {{"scene", "tilted-box"}};
   scan.events = true;
   scan.label = "bench \xC3\xA9t\xC3\xA9 test";  // UTF-8
+  scan.inputs = {{"depth_mm", {"20250301T120000Z-0001", "depth_mm"}}, {"ref_px", {"s2", "proj_col_px"}}};
   Fetch fetch{"20250301T120000Z-0001", "depth_mm.exr", 3u << 20, 8u << 20};
   const std::vector<Request> requests = {
       {"1", Hello{{1, 7}, "cli/0.1"}},
@@ -62,7 +63,7 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
       {"2", ListPlugins{}},
       {"3", DescribeRig{}},
       {"4", scan},
-      {"4b", Scan{"p", "m", json::object(), json::object(), false, ""}},
+      {"4b", Scan{"p", "m", json::object(), json::object(), false, "", false, {}}},
       {"5", StatusQuery{}},
       {"6", StatusQuery{"scan-1"}},
       {"7", ResultQuery{"scan-1"}},
@@ -140,7 +141,7 @@ TEST(ProtoRequest, RejectsBinaryGarbage) {
 }
 
 TEST(ProtoRequest, EveryTruncationIsBadMessage) {
-  Scan s{"structured-light", "gray", {{"bits", 10}}, {{"scene", "v-groove"}}, true, "t"};
+  Scan s{"structured-light", "gray", {{"bits", 10}}, {{"scene", "v-groove"}}, true, "t", false, {}};
   const std::string wire = encode_request({"abc", s});
   ASSERT_TRUE(decode_request(wire).ok());
   for (size_t n = 0; n < wire.size(); ++n) {
@@ -322,6 +323,42 @@ TEST(ProtoScan, ValidatesParamsAndRigOptions) {
     ASSERT_EQ(j[field].dump().size(), kMaxParamsBytes);
     EXPECT_TRUE(decode_request(j.dump()).ok());
   }
+}
+
+TEST(ProtoScan, ValidatesInputs) {
+  json j = scan_json();
+  j["inputs"] = {{"depth_mm", {{"scan", "20250301T120000Z-0001"}, {"output", "depth_mm"}}}};
+  auto r = decode_request(j.dump());
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const Scan& s = std::get<Scan>(r->body);
+  ASSERT_EQ(s.inputs.size(), 1u);
+  EXPECT_EQ(s.inputs.at("depth_mm"), (InputRef{"20250301T120000Z-0001", "depth_mm"}));
+  j["inputs"] = json::object();  // empty = none
+  EXPECT_TRUE(decode_request(j.dump()).ok());
+
+  j["inputs"] = json::array();
+  expect_error_j(j, Code::bad_message, "field 'inputs' must be an object");
+  j["inputs"] = {{"depth_mm", "scan-1"}};
+  expect_error_j(j, Code::bad_message, "field 'inputs.depth_mm' must be an object");
+  j["inputs"] = {{"depth_mm", {{"scan", "s"}}}};
+  expect_error_j(j, Code::bad_message, "needs 'scan' and 'output'");
+  j["inputs"] = {{"depth_mm", {{"scan", "s"}, {"output", "depth_mm"}, {"file", "x"}}}};
+  expect_error_j(j, Code::bad_message, "unknown field 'inputs.depth_mm.file'");
+  j["inputs"] = {{"depth_mm", {{"scan", 7}, {"output", "depth_mm"}}}};
+  expect_error_j(j, Code::bad_message, "must be strings");
+  j["inputs"] = {{"depth_mm", {{"scan", ""}, {"output", "depth_mm"}}}};
+  expect_error_j(j, Code::bad_message, "'inputs.depth_mm.scan' must not be empty");
+  j["inputs"] = {{"depth_mm", {{"scan", std::string(kMaxIdBytes + 1, 's')}, {"output", "depth_mm"}}}};
+  expect_error_j(j, Code::too_large, "'inputs.depth_mm.scan'");
+  j["inputs"] = {{"depth_mm", {{"scan", "s"}, {"output", "../depth"}}}};
+  expect_error_j(j, Code::invalid_argument, "'inputs.depth_mm.output' has characters outside [a-z0-9_]");
+  j["inputs"] = {{"Depth-MM", {{"scan", "s"}, {"output", "depth_mm"}}}};
+  expect_error_j(j, Code::invalid_argument, "input name 'Depth-MM'");
+  json many = json::object();
+  for (size_t i = 0; i <= kMaxScanInputs; ++i)
+    many["in" + std::to_string(i)] = {{"scan", "s"}, {"output", "depth_mm"}};
+  j["inputs"] = many;
+  expect_error_j(j, Code::too_large, "field 'inputs' has 17 entries");
 }
 
 TEST(ProtoScan, ValidatesEventsAndLabel) {

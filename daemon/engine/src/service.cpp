@@ -17,6 +17,7 @@
 
 #include "procam/core/log.hpp"
 #include "procam/engine/evaluate.hpp"
+#include "procam/engine/inputs.hpp"
 #include "procam/engine/previews.hpp"
 #include "procam/engine/results.hpp"
 #include "procam/engine/rig_json.hpp"
@@ -70,6 +71,8 @@ ScanService::ScanService(std::unique_ptr<hw::Rig> rig, const host::PluginHost& p
   rig_description_ = rig_->describe();
   rig_name_ = rig_description_.value("name", "");
   plugin_rig_json_ = plugin_rig_json(*rig_, cfg_.threads);
+  if (cfg_.calibration_tables.is_object() && !cfg_.calibration_tables.empty())
+    plugin_rig_json_["calibration_tables"] = cfg_.calibration_tables;
 }
 
 ScanService::~ScanService() { stop(); }
@@ -116,9 +119,12 @@ void ScanService::stop() {
 
 Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::string& request_id) {
   using Clock = std::chrono::steady_clock;
+  nlohmann::json inputs = nlohmann::json::object();
+  for (const auto& [name, src] : req.inputs) inputs[name] = {{"scan", src.scan_id}, {"output", src.output}};
   const std::string content =
       nlohmann::json{{"plugin", req.plugin}, {"method", req.method}, {"params", req.params},
-                     {"rig_options", req.rig_options}, {"label", req.label}, {"save_frames", req.save_frames}}
+                     {"rig_options", req.rig_options}, {"label", req.label}, {"save_frames", req.save_frames},
+                     {"inputs", inputs}}
           .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   {
     std::lock_guard lock(mu_);
@@ -151,7 +157,10 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
   // rig_options are checked now, not when the scan runs: a bad one is the
   // client's error (invalid_argument) and must never be queued.
   PROCAM_TRY(rig_->check_scan_options(req.rig_options));
-  auto session = plugins_.create_session(req.plugin, req.method, req.params.dump(), plugin_rig_json_.dump());
+  auto inputs_loaded = load_inputs(req);  // service_inputs.cpp; read now, released after create
+  if (!inputs_loaded) return inputs_loaded.status();
+  auto session = plugins_.create_session(req.plugin, req.method, req.params.dump(), plugin_rig_json_.dump(),
+                                         inputs_loaded->views());
   if (!session) return session.status();
   auto rec = std::make_shared<Record>();
   rec->id = new_scan_id();

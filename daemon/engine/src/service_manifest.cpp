@@ -23,7 +23,9 @@ using service_detail::error_json;
 // Every field proto/PROTOCOL.md requires, with "nothing yet" values; the
 // scan fills them in as it goes.
 nlohmann::json ScanService::base_manifest(const Record& rec) const {
-  return {{"procam", 1},
+  nlohmann::json inputs = nlohmann::json::object();  // what the scan was given (PROTOCOL.md 9)
+  for (const auto& [name, src] : rec.req.inputs) inputs[name] = {{"scan", src.scan_id}, {"output", src.output}};
+  nlohmann::json m = {{"procam", 1},
           {"scan_id", rec.id},
           {"state", rec.state},
           {"plugin", rec.req.plugin},
@@ -39,6 +41,8 @@ nlohmann::json ScanService::base_manifest(const Record& rec) const {
           {"previews", nlohmann::json::array()},
           {"files", nlohmann::json::array()},
           {"error", nullptr}};
+  if (!inputs.empty()) m["inputs"] = std::move(inputs);
+  return m;
 }
 
 nlohmann::json ScanService::summary_locked(const Record& r) const {
@@ -87,7 +91,10 @@ Result<nlohmann::json> ScanService::scan_summary(const std::string& id) const {
 
 nlohmann::json ScanService::rig_description() const {
   std::lock_guard lock(mu_);
-  return rig_description_;
+  nlohmann::json d = rig_description_;
+  if (cfg_.calibration_tables.is_object() && !cfg_.calibration_tables.empty())
+    d["calibration_tables"] = cfg_.calibration_tables;  // PROTOCOL.md 8
+  return d;
 }
 
 std::string ScanService::rig_name() const {

@@ -148,7 +148,8 @@ static int fx_get_outputs(procam_session* s, const procam_output** outputs, uint
 static const procam_plugin_vtable fx_vtable = {
     PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), fx_describe, fx_session_create,
     fx_session_destroy,        fx_next_plan,                 fx_add_frame, fx_end_round,
-    fx_get_outputs,            NULL /* session_set_host: no log/progress */};
+    fx_get_outputs,            NULL /* session_set_host: no log/progress */,
+    NULL /* session_create2: takes no inputs */};
 
 FX_EXPORT const procam_plugin_vtable* fx_create(uint32_t host_abi) __asm__(PROCAM_PLUGIN_CREATE_SYMBOL);
 const procam_plugin_vtable* fx_create(uint32_t host_abi) {

@@ -19,6 +19,52 @@ Fn symbol_as(void* sym) {
   return fn;
 }
 
+// describe()'s "inputs" of one method (plugin_abi.h "Scan inputs"): absent
+// or [] = none; otherwise objects with a unique name [a-z0-9_]{1,64}, kind
+// "image_f32", optional string unit/description and boolean required
+// (default true). ABI 1 plugins cannot take inputs, so they may not declare any.
+Status parse_inputs(const nlohmann::json& method, uint32_t abi, std::vector<InputSpec>& out) {
+  const auto it = method.find("inputs");
+  if (it == method.end() || it->is_null()) return {};
+  if (!it->is_array()) return Error(Code::plugin_error, "\"inputs\" must be an array of objects");
+  if (!it->empty() && abi < 2)
+    return Error(Code::plugin_error, "declares \"inputs\" but was built for plugin ABI " +
+                                         std::to_string(abi) + ", which cannot pass them");
+  std::set<std::string> seen;
+  for (size_t i = 0; i < it->size(); ++i) {
+    const nlohmann::json& e = (*it)[i];
+    const std::string at = "inputs[" + std::to_string(i) + "]";
+    if (!e.is_object() || !e.contains("name") || !e["name"].is_string())
+      return Error(Code::plugin_error, at + " is not an object with a string \"name\"");
+    InputSpec spec;
+    spec.name = e["name"].get<std::string>();
+    if (!valid_output_name(spec.name))
+      return Error(Code::plugin_error, at + " has name \"" + printable(spec.name) +
+                                           "\"; input names are 1..64 characters of a-z, 0-9 and '_'");
+    if (!seen.insert(spec.name).second)
+      return Error(Code::plugin_error, "input '" + spec.name + "' is listed twice");
+    const auto kind = e.find("kind");
+    if (kind == e.end() || !kind->is_string() || kind->get<std::string>() != "image_f32")
+      return Error(Code::plugin_error, "input '" + spec.name +
+                                           "' needs \"kind\": \"image_f32\" (the only kind this procamd knows)");
+    spec.kind = kind->get<std::string>();
+    for (const char* key : {"unit", "description"}) {
+      const auto v = e.find(key);
+      if (v == e.end()) continue;
+      if (!v->is_string())
+        return Error(Code::plugin_error, "input '" + spec.name + "' has a non-string \"" + key + "\"");
+      (std::string_view(key) == "unit" ? spec.unit : spec.description) = v->get<std::string>();
+    }
+    if (const auto r = e.find("required"); r != e.end()) {
+      if (!r->is_boolean())
+        return Error(Code::plugin_error, "input '" + spec.name + "' has a non-boolean \"required\"");
+      spec.required = r->get<bool>();
+    }
+    out.push_back(std::move(spec));
+  }
+  return {};
+}
+
 }  // namespace
 
 Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
@@ -66,32 +112,37 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
                      "replaced while loading, or does the plugin write to it?)");
 
   on_phase(Phase::create);
+  // Ask for the ABI the file says it was built for (step 1 accepted it):
+  // an ABI 1 plugin serves only procam_plugin_create(1).
+  const uint32_t abi = file.info.abi_version;
   auto create = symbol_as<procam_plugin_create_fn>(create_sym);
-  const procam_plugin_vtable* vt = create(PROCAM_PLUGIN_ABI_VERSION);
+  const procam_plugin_vtable* vt = create(abi);
   if (vt == nullptr)
     return Error(Code::abi_mismatch,
-                 who + ": procam_plugin_create(" + std::to_string(PROCAM_PLUGIN_ABI_VERSION) +
-                     ") returned NULL: the plugin cannot serve this procamd's plugin ABI; "
-                     "rebuild it against this procamd's plugin_abi.h");
+                 who + ": procam_plugin_create(" + std::to_string(abi) +
+                     ") returned NULL although its procam_plugin_info declares ABI " +
+                     std::to_string(abi) + "; rebuild it against this procamd's plugin_abi.h");
 
   on_phase(Phase::vtable);
-  if (vt->abi_version != PROCAM_PLUGIN_ABI_VERSION)
+  if (vt->abi_version != abi)
     return Error(Code::abi_mismatch,
                  who + ": procam_plugin_create returned a function table for ABI " +
-                     std::to_string(vt->abi_version) + ", this procamd speaks ABI " +
-                     std::to_string(PROCAM_PLUGIN_ABI_VERSION) +
-                     ": rebuild the plugin against this procamd's plugin_abi.h");
-  // ABI 1 tables come in two sizes: the first one (up to get_outputs) and
-  // the current one (with the optional session_set_host); see plugin_abi.h.
-  if (vt->struct_size != sizeof(procam_plugin_vtable) &&
-      vt->struct_size != PROCAM_PLUGIN_VTABLE_V1_SIZE)
+                     std::to_string(vt->abi_version) + " but its procam_plugin_info declares ABI " +
+                     std::to_string(abi) + ": rebuild the plugin against this procamd's plugin_abi.h");
+  // Table sizes per version (plugin_abi.h "Version history"): ABI 1 has the
+  // first table (up to get_outputs) and the one with session_set_host; ABI 2
+  // is the full table with session_create2.
+  const bool size_ok = abi == 1 ? (vt->struct_size == PROCAM_PLUGIN_VTABLE_V1_SIZE ||
+                                   vt->struct_size == PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE)
+                                : vt->struct_size == sizeof(procam_plugin_vtable);
+  if (!size_ok)
     return Error(Code::abi_mismatch,
-                 who + ": its function table is " + std::to_string(vt->struct_size) +
-                     " bytes (struct_size), this procamd's is " +
-                     std::to_string(sizeof(procam_plugin_vtable)) + " (or " +
-                     std::to_string(PROCAM_PLUGIN_VTABLE_V1_SIZE) +
-                     " for the first ABI 1 table): rebuild the plugin against this "
-                     "procamd's plugin_abi.h");
+                 who + ": its ABI " + std::to_string(abi) + " function table is " +
+                     std::to_string(vt->struct_size) + " bytes (struct_size), expected " +
+                     (abi == 1 ? std::to_string(PROCAM_PLUGIN_VTABLE_V1_SIZE) + " or " +
+                                     std::to_string(PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE)
+                               : std::to_string(sizeof(procam_plugin_vtable))) +
+                     ": rebuild the plugin against this procamd's plugin_abi.h");
   std::string missing;
   auto need = [&missing](bool set, const char* fn) {
     if (!set) missing += (missing.empty() ? "" : ", ") + std::string(fn);
@@ -159,11 +210,14 @@ Result<Checked> load_and_check(const std::string& path, const FileInfo& file,
       auto d = m.find("description");
       if (d != m.end()) mi.description = d->get<std::string>();
       mi.describe = m;
+      if (Status st = parse_inputs(m, abi, mi.inputs); !st.ok())
+        return Error(Code::plugin_error, who + ": describe() method '" + mname + "': " + st.message());
       out.methods.push_back(std::move(mi));
     }
   }
   on_phase(Phase::done);
   plugin->vtable = vt;
+  plugin->abi = abi;
   out.plugin = std::move(plugin);
   return out;
 }

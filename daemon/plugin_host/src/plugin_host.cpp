@@ -7,10 +7,12 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <set>
 #include <system_error>
 
 #include "host_services.hpp"
 #include "plugin_loader.hpp"
+#include "procam/core/image.hpp"
 #include "procam/core/log.hpp"
 
 namespace procam::host {
@@ -145,6 +147,7 @@ Status PluginHost::load_file_impl(const std::string& path) {
   PluginInfo info;
   info.name = name;
   info.version = file->info.version;
+  info.abi = checked->plugin->abi;
   info.file = path;
   info.methods = std::move(checked->methods);
   PROCAM_LOG(plugins, info) << "loaded plugin '" << info.name << "' " << info.version << " from '"
@@ -154,9 +157,61 @@ Status PluginHost::load_file_impl(const std::string& path) {
   return {};
 }
 
+namespace {
+
+// The scan's inputs against what `m` declares (plugin_abi.h "Scan inputs").
+Status check_inputs(const PluginInfo& p, const MethodInfo& m, const std::vector<InputImage>& inputs) {
+  const std::string who = "method '" + p.name + "/" + m.name + "'";
+  std::string declared;
+  for (const InputSpec& s : m.inputs)
+    declared += (declared.empty() ? "" : ", ") + s.name + (s.required ? "" : " (optional)");
+  if (!inputs.empty() && p.abi < 2)
+    return Error(Code::invalid_argument,
+                 who + " cannot take inputs: plugin '" + p.name + "' was built for plugin ABI " +
+                     std::to_string(p.abi) + ", which has no way to pass them",
+                 "drop \"inputs\" from the request, or rebuild the plugin with an ABI 2 SDK");
+  std::set<std::string> given;
+  for (const InputImage& in : inputs) {
+    if (!given.insert(in.name).second)
+      return Error(Code::invalid_argument, "input '" + in.name + "' is given twice");
+    const InputSpec* spec = nullptr;
+    for (const InputSpec& s : m.inputs)
+      if (s.name == in.name) spec = &s;
+    if (spec == nullptr)
+      return Error(Code::invalid_argument,
+                   m.inputs.empty() ? who + " takes no inputs, but the request gives '" + in.name + "'"
+                                    : who + " has no input '" + in.name + "' (it takes: " + declared + ")",
+                   "drop that entry from \"inputs\"; `procam plugins` lists each method's inputs");
+    // kind image_f32 (the only kind parse_inputs admits).
+    if (in.image.pixel_type != PROCAM_PIXEL_F32 || in.image.channels != 1)
+      return Error(Code::invalid_argument,
+                   "input '" + in.name + "' of " + who + " must be a 1-channel float map (image_f32), got " +
+                       std::to_string(in.image.channels) + "-channel " +
+                       (in.image.pixel_type == PROCAM_PIXEL_U8 ? "8-bit"
+                        : in.image.pixel_type == PROCAM_PIXEL_U16 ? "16-bit"
+                                                                   : "non-float") +
+                       " pixels",
+                   "name an output stored as exr-f32 (e.g. depth_mm), not a PNG mask or preview");
+    if (const char* problem = validate_view(in.image))
+      return Error(Code::invalid_argument, "input '" + in.name + "': " + problem);
+  }
+  for (const InputSpec& s : m.inputs)
+    if (s.required && !given.count(s.name))
+      return Error(Code::invalid_argument,
+                   who + " needs input '" + s.name + "' (" + s.kind + (s.unit.empty() ? "" : ", " + s.unit) +
+                       (s.description.empty() ? "" : ": " + s.description) + ")",
+                   "name an earlier scan's output: \"inputs\": {\"" + s.name + "\": {\"scan\": \"<scan id>\", "
+                   "\"output\": \"" + s.name + "\"}} (procam scan --input " + s.name +
+                       "=SCAN_ID; offline: procam decode --input " + s.name + "=FILE.exr)");
+  return {};
+}
+
+}  // namespace
+
 Result<Session> PluginHost::create_session(const std::string& plugin, const std::string& method,
                                            const std::string& params_json,
-                                           const std::string& rig_json) const {
+                                           const std::string& rig_json,
+                                           const std::vector<InputImage>& inputs) const {
   try {
     size_t idx = plugins_.size();
     for (size_t i = 0; i < plugins_.size(); ++i)
@@ -168,13 +223,13 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
                                         (known.empty() ? std::string("none") : known) + ")");
     }
     const PluginInfo& info = plugins_[idx];
-    bool has_method = false;
+    const MethodInfo* minfo = nullptr;
     std::string methods;
     for (const auto& m : info.methods) {
-      has_method = has_method || m.name == method;
+      if (m.name == method) minfo = &m;
       methods += (methods.empty() ? "" : ", ") + m.name;
     }
-    if (!has_method)
+    if (minfo == nullptr)
       return Error(Code::not_found, "plugin '" + plugin + "' has no method '" + method +
                                         "' (its methods: " + methods + ")");
     auto check_object = [](const std::string& text, const char* what) -> Status {
@@ -192,12 +247,32 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
     const std::string rig = rig_json.empty() ? "{}" : rig_json;
     PROCAM_TRY(check_object(params, "params"));
     PROCAM_TRY(check_object(rig, "rig description"));
+    PROCAM_TRY(check_inputs(info, *minfo, inputs));
 
     const auto& loaded = loaded_[idx];
     procam_session* s = nullptr;
     procam_error err{};
-    const int rc =
-        loaded->vtable->session_create(method.c_str(), params.c_str(), rig.c_str(), &s, &err);
+    int rc = 0;
+    if (const detail::Create2Fn create2 = detail::create2_of(*loaded)) {
+      // Every session of a plugin with session_create2 goes through it.
+      std::vector<procam_output> abi_inputs(inputs.size());
+      for (size_t i = 0; i < inputs.size(); ++i) {
+        procam_output& o = abi_inputs[i];
+        o.name = inputs[i].name.c_str();
+        o.kind = PROCAM_OUTPUT_IMAGE;
+        o.unit = inputs[i].unit.c_str();
+        o.description = inputs[i].description.c_str();
+        o.image = inputs[i].image;
+      }
+      rc = create2(method.c_str(), params.c_str(), rig.c_str(),
+                   abi_inputs.empty() ? nullptr : abi_inputs.data(),
+                   static_cast<uint32_t>(abi_inputs.size()), &s, &err);
+    } else if (!inputs.empty()) {  // declared inputs but no session_create2: a plugin bug
+      return Error(Code::plugin_error, "plugin '" + plugin + "' declares inputs for method '" + method +
+                                           "' but has no session_create2 to receive them");
+    } else {
+      rc = loaded->vtable->session_create(method.c_str(), params.c_str(), rig.c_str(), &s, &err);
+    }
     if (rc != PROCAM_OK) {
       // *out is not trusted after a failure: never destroyed (a leak at worst).
       return Error(rc < 0 ? detail::code_for_rc(rc) : Code::plugin_error,

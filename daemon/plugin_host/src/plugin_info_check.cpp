@@ -79,10 +79,12 @@ Result<FileInfo> read_plugin_info(const std::string& path) {
     return Error(Code::corrupt_data, who + " has procam_plugin_info magic " + hex32(magic) +
                                          ", expected " + hex32(PROCAM_PLUGIN_MAGIC) +
                                          " (\"PCPI\"): the file is corrupt or not a procam plugin");
-  if (abi != PROCAM_PLUGIN_ABI_VERSION)
+  // ABI 2 hosts still load ABI 1 plugins (plugin_abi.h "Version history").
+  if (abi < PROCAM_PLUGIN_ABI_VERSION_MIN || abi > PROCAM_PLUGIN_ABI_VERSION)
     return Error(Code::abi_mismatch,
                  who + " was built for plugin ABI " + std::to_string(abi) +
-                     ", this procamd speaks ABI " + std::to_string(PROCAM_PLUGIN_ABI_VERSION) +
+                     ", this procamd speaks ABI " + std::to_string(PROCAM_PLUGIN_ABI_VERSION_MIN) +
+                     ".." + std::to_string(PROCAM_PLUGIN_ABI_VERSION) +
                      ": rebuild the plugin against this procamd's plugin_abi.h");
   if (size != sizeof(procam_plugin_info))
     return Error(Code::abi_mismatch,

@@ -6,6 +6,7 @@
 
 #include <dlfcn.h>
 
+#include <cstddef>
 #include <cstdio>
 #include <cstring>
 
@@ -15,6 +16,13 @@ std::string quoted(const std::string& file) { return "plugin '" + file + "'"; }
 
 LoadedPlugin::~LoadedPlugin() {
   if (handle != nullptr && unload) ::dlclose(handle);
+}
+
+Create2Fn create2_of(const LoadedPlugin& plugin) {
+  const procam_plugin_vtable& vt = *plugin.vtable;
+  constexpr size_t need = offsetof(procam_plugin_vtable, session_create2) + sizeof(vt.session_create2);
+  if (plugin.abi < 2 || vt.struct_size < need) return nullptr;  // the field is not there
+  return vt.session_create2;
 }
 
 bool valid_plugin_name(std::string_view s) {
@@ -58,6 +66,7 @@ Code code_for_rc(int rc) {
     case PROCAM_ERR_INVALID_ARGUMENT: return Code::invalid_argument;
     case PROCAM_ERR_BAD_FRAME: return Code::corrupt_data;
     case PROCAM_ERR_STATE: return Code::failed_precondition;
+    case PROCAM_ERR_FAILED_PRECONDITION: return Code::failed_precondition;
     default: return Code::plugin_error;
   }
 }

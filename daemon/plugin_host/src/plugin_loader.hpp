@@ -29,6 +29,7 @@ struct LoadedPlugin {
   std::string file;
   void* handle = nullptr;
   const procam_plugin_vtable* vtable = nullptr;
+  uint32_t abi = PROCAM_PLUGIN_ABI_VERSION;  // the ABI its table follows (1 or 2)
   bool unload = true;  // dlclose on destruction (false in the probe child)
 
   LoadedPlugin() = default;
@@ -36,6 +37,12 @@ struct LoadedPlugin {
   LoadedPlugin& operator=(const LoadedPlugin&) = delete;
   ~LoadedPlugin();
 };
+
+// The plugin's session_create2 (plugin_abi.h "Scan inputs"), or nullptr for an
+// ABI 1 table or a v2 table that left it NULL (methods without inputs).
+using Create2Fn = int (*)(const char*, const char*, const char*, const procam_output*, uint32_t,
+                          procam_session**, procam_error*);
+Create2Fn create2_of(const LoadedPlugin& plugin);
 
 // What step 1 found in the file.
 struct FileInfo {
@@ -60,8 +67,8 @@ struct Checked {
 
 // Step 3 (and what the probe child does): dlopen(RTLD_NOW | RTLD_LOCAL),
 // compare the in-memory procam_plugin_info with the file's, call
-// procam_plugin_create(PROCAM_PLUGIN_ABI_VERSION), check the vtable and the
-// describe() JSON. `on_phase` is called before each step. Runs plugin code:
+// procam_plugin_create(<the file's ABI version>), check the vtable and the
+// describe() JSON (with each method's "inputs"). `on_phase` is called before each step. Runs plugin code:
 // a broken plugin may crash or hang the calling process (hence step 2).
 // `unload` false: never dlclose (the probe child, which _exits: the plugin's
 // static destructors must not run there and blur the report).

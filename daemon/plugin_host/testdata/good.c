@@ -17,6 +17,10 @@
  *   FX_V1_TABLE        return the function table as the first ABI 1 header
  *                      declared it (no session_set_host, the v1 struct_size),
  *                      followed in memory by a trap pointer the host must not read
+ *                      (with FX_ABI_VERSION 1u: a plugin built with that header)
+ *   FX_V1_HOST_TABLE   the ABI 1 table with session_set_host (procam 0.2), whose
+ *                      struct_size ends before session_create2; that slot holds a
+ *                      trap pointer the host must not read (with FX_ABI_VERSION 1u)
  *   FX_HOST_SERVICES   set session_set_host and log/report progress in end_round
  */
 #include <math.h>
@@ -249,19 +253,28 @@ typedef struct fx_vtable_v1 {
   int (*get_outputs)(procam_session*, const procam_output**, uint32_t*, procam_error*);
 } fx_vtable_v1;
 
-/* What follows the table in memory is where a new host would find
+/* What follows the table in memory is where a newer host would find
  * session_set_host: a non-NULL garbage pointer, so a host reading past
  * struct_size would call it and crash. */
 static const struct {
   fx_vtable_v1 table;
   uintptr_t trap;
-} fx_v1 = {{PROCAM_PLUGIN_ABI_VERSION, sizeof(fx_vtable_v1), fx_describe, fx_session_create,
+} fx_v1 = {{FX_ABI_VERSION, sizeof(fx_vtable_v1), fx_describe, fx_session_create,
             fx_session_destroy, fx_next_plan, fx_add_frame, fx_end_round, fx_get_outputs},
            (uintptr_t)0x1};
 #define FX_TABLE ((const procam_plugin_vtable*)(const void*)&fx_v1.table)
+#elif defined(FX_V1_HOST_TABLE)
+/* The ABI 1 table of procam 0.2 (with session_set_host): its struct_size
+ * stops before session_create2, which holds garbage a host must not call. */
+static const procam_plugin_vtable fx_vtable = {
+    FX_ABI_VERSION, (uint32_t)PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE, fx_describe, fx_session_create,
+    fx_session_destroy, fx_next_plan, fx_add_frame, fx_end_round, fx_get_outputs, NULL,
+    (int (*)(const char*, const char*, const char*, const procam_output*, uint32_t,
+             procam_session**, procam_error*))(uintptr_t)0x1};
+#define FX_TABLE (&fx_vtable)
 #else
 static const procam_plugin_vtable fx_vtable = {
-    PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), fx_describe, fx_session_create,
+    FX_ABI_VERSION, sizeof(procam_plugin_vtable), fx_describe, fx_session_create,
     fx_session_destroy,        fx_next_plan,                 fx_add_frame, fx_end_round,
 #ifdef FX_NULL_FUNCTION
     NULL,
@@ -269,10 +282,11 @@ static const procam_plugin_vtable fx_vtable = {
     fx_get_outputs,
 #endif
 #ifdef FX_HOST_SERVICES
-    fx_session_set_host
+    fx_session_set_host,
 #else
-    NULL
+    NULL,
 #endif
+    NULL /* session_create2: no method takes inputs */
 };
 #define FX_TABLE (&fx_vtable)
 #endif
@@ -283,6 +297,6 @@ const procam_plugin_vtable* fx_create(uint32_t host_abi) {
   (void)host_abi;
   return NULL;
 #else
-  return host_abi == PROCAM_PLUGIN_ABI_VERSION ? FX_TABLE : NULL;
+  return host_abi == FX_ABI_VERSION ? FX_TABLE : NULL;
 #endif
 }

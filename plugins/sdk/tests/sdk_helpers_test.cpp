@@ -355,6 +355,8 @@ struct Knobs {
   bool bad_alloc_in_end = false;
   bool fail_end = false;
   int rounds = 1;
+  std::vector<float> input;  // what the factory copied of input "depth_mm"
+  std::string input_error;   // or why it could not
 };
 Knobs g_knobs;
 
@@ -395,6 +397,12 @@ class TestSession final : public sdk::Session {
 std::string test_describe() { return R"([{"name":"one"},{"name":"two"}])"; }
 sdk::Error test_create(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {
   if (args.params.contains("fail")) return sdk::invalid_argument("factory says no");
+  if (args.method == "two") {  // takes a 2x2 "depth_mm"
+    if (sdk::Error e = args.inputs.image_f32("depth_mm", 2, 2, g_knobs.input); !e.ok()) {
+      g_knobs.input_error = e.message;
+      if (args.params.contains("need_input")) return e;
+    }
+  }
   out = std::make_unique<TestSession>();
   return sdk::ok();
 }
@@ -454,6 +462,36 @@ TEST_F(SdkSession, UnknownMethodAndFactoryErrors) {
   EXPECT_EQ(vt()->session_create("two", nullptr, nullptr, nullptr, &err),
             PROCAM_ERR_INVALID_ARGUMENT);
   create("two", nullptr);  // NULL params = {}
+}
+
+// ABI 2: session_create2 hands the inputs to the factory as CreateArgs::inputs;
+// session_create is the same with none.
+TEST_F(SdkSession, SessionCreate2PassesInputsToTheFactory) {
+  ASSERT_NE(vt()->session_create2, nullptr);
+  const float depth[4] = {500.f, std::numeric_limits<float>::infinity(), NAN, 700.f};
+  procam_output in{};
+  in.name = "depth_mm";
+  in.kind = PROCAM_OUTPUT_IMAGE;
+  in.unit = "mm";
+  in.image = view(depth, 2, 2, 1, PROCAM_PIXEL_F32, 32, 2 * sizeof(float));
+  ASSERT_EQ(vt()->session_create2("two", "{}", nullptr, &in, 1, &s, &err), PROCAM_OK) << err.message;
+  ASSERT_EQ(g_knobs.input.size(), 4u) << g_knobs.input_error;
+  EXPECT_EQ(g_knobs.input[0], 500.f);
+  EXPECT_TRUE(std::isnan(g_knobs.input[1]));  // +inf is not a valid value: NaN
+  EXPECT_TRUE(std::isnan(g_knobs.input[2]));
+  EXPECT_EQ(g_knobs.input[3], 700.f);
+  vt()->session_destroy(s);
+  s = nullptr;
+  // No inputs through either entry point: the factory's own error.
+  EXPECT_EQ(vt()->session_create2("two", R"({"need_input":1})", nullptr, nullptr, 0, &s, &err),
+            PROCAM_ERR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(err.message).find("input 'depth_mm' is missing"), std::string::npos) << err.message;
+  EXPECT_EQ(vt()->session_create("two", R"({"need_input":1})", nullptr, &s, &err),
+            PROCAM_ERR_INVALID_ARGUMENT);
+  EXPECT_EQ(s, nullptr);
+  // A count without an array is the host's bug, refused before the factory.
+  EXPECT_EQ(vt()->session_create2("two", "{}", nullptr, nullptr, 3, &s, &err), PROCAM_ERR_INVALID_ARGUMENT);
+  EXPECT_STREQ(err.message, "session_create2: input_count is 3 but inputs is NULL");
 }
 
 TEST_F(SdkSession, CallOrderIsChecked) {

@@ -16,10 +16,12 @@
  *   1. The host reads `procam_plugin_info` straight from the ELF file, WITHOUT
  *      loading it, and checks `magic`, `abi_version` and `struct_size`. A
  *      mismatch is reported and the file is skipped; no plugin code has run.
- *   2. Only then the host dlopen()s the library and calls procam_plugin_create,
- *      and checks the returned table's abi_version, its struct_size (the v1
- *      size or the current size, see "Version history") and that every
- *      required function pointer is set (session_set_host is optional).
+ *   2. Only then the host dlopen()s the library and calls
+ *      procam_plugin_create(<the abi_version from step 1>), and checks the
+ *      returned table's abi_version (the same), its struct_size (one of the
+ *      sizes "Version history" lists for that version) and that every
+ *      required function pointer is set (session_set_host and
+ *      session_create2 are optional).
  *
  * Rules for both sides:
  *   - No C++ types, exceptions or longjmps cross this ABI. A plugin catches
@@ -49,6 +51,7 @@
  *
  * Scan protocol, per session (one scan):
  *   session_create(method, params, rig)
+ *     or, ABI 2, session_create2(method, params, rig, inputs, input_count)
  *   loop:
  *     next_plan(&plan) -> 1 (a round to capture) or 0 (no more rounds)
  *     for each frame i of plan, in any order, as they arrive: add_frame(i, img)
@@ -81,6 +84,31 @@
  *   struct_size of procam_host_services lets the host append members later;
  *   a plugin reads only the members that struct_size covers.
  *
+ * Scan inputs (ABI 2): outputs of an earlier scan fed to a new session.
+ *   A method that takes inputs lists them in its describe() object:
+ *     "inputs": [{"name": "depth_mm", "kind": "image_f32", "unit": "mm",
+ *                 "required": true, "description": "..."}]
+ *   (key absent or [] = the method takes no inputs). "name" follows the
+ *   output-name rule [a-z0-9_]{1,64}; "kind" is "image_f32" (the only kind
+ *   today: a 1-channel PROCAM_PIXEL_F32 map of camera 0's size, NaN where
+ *   invalid). The host reads describe() at load time and, before any plugin
+ *   call, refuses a scan that names an input the method does not declare,
+ *   leaves out a required one, or passes one of the wrong kind; it never
+ *   passes inputs to an ABI 1 plugin or to a table without session_create2.
+ *   It then calls session_create2 with `inputs[0..input_count)`:
+ *     - each entry is a procam_output of kind PROCAM_OUTPUT_IMAGE (name,
+ *       unit, description, image set; the other members zero);
+ *     - names are unique; order carries no meaning;
+ *     - `inputs` may be NULL when input_count is 0;
+ *     - everything (array, strings, pixels) is host-owned and valid ONLY
+ *       during the call: a plugin copies what it keeps (the C++ SDK's
+ *       sdk::Inputs::image_f32 does);
+ *     - the plugin still checks what it needs (size, values) and fails with
+ *       PROCAM_ERR_INVALID_ARGUMENT naming the input and how to supply it.
+ *   A v2 table with session_create2 gets every session through it (with 0
+ *   inputs when the scan names none); session_create stays required and is
+ *   what an ABI 1 host would have called.
+ *
  * Version history
  *   1 (procam 0.1): initial ABI.
  *   1, append-only (procam 0.2): procam_plugin_vtable gains the optional
@@ -94,6 +122,18 @@
  *     plugins built with this header. A real break (new required calls,
  *     changed structs) bumps the version to 2.
  *     procam_rc_name() is added (a static inline helper, no symbol).
+ *   2 (procam 0.3): scan inputs. procam_plugin_vtable gains the optional
+ *     session_create2 (after session_set_host) and PROCAM_ERR_FAILED_PRECONDITION
+ *     is added (a method cannot start because something it needs -- a
+ *     calibration table, an input -- is missing from the rig or the request).
+ *     The table of a version-2 plugin has struct_size ==
+ *     sizeof(procam_plugin_vtable). A version-2 host still loads ABI 1
+ *     plugins (PROCAM_PLUGIN_ABI_VERSION_MIN): it reads abi_version from the
+ *     ELF info block, calls procam_plugin_create(1) for them and accepts
+ *     their two table sizes (PROCAM_PLUGIN_VTABLE_V1_SIZE,
+ *     PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE); it never passes inputs to them (a
+ *     scan that names inputs for an ABI 1 plugin fails with a message saying
+ *     so). An ABI 1 host rejects version-2 plugins at the ELF check.
  */
 #ifndef PROCAM_PLUGIN_ABI_H
 #define PROCAM_PLUGIN_ABI_H
@@ -107,7 +147,9 @@
 extern "C" {
 #endif
 
-#define PROCAM_PLUGIN_ABI_VERSION 1u
+#define PROCAM_PLUGIN_ABI_VERSION 2u
+/* The oldest ABI a host built with this header still loads (see "Version history"). */
+#define PROCAM_PLUGIN_ABI_VERSION_MIN 1u
 #define PROCAM_PLUGIN_MAGIC 0x49504350u /* "PCPI" little-endian */
 
 /* Symbol names the host looks up. */
@@ -121,7 +163,10 @@ enum {
   PROCAM_ERR_BAD_FRAME = -2,        /* frame has the wrong size/format or is corrupt */
   PROCAM_ERR_STATE = -3,            /* call out of the documented order */
   PROCAM_ERR_NO_MEMORY = -4,
-  PROCAM_ERR_INTERNAL = -5          /* bug or unexpected exception in the plugin */
+  PROCAM_ERR_INTERNAL = -5,         /* bug or unexpected exception in the plugin */
+  PROCAM_ERR_FAILED_PRECONDITION = -6 /* ABI 2: something the method needs is missing
+                                         (a calibration table in the rig, ...); the
+                                         message says how to provide it */
 };
 
 /* "PROCAM_ERR_BAD_FRAME" etc. for a return code above; NULL for any other
@@ -134,6 +179,7 @@ static inline const char* procam_rc_name(int rc) {
     case PROCAM_ERR_STATE: return "PROCAM_ERR_STATE";
     case PROCAM_ERR_NO_MEMORY: return "PROCAM_ERR_NO_MEMORY";
     case PROCAM_ERR_INTERNAL: return "PROCAM_ERR_INTERNAL";
+    case PROCAM_ERR_FAILED_PRECONDITION: return "PROCAM_ERR_FAILED_PRECONDITION";
     default: return NULL;
   }
 }
@@ -263,12 +309,26 @@ typedef struct procam_plugin_vtable {
    * Return PROCAM_OK; an error return fails the scan like session_create. */
   int (*session_set_host)(procam_session* s, const procam_host_services* host,
                           procam_error* err);
+
+  /* ---- appended in ABI 2 (procam 0.3) ---- */
+
+  /* Optional (may be NULL: the plugin's methods take no inputs). Like
+   * session_create, plus the scan's inputs (see "Scan inputs"): an array of
+   * `input_count` entries, host-owned, valid only during this call. When set,
+   * the host starts every session of this plugin through it. */
+  int (*session_create2)(const char* method, const char* params_json,
+                         const char* rig_json, const procam_output* inputs,
+                         uint32_t input_count, procam_session** out,
+                         procam_error* err);
 } procam_plugin_vtable;
 
-/* Size of the table as first published for ABI 1 (up to get_outputs). The
- * host accepts struct_size equal to this or to sizeof(procam_plugin_vtable). */
+/* Size of the table as first published for ABI 1 (up to get_outputs). */
 #define PROCAM_PLUGIN_VTABLE_V1_SIZE \
   (offsetof(procam_plugin_vtable, get_outputs) + sizeof(void (*)(void)))
+/* Size of the ABI 1 table with the appended session_set_host (procam 0.2).
+ * A host accepts an ABI 1 table of either size; an ABI 2 table is
+ * sizeof(procam_plugin_vtable). */
+#define PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE offsetof(procam_plugin_vtable, session_create2)
 
 /* Signature of the exported create function. Returns NULL if the plugin cannot
  * serve `host_abi_version`. */

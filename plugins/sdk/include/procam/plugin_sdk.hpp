@@ -31,6 +31,12 @@
 //     PROCAM_ERR_INVALID_ARGUMENT listing the known ones) and params_json /
 //     rig_json are parsed (not JSON -> PROCAM_ERR_INVALID_ARGUMENT) before the
 //     factory runs.
+//   - Scan inputs (ABI 2, plugin_abi.h "Scan inputs"): the table has
+//     session_create2; the factory sees the inputs as CreateArgs::inputs
+//     (sdk/inputs.hpp), views valid only during the factory call. Declare
+//     them in describe() (MethodDescription::inputs); the host checks names,
+//     required ones and kinds against that before calling, the factory checks
+//     sizes (Inputs::image_f32).
 //   - Lifetimes: a plan stays valid until the next next_plan call or
 //     session_destroy; every outputs array stays valid until session_destroy.
 //   - A session whose end_round/next_plan failed, or whose add_frame failed
@@ -60,6 +66,7 @@
 #include "procam/plugin_abi.h"
 #include "procam/sdk/error.hpp"
 #include "procam/sdk/image.hpp"
+#include "procam/sdk/inputs.hpp"
 #include "procam/sdk/map_cache.hpp"
 #include "procam/sdk/method.hpp"
 #include "procam/sdk/outputs.hpp"
@@ -238,6 +245,9 @@ struct CreateArgs {
   std::string method;      // one of the plugin's METHODS_CSV names
   nlohmann::json params;   // a JSON object ({} when the host passed NULL or "")
   nlohmann::json rig;      // the rig description (null when the host passed NULL or ""); see rig.hpp
+  // Outputs of earlier scans the host passed (ABI 2); empty when none. Views
+  // of host memory valid only during the factory call: copy with image_f32().
+  Inputs inputs{};
 };
 
 using DescribeFn = std::string (*)();
@@ -367,6 +377,12 @@ struct Abi {
 
   static int session_create(const char* method, const char* params_json, const char* rig_json,
                             procam_session** out, procam_error* err) noexcept {
+    return session_create2(method, params_json, rig_json, nullptr, 0, out, err);
+  }
+
+  static int session_create2(const char* method, const char* params_json, const char* rig_json,
+                             const procam_output* inputs, uint32_t input_count,
+                             procam_session** out, procam_error* err) noexcept {
     if (out != nullptr) *out = nullptr;
     return guarded(err, "session_create", [&]() -> Error {
       if (out == nullptr) return invalid_argument("session_create: out is NULL");
@@ -392,6 +408,10 @@ struct Abi {
         args.rig = nlohmann::json::parse(rig_json, nullptr, false);
         if (args.rig.is_discarded()) return invalid_argument("rig_json is not valid JSON");
       }
+      if (input_count > 0 && inputs == nullptr)
+        return invalid_argument("session_create2: input_count is " + std::to_string(input_count) +
+                                " but inputs is NULL");
+      args.inputs = Inputs::from_abi(inputs, input_count);
       std::unique_ptr<Session> impl;
       if (Error e = Traits::procam_sdk_create_(args, impl); !e.ok()) return e;
       if (!impl) return internal_error("session_create: factory returned no session");
@@ -559,7 +579,7 @@ struct Abi {
     static constexpr procam_plugin_vtable table = {
         PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), &describe, &session_create,
         &session_destroy,          &next_plan,                   &add_frame, &end_round,
-        &get_outputs,              &session_set_host};
+        &get_outputs,              &session_set_host,            &session_create2};
     return host_abi == PROCAM_PLUGIN_ABI_VERSION ? &table : nullptr;
   }
 };

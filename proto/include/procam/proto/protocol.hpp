@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -35,6 +36,7 @@ inline constexpr size_t kMaxClientBytes = 128;           // hello "client"
 inline constexpr size_t kMaxParamsBytes = size_t{64} << 10;   // params / rig_options, compact JSON
 inline constexpr int kMaxParamsDepth = 16;               // params / rig_options nesting
 inline constexpr int kMaxMessageDepth = 32;              // whole request nesting
+inline constexpr size_t kMaxScanInputs = 16;             // scan "inputs" entries
 inline constexpr uint64_t kDefaultFetchBytes = uint64_t{1} << 20;
 inline constexpr uint64_t kMaxFetchBytes = uint64_t{8} << 20;
 
@@ -53,6 +55,14 @@ struct ListPlugins {
 struct DescribeRig {
   bool operator==(const DescribeRig&) const = default;
 };
+// One scan input (PROTOCOL.md 5.4 "inputs"): output `output` of the finished
+// scan `scan_id`.
+struct InputRef {
+  std::string scan_id;  // 1..128 bytes ("scan" on the wire)
+  std::string output;   // an output name, [a-z0-9_]{1,64}
+  bool operator==(const InputRef&) const = default;
+};
+
 struct Scan {
   std::string plugin, method;
   nlohmann::json params = nlohmann::json::object();       // always an object
@@ -60,6 +70,9 @@ struct Scan {
   bool events = false;
   std::string label;  // "" when not sent
   bool save_frames = false;  // keep the raw frames in the scan folder (frame-r<round>-<index>.png)
+  // Input name (as the method declares it, [a-z0-9_]{1,64}) -> an output of a
+  // finished scan; at most kMaxScanInputs. Empty: none (omitted on the wire).
+  std::map<std::string, InputRef> inputs{};
   bool operator==(const Scan&) const = default;
 };
 struct StatusQuery {
@@ -166,6 +179,8 @@ Result<Incoming> decode_incoming(std::string_view bytes);
 // ---- Small helpers ---------------------------------------------------------
 // Plugin and method names: 1..64 bytes of [a-z0-9_-].
 bool is_valid_name(std::string_view name);
+// Output and input names: 1..64 bytes of [a-z0-9_] (they become file names).
+bool is_output_name(std::string_view name);
 
 // A plain file name a client may fetch: 1..255 bytes, no '/', no '\\', no
 // "..", not starting with '.', no control characters (< 0x20, 0x7f).

@@ -57,6 +57,14 @@ struct ServiceConfig {
   RetentionPolicy retention;
   std::chrono::seconds dedupe_window{600};  // how long scan request ids are remembered
   size_t dedupe_max = 4096;                 // and how many at most
+  // The rig's calibration tables (name -> table, engine/calibration_tables.hpp),
+  // copied into every session's rig description and into describe_rig.
+  nlohmann::json calibration_tables = nlohmann::json::object();
+};
+
+// Where a scan input comes from: output `output` of the finished scan `scan_id`.
+struct InputSource {
+  std::string scan_id, output;
 };
 
 struct ScanRequest {
@@ -64,7 +72,10 @@ struct ScanRequest {
   nlohmann::json params = nlohmann::json::object();
   nlohmann::json rig_options = nlohmann::json::object();
   bool save_frames = false;  // record the raw frames into the scan folder (CaptureOptions::record_dir)
+  std::map<std::string, InputSource> inputs;  // input name -> earlier output (PROTOCOL.md 5.4)
 };
+
+class LoadedInputs;  // procam/engine/inputs.hpp
 
 class RequestMemory;  // scan request de-duplication (src/service_dedupe.hpp)
 
@@ -85,8 +96,12 @@ public:
   // shutting down" with a manifest) and joins the worker. Idempotent.
   void stop();
 
-  // Validates plugin/method/params (creates the plugin session now, so a bad
-  // parameter is refused at once) and queues the scan.
+  // Validates plugin/method/params and inputs (reads each input's stored map
+  // and creates the plugin session now, so a bad parameter or input is
+  // refused at once) and queues the scan. Input errors: not_found (unknown
+  // scan, deleted scan, no such output), failed_precondition (the scan is not
+  // finished or failed), invalid_argument (not a float map, wrong size, an
+  // input the method does not take, a required one missing).
   // → {"scan_id","state":"queued","queue_position":n}; unavailable ("busy: N
   // scans ahead of you") when max_queue scans wait. A non-empty `request_id`
   // seen before with the same content returns that scan instead, with
@@ -123,6 +138,8 @@ private:
   nlohmann::json base_manifest(const Record& rec) const;
   nlohmann::json metrics_locked() const;  // daemon_status()["metrics"]; mu_ held
   void load_existing();
+  Result<LoadedInputs> load_inputs(const ScanRequest& req) const;  // service_inputs.cpp
+  Result<LoadedInputs> load_inputs_impl(const ScanRequest& req) const;
 
   std::unique_ptr<hw::Rig> rig_;
   const host::PluginHost& plugins_;

@@ -41,6 +41,16 @@ struct LoadedPlugin;  // dlopen handle + vtable; defined in src/plugin_loader.hp
 class HostBridge;     // the session's procam_host_services; src/host_services.hpp
 }
 
+// One input a method declares in describe()'s "inputs" (plugin_abi.h "Scan
+// inputs"), validated when the plugin loads.
+struct InputSpec {
+  std::string name;         // [a-z0-9_]{1,64}, e.g. "depth_mm"
+  std::string kind;         // "image_f32": a 1-channel F32 map of camera 0's size
+  std::string unit;         // e.g. "mm"; "" when not given
+  bool required = true;
+  std::string description;  // what the method does with it
+};
+
 // One method of a plugin. `describe` is that method's object from the
 // plugin's describe() JSON array (it has at least "name"; parameters etc. are
 // passed through as the plugin wrote them).
@@ -48,11 +58,22 @@ struct MethodInfo {
   std::string name;
   std::string description;  // describe()'s "description" for the method, or ""
   nlohmann::json describe;
+  std::vector<InputSpec> inputs;  // empty: the method takes no inputs
+};
+
+// An input handed to create_session: a view the caller owns, read only during
+// that call (the plugin copies what it keeps).
+struct InputImage {
+  std::string name;         // one of the method's InputSpec names
+  std::string unit;         // passed to the plugin as the output's unit
+  std::string description;  // where it came from, e.g. "depth_mm of scan 2026...-1a2b3c"
+  procam_image image{};     // for kind image_f32: 1 channel, PROCAM_PIXEL_F32
 };
 
 struct PluginInfo {
   std::string name;                 // procam_plugin_info.name, matches [a-z0-9_-]{1,63}
   std::string version;              // procam_plugin_info.version
+  uint32_t abi = PROCAM_PLUGIN_ABI_VERSION;  // plugin ABI it was built for (1 or 2)
   std::string file;                 // path it was loaded from
   std::vector<MethodInfo> methods;  // in procam_plugin_info.methods order
 };
@@ -188,9 +209,15 @@ public:
 
   // Starts a scan. not_found: unknown plugin (message lists the loaded ones)
   // or unknown method (lists the plugin's methods); invalid_argument: params
-  // or rig is not a JSON object; plugin_error: the plugin refused (its message).
+  // or rig is not a JSON object, or `inputs` do not match what the method
+  // declares (an input it does not take, a required one missing, one given
+  // twice, the wrong kind, inputs for an ABI 1 plugin) -- checked before any
+  // plugin code runs; otherwise the plugin's own refusal with its message
+  // (invalid_argument, failed_precondition, plugin_error, ...).
+  // `inputs` are read only during the call.
   Result<Session> create_session(const std::string& plugin, const std::string& method,
-                                 const std::string& params_json, const std::string& rig_json) const;
+                                 const std::string& params_json, const std::string& rig_json,
+                                 const std::vector<InputImage>& inputs = {}) const;
 
 private:
   Status load_file_impl(const std::string& path);

@@ -33,6 +33,12 @@ inline Error no_memory(std::string message) { return {PROCAM_ERR_NO_MEMORY, std:
 inline Error internal_error(std::string message) {
   return {PROCAM_ERR_INTERNAL, std::move(message)};
 }
+// Something the method needs is missing from the rig or the request (ABI 2),
+// e.g. "rig has no calibration table 'defocus.multi-focal': run `procam
+// calibrate defocus/multi-focal` on a plane (docs/calibration.md)".
+inline Error failed_precondition(std::string message) {
+  return {PROCAM_ERR_FAILED_PRECONDITION, std::move(message)};
+}
 
 // "PROCAM_ERR_BAD_FRAME" etc., for messages and test output (procam_rc_name
 // of plugin_abi.h, shared with the host).
