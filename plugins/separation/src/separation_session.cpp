@@ -378,12 +378,12 @@ nlohmann::json describe_methods() {
     d.patterns_formula = m.formula;
     d.outputs = outputs_of(m.m);
     d.params = specs_for(m.m);
-    nlohmann::json j = d.to_json();
     if (m.m == Method::one_focal || m.m == Method::calibrate)
-      j["inputs"] = nlohmann::json::array(
-          {{{"name", "depth_mm"}, {"kind", "image_f32"}, {"unit", "mm"}, {"required", true},
-            {"description", "depth of every camera pixel (NaN unknown), e.g. structured-light's depth_mm of the "
-                            "same scene from the same rig"}}});
+      d.inputs = {{"depth_mm", "image_f32", "mm", true,
+                   "depth of every camera pixel (NaN unknown), e.g. structured-light's depth_mm of the same scene "
+                   "from the same rig; S3 looks up beta+ - beta- at it (Eq. 2.17), calibration pairs it with the "
+                   "plane's contrast (Eq. 2.19)"}};
+    nlohmann::json j = d.to_json();
     if (m.m == Method::one_focal) j["calibration_tables"] = nlohmann::json::array({kOneFocalTable});
     a.push_back(std::move(j));
   }
@@ -468,9 +468,15 @@ sdk::Error create_session_with_depth(const sdk::CreateArgs& args, std::optional<
 }
 
 sdk::Error create_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {
-  // Scan inputs (plugin ABI v2) are not in this SDK yet: methods that need a
-  // depth map say so (create_session_with_depth's message).
-  return create_session_with_depth(args, std::nullopt, out);
+  const Method m = method_of(args.method);
+  if (m != Method::one_focal && m != Method::calibrate) return create_session_with_depth(args, std::nullopt, out);
+  // Scan input depth_mm (plugin ABI 2), copied while the host's views are valid.
+  sdk::Rig rig;
+  if (sdk::Error e = sdk::parse_rig(args.rig, rig); !e.ok()) return e;
+  std::vector<float> depth;
+  if (sdk::Error e = args.inputs.image_f32("depth_mm", rig.cameras[0].width, rig.cameras[0].height, depth); !e.ok())
+    return e;
+  return create_session_with_depth(args, std::move(depth), out);
 }
 
 }  // namespace procam::separation

@@ -37,8 +37,9 @@ nlohmann::json describe_methods();
 sdk::Error create_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out);
 
 // As create_session, with the depth map (camera-sized, mm, NaN unknown) that
-// one-focal-depth and calibrate-one-focal take as input `depth_mm`. Used by
-// create_session once the host passes scan inputs, and by tests directly.
+// one-focal-depth and calibrate-one-focal take as input `depth_mm`;
+// create_session copies it from the scan inputs (CreateArgs::inputs, plugin
+// ABI 2) and calls this. Tests call it directly with ground-truth depth.
 sdk::Error create_session_with_depth(const sdk::CreateArgs& args, std::optional<std::vector<float>> depth_mm,
                                      std::unique_ptr<sdk::Session>& out);
 

@@ -123,7 +123,16 @@ TEST(Sessions, ErrorsSayWhatIsWrongAndWhatToDo) {
   EXPECT_EQ(e.code, PROCAM_ERR_INVALID_ARGUMENT);
   EXPECT_NE(e.message.find("more shifts or a larger step"), std::string::npos) << e.message;
   e = create_session({"one-focal-depth", nlohmann::json::object(), kRig}, s);
-  EXPECT_NE(e.message.find("depth_mm"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("input 'depth_mm' is missing"), std::string::npos) << e.message;
+  // Through the scan inputs (ABI 2): a wrong-sized map is refused, the right one reaches the table check.
+  sdk::CreateArgs with_input{"one-focal-depth", nlohmann::json::object(), kRig};
+  with_input.inputs.add_image_f32("depth_mm", 4, 4, std::vector<float>(16, 900.f));
+  e = create_session(with_input, s);
+  EXPECT_NE(e.message.find("camera 0's size"), std::string::npos) << e.message;
+  sdk::CreateArgs sized{"one-focal-depth", nlohmann::json::object(), kRig};
+  sized.inputs.add_image_f32("depth_mm", kW, kH, std::vector<float>(size_t{kW} * kH, 900.f));
+  e = create_session(sized, s);
+  EXPECT_NE(e.message.find("no calibration table"), std::string::npos) << e.message;
   e = create_session_with_depth({"one-focal-depth", nlohmann::json::object(), kRig},
                                 std::vector<float>(size_t{kW} * kH, 900.f), s);
   EXPECT_NE(e.message.find("no calibration table 'separation.one-focal-depth'"), std::string::npos) << e.message;
