@@ -9,10 +9,14 @@
 //                 "calibration": {"intrinsics": {...},
 //                                 "cam_from_proj": {"rotation":[r00..r22],
 //                                                   "translation_mm":[x,y,z]}}}],
-//    "threads": 2}
+//    "threads": 2,
+//    "calibration_tables": {"defocus.multi-focal": {...}}}
 // "intrinsics" and "calibration" may be absent (an uncalibrated rig: plugins
 // can still decode correspondences but not depth); when present they must
 // match the device size. "threads" is optional (default 1; 0 = all cores).
+// "calibration_tables" is optional: table name -> table JSON
+// (procam/sdk/calibration_table.hpp); parse_rig checks only that it is an
+// object of objects, a plugin parses the tables it uses with parse_table.
 // Errors: PROCAM_ERR_INVALID_ARGUMENT naming the field ("rig: cameras[0].bit_depth
 // must be an integer in 1..16 or 32, got \"8\""). Thread-safety: reentrant.
 #pragma once
@@ -44,6 +48,13 @@ struct Rig {
   Intrinsics projector;                                // valid when projector_calibrated
   std::vector<RigCamera> cameras;                      // at least one
   uint32_t threads = 1;                                // host's suggestion, >= 1
+  nlohmann::json calibration_tables = nlohmann::json::object();  // name -> table JSON
+
+  // The table called `name`, or nullptr when the rig has none.
+  const nlohmann::json* table(const std::string& name) const {
+    auto it = calibration_tables.find(name);
+    return it == calibration_tables.end() ? nullptr : &*it;
+  }
 
   // Projector and camera `i` are both calibrated: triangulation is possible.
   bool can_triangulate(size_t i) const {
@@ -143,6 +154,15 @@ inline Error parse_rig(const nlohmann::json& j, Rig& rig) {
                               detail::shown(t));
     rig.threads = static_cast<uint32_t>(t.get<int64_t>());
     if (rig.threads == 0) rig.threads = std::max(1u, std::thread::hardware_concurrency());
+  }
+  if (j.contains("calibration_tables")) {
+    const nlohmann::json& t = j.at("calibration_tables");
+    if (!t.is_object())
+      return invalid_argument("rig: calibration_tables must be an object (table name -> table)");
+    for (const auto& [name, table] : t.items())
+      if (!table.is_object())
+        return invalid_argument("rig: calibration_tables." + name + " must be a table object");
+    rig.calibration_tables = t;
   }
   return ok();
 }
