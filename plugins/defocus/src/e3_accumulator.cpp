@@ -89,6 +89,8 @@ E3Accumulator::E3Accumulator(uint32_t width, uint32_t height, uint32_t focus_cou
 }
 
 E3Accumulator::~E3Accumulator() = default;
+E3Accumulator::E3Accumulator(E3Accumulator&&) noexcept = default;
+E3Accumulator& E3Accumulator::operator=(E3Accumulator&&) noexcept = default;
 
 bool E3Accumulator::complete() const noexcept {
   constexpr uint32_t all = (1u << kPeriodPx) - 1u;

@@ -54,8 +54,8 @@ class E3Accumulator {
   ~E3Accumulator();
   E3Accumulator(const E3Accumulator&) = delete;
   E3Accumulator& operator=(const E3Accumulator&) = delete;
-  E3Accumulator(E3Accumulator&&) noexcept = default;
-  E3Accumulator& operator=(E3Accumulator&&) noexcept = default;
+  E3Accumulator(E3Accumulator&&) noexcept;
+  E3Accumulator& operator=(E3Accumulator&&) noexcept;
 
   // Adds frame (focus, shift), shift in [0, 24). Any order, each once.
   sdk::Error add(uint32_t focus, uint32_t shift, const procam_image& frame);

@@ -2,6 +2,7 @@
 // Per-pixel depth cues from E(3, f) (see focus_measures.hpp).
 #include "focus_measures.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -34,8 +35,10 @@ float gaussian_peak_offset(float em, float e0, float ep) noexcept {
   const double curvature = lm - 2.0 * l0 + lp;
   if (!(curvature < -1e-9)) return kNaN;  // flat or a minimum: no peak to interpolate
   const double off = 0.5 * (lm - lp) / curvature;
-  if (!(off >= -0.5 && off <= 0.5)) return kNaN;  // e0 was not the maximum
-  return static_cast<float>(off);
+  // |off| <= 0.5 when e0 is the maximum; an exact tie e0 == em or e0 == ep
+  // gives +-0.5 up to rounding, which is kept (clamped), not rejected.
+  if (!(std::abs(off) <= 0.5 + 1e-4)) return kNaN;  // e0 was not the maximum
+  return static_cast<float>(std::clamp(off, -0.5, 0.5));
 }
 
 float fbar_from_e3(const float* e, uint32_t F, float floor) noexcept {
@@ -50,7 +53,7 @@ float fbar_from_e3(const float* e, uint32_t F, float floor) noexcept {
 }
 
 bool usable(const E3Accumulator& acc, size_t i, const Validity& rule) noexcept {
-  return acc.flags()[i] == 0 && acc.mean()[i] >= rule.black_dn;
+  return acc.flags()[i] == 0 && static_cast<double>(acc.mean()[i]) >= rule.black_dn;
 }
 
 namespace {
@@ -69,7 +72,7 @@ size_t map_pixels(const E3Accumulator& acc, const Validity& rule, uint32_t threa
         if (!usable(acc, i, rule)) continue;
         const float v = value(i);
         out[i] = v;
-        c += std::isfinite(v) ? 1 : 0;
+        c += std::isfinite(v) ? 1u : 0u;
       }
       counts[y] = c;
     }
