@@ -154,19 +154,19 @@ TEST(DefocusSession, TableFromOtherFocusSettingsIsRefused) {
 
 TEST(DefocusSession, BadParamsAreNamed) {
   std::unique_ptr<sdk::Session> s;
-  auto e = create_session({"two-focal", {{"f1_mm", 800}, {"f2_mm", 800}}, rig_json(8, {})}, s);
+  auto e = create_session({"two-focal", {{"f1_mm", 800}, {"f2_mm", 800}}, rig_json(8, nlohmann::json::object())}, s);
   EXPECT_EQ(e.code, PROCAM_ERR_INVALID_ARGUMENT);
   EXPECT_NE(e.message.find("f1_mm"), std::string::npos) << e.message;
-  e = create_session({"invariance", {{"pairs", "1,1,99,0"}}, rig_json(8, {})}, s);
+  e = create_session({"invariance", {{"pairs", "1,1,99,0"}}, rig_json(8, nlohmann::json::object())}, s);
   EXPECT_EQ(e.code, PROCAM_ERR_INVALID_ARGUMENT);
   EXPECT_NE(e.message.find("pairs"), std::string::npos) << e.message;
-  e = create_session({"multi-focal", {{"focus_count", 2}}, rig_json(8, {})}, s);
+  e = create_session({"multi-focal", {{"focus_count", 2}}, rig_json(8, nlohmann::json::object())}, s);
   EXPECT_EQ(e.code, PROCAM_ERR_INVALID_ARGUMENT);
 }
 
 TEST(DefocusSession, InvarianceReportsGAtPairs) {
   std::unique_ptr<sdk::Session> s;
-  ASSERT_TRUE(create_session({"invariance", {{"pairs", "2,0,2,1"}}, rig_json(16, {})}, s).ok());
+  ASSERT_TRUE(create_session({"invariance", {{"pairs", "2,0,2,1"}}, rig_json(16, nlohmann::json::object())}, s).ok());
   sdk::Plan plan;
   bool has_round = false;
   ASSERT_TRUE(s->next_plan(plan, has_round).ok());
@@ -194,7 +194,7 @@ TEST(DefocusSession, InvarianceReportsGAtPairs) {
 TEST(DefocusSession, PatternsArePrefilteredUnlessAskedNot) {
   for (double sigma : {0.0, 1.0}) {
     std::unique_ptr<sdk::Session> s;
-    ASSERT_TRUE(create_session({"invariance", {{"prefilter_sigma_px", sigma}}, rig_json(8, {})}, s).ok());
+    ASSERT_TRUE(create_session({"invariance", {{"prefilter_sigma_px", sigma}}, rig_json(8, nlohmann::json::object())}, s).ok());
     sdk::Plan plan;
     bool has_round = false;
     ASSERT_TRUE(s->next_plan(plan, has_round).ok());

@@ -42,11 +42,8 @@ void add_rows(const procam_image& frame, Acc* d, bool negative, float* dc, uint8
       for (uint32_t x = 0; x < w; ++x) s[x] += static_cast<float>(row[x]);
     }
     uint8_t* fl = flags + size_t{y} * w;
-    if constexpr (std::is_floating_point_v<In>) {
-      for (uint32_t x = 0; x < w; ++x) fl[x] |= static_cast<uint8_t>(!(std::fabs(row[x]) <= 3.0e38f));
-    } else {
-      for (uint32_t x = 0; x < w; ++x) fl[x] |= static_cast<uint8_t>(row[x] >= saturated_at);
-    }
+    // !(v < full scale): saturated, and for F32 also NaN / inf.
+    for (uint32_t x = 0; x < w; ++x) fl[x] |= static_cast<uint8_t>(!(row[x] < saturated_at));
   }
 }
 
@@ -135,7 +132,7 @@ sdk::Error E3Accumulator::add(uint32_t focus, uint32_t shift, const procam_image
       const auto sat = static_cast<uint16_t>(std::min(65535.0, full_scale_));
       add_rows<uint16_t, int32_t>(frame, bk.i32.data() + b * n, negative, dc, flags, sat, y0, y1);
     } else {
-      add_rows<float, float>(frame, bk.f32.data() + b * n, negative, dc, flags, 0.f, y0, y1);
+      add_rows<float, float>(frame, bk.f32.data() + b * n, negative, dc, flags, static_cast<float>(full_scale_), y0, y1);
     }
   });
   seen_[focus] |= 1u << shift;

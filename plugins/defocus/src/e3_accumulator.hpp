@@ -23,7 +23,8 @@
 // O(pixels × F), never O(pixels × frames).
 //
 // Flags per pixel (bit set = the pixel is unusable): kSaturated (some frame
-// reached the camera's full scale, or an F32 value was not finite).
+// reached the camera's full scale - 2^bits - 1, or 1.0 for F32 frames - or
+// an F32 value was not finite).
 //
 // Errors: sdk::Error (bad frame type/size, index outside the sweep, a frame
 // added twice); the state is unchanged on error. Threads: thread-bound
@@ -47,7 +48,8 @@ enum PixelFlag : uint8_t { kSaturated = 1 };
 class E3Accumulator {
  public:
   // Frames are width x height of `pixel_type` (PROCAM_PIXEL_U8 / U16 / F32);
-  // `full_scale` is the largest DN (2^bits - 1; ignored for F32).
+  // `full_scale` is the largest DN (2^bits - 1; 1.0 for F32): reaching it
+  // marks the pixel saturated.
   // focus_count >= 1. Throws std::bad_alloc only.
   E3Accumulator(uint32_t width, uint32_t height, uint32_t focus_count, uint32_t pixel_type,
                 double full_scale, uint32_t threads);

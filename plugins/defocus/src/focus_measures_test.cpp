@@ -87,7 +87,7 @@ E3Accumulator make_acc(const std::vector<std::vector<double>>& e3_per_pixel, con
                        std::vector<bool> saturate = {}) {
   const uint32_t w = static_cast<uint32_t>(means.size());
   const uint32_t F = static_cast<uint32_t>(e3_per_pixel[0].size());
-  E3Accumulator acc(w, 1, F, PROCAM_PIXEL_F32, 1.0, 1);
+  E3Accumulator acc(w, 1, F, PROCAM_PIXEL_F32, 1e9, 1);  // values in DN-like units: full scale far above
   for (uint32_t f = 0; f < F; ++f)
     for (uint32_t t = 0; t < 24; ++t) {
       std::vector<float> frame(w);
