@@ -35,12 +35,13 @@ std::vector<uint8_t> make_frame(uint32_t f, uint32_t t) {
 void BM_MultiFocalAddFrame(benchmark::State& state) {
   std::vector<std::vector<uint8_t>> frames;
   for (uint32_t t = 0; t < 24; ++t) frames.push_back(make_frame(2, t));
-  auto acc = std::make_unique<E3Accumulator>(kW, kH, kF, PROCAM_PIXEL_U8, 255, kThreads);
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  auto acc = std::make_unique<E3Accumulator>(kW, kH, kF, PROCAM_PIXEL_U8, 255, threads);
   uint32_t k = 0;
   for (auto _ : state) {
     if (k == kF * 24) {
       state.PauseTiming();
-      acc = std::make_unique<E3Accumulator>(kW, kH, kF, PROCAM_PIXEL_U8, 255, kThreads);
+      acc = std::make_unique<E3Accumulator>(kW, kH, kF, PROCAM_PIXEL_U8, 255, threads);
       k = 0;
       state.ResumeTiming();
     }
@@ -50,7 +51,7 @@ void BM_MultiFocalAddFrame(benchmark::State& state) {
   }
   state.counters["frames"] = static_cast<double>(state.iterations());
 }
-BENCHMARK(BM_MultiFocalAddFrame)->Unit(benchmark::kMillisecond)->Iterations(288)->Repetitions(3)->UseRealTime();
+BENCHMARK(BM_MultiFocalAddFrame)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(288)->Repetitions(3)->UseRealTime();
 
 void BM_MultiFocalAfterLastFrame(benchmark::State& state) {
   E3Accumulator acc(kW, kH, kF, PROCAM_PIXEL_U8, 255, kThreads);
@@ -64,12 +65,10 @@ void BM_MultiFocalAfterLastFrame(benchmark::State& state) {
   for (int k = 0; k <= 50; ++k) table.samples.emplace_back(0.1 * k, 600 + 10.0 * k);
   std::vector<float> fbar, depth;
   Validity rule;
-  for (auto _ : state) {
-    fbar_map(acc, rule, kThreads, fbar);
-    benchmark::DoNotOptimize(depth_from_cue(table, fbar, kThreads, depth));
-  }
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(fbar_depth_map(acc, rule, &table, threads, fbar, &depth));
 }
-BENCHMARK(BM_MultiFocalAfterLastFrame)->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
+BENCHMARK(BM_MultiFocalAfterLastFrame)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
 
 }  // namespace
 }  // namespace procam::defocus

@@ -2,6 +2,7 @@
 // Sessions of the defocus plugin (see defocus_session.hpp).
 #include "defocus_session.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -63,12 +64,12 @@ class SweepSession final : public sdk::Session {
     Validity rule = config_.validity;
     rule.black_dn = config_.black_fraction * full_scale();
     switch (method_) {
-      case Method::multi_focal:
+      case Method::multi_focal: cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_); break;
       case Method::invariance: cue_valid_ = fbar_map(*acc_, rule, th, cue_); break;
       case Method::two_focal: cue_valid_ = omega_map(*acc_, 0, 1, rule, th, cue_); break;
       case Method::single_focal: cue_valid_ = modulation_map(*acc_, 0, rule, th, cue_); break;
     }
-    if (cue_of(method_) != nullptr) depth_valid_ = depth_from_cue(table_, cue_, th, depth_);
+    if (method_ == Method::two_focal || method_ == Method::single_focal) depth_from_cue(table_, cue_, th, depth_);
     return sdk::ok();
   }
 
@@ -87,8 +88,8 @@ class SweepSession final : public sdk::Session {
     if (const CueKind* kind = cue_of(method_)) {
       out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
                                           " table; NaN: invalid", w, h, depth_);
-      valid = depth_valid_;
       for (size_t i = 0; i < n; ++i) valid_map[i] = std::isfinite(depth_[i]) ? 255 : 0;
+      valid = static_cast<size_t>(std::count(valid_map.begin(), valid_map.end(), uint8_t{255}));
       report["table"] = {{"name", table_.name}, {"x_range", {table_.x_min(), table_.x_max()}}, {"made", table_.made}};
       report["cue_valid_pixels"] = cue_valid_;
     } else {
@@ -140,7 +141,7 @@ class SweepSession final : public sdk::Session {
   std::vector<PixelPair> pairs_;
   std::unique_ptr<E3Accumulator> acc_;
   std::vector<float> cue_, depth_;
-  size_t cue_valid_ = 0, depth_valid_ = 0;
+  size_t cue_valid_ = 0;
   bool planned_ = false;
   double decode_ms_ = 0;
 

@@ -4,6 +4,11 @@
 
 #include <cmath>
 #include <string>
+#include <type_traits>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace procam::defocus {
 
@@ -23,12 +28,35 @@ struct E3Accumulator::Buckets {
 
 namespace {
 
+// Saturation bits of one row: bit x of `bits` is set where row[x] >= sat
+// (for F32 also where it is NaN or inf: !(v < sat)).
+template <class In>
+void saturation_bits(const In* row, uint32_t w, In sat, uint8_t* bits) {
+  uint32_t x = 0;
+#if defined(__SSE2__)
+  if constexpr (std::is_same_v<In, uint8_t>) {
+    // 16 pixels per step: v >= sat  <=>  max(v, sat) == v (SSE2 is baseline on x86-64).
+    const __m128i s = _mm_set1_epi8(static_cast<char>(sat));
+    for (; x + 16 <= w; x += 16) {
+      const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row + x));
+      const auto m = static_cast<uint32_t>(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(v, s), v)));
+      if (m == 0) continue;
+      // x is a multiple of 16 here: bytes x/8 and x/8 + 1 hold these 16 bits.
+      bits[x / 8] |= static_cast<uint8_t>(m & 0xffu);
+      bits[x / 8 + 1] |= static_cast<uint8_t>(m >> 8);
+    }
+  }
+#endif
+  for (; x < w; ++x)
+    if (!(row[x] < sat)) bits[x / 8] |= static_cast<uint8_t>(1u << (x % 8));
+}
+
 // One band of rows of a frame into bucket `d` (+ or - by `negative`), the DC
-// sum (when dc != nullptr) and the saturation flags. Separate simple loops
-// per row so each vectorises.
+// sum (when dc != nullptr) and the saturation bits (`bit_stride` bytes per
+// row). Separate simple loops per row so each vectorises.
 template <class In, class Acc>
-void add_rows(const procam_image& frame, Acc* d, bool negative, float* dc, uint8_t* flags, In saturated_at,
-              uint32_t y0, uint32_t y1) {
+void add_rows(const procam_image& frame, Acc* d, bool negative, float* dc, uint8_t* bits, size_t bit_stride,
+              In saturated_at, uint32_t y0, uint32_t y1) {
   const uint32_t w = frame.width;
   for (uint32_t y = y0; y < y1; ++y) {
     const In* row = reinterpret_cast<const In*>(sdk::row_bytes(frame, y));
@@ -41,9 +69,7 @@ void add_rows(const procam_image& frame, Acc* d, bool negative, float* dc, uint8
       float* s = dc + size_t{y} * w;
       for (uint32_t x = 0; x < w; ++x) s[x] += static_cast<float>(row[x]);
     }
-    uint8_t* fl = flags + size_t{y} * w;
-    // !(v < full scale): saturated, and for F32 also NaN / inf.
-    for (uint32_t x = 0; x < w; ++x) fl[x] |= static_cast<uint8_t>(!(row[x] < saturated_at));
+    saturation_bits(row, w, saturated_at, bits + size_t{y} * bit_stride);
   }
 }
 
@@ -82,7 +108,8 @@ E3Accumulator::E3Accumulator(uint32_t width, uint32_t height, uint32_t focus_cou
   for (auto& m : e3_) m.assign(n, 0.f);
   mean_.assign(n, 0.f);
   dc_.assign(n, 0.f);
-  flags_.assign(n, 0);
+  bit_stride_ = (size_t{width} + 7) / 8;
+  sat_bits_.assign(bit_stride_ * height, 0);
 }
 
 E3Accumulator::~E3Accumulator() = default;
@@ -123,16 +150,17 @@ sdk::Error E3Accumulator::add(uint32_t focus, uint32_t shift, const procam_image
   const uint32_t b = shift % 4;
   const bool negative = (shift % 8) >= 4;
   float* dc = focus == 0 ? dc_.data() : nullptr;
-  uint8_t* flags = flags_.data();
+  uint8_t* bits = sat_bits_.data();
   sdk::parallel_rows(height_, threads_, [&](uint32_t y0, uint32_t y1) {
     if (pixel_type_ == PROCAM_PIXEL_U8) {
       const auto sat = static_cast<uint8_t>(std::min(255.0, full_scale_));
-      add_rows<uint8_t, int16_t>(frame, bk.i16.data() + b * n, negative, dc, flags, sat, y0, y1);
+      add_rows<uint8_t, int16_t>(frame, bk.i16.data() + b * n, negative, dc, bits, bit_stride_, sat, y0, y1);
     } else if (pixel_type_ == PROCAM_PIXEL_U16) {
       const auto sat = static_cast<uint16_t>(std::min(65535.0, full_scale_));
-      add_rows<uint16_t, int32_t>(frame, bk.i32.data() + b * n, negative, dc, flags, sat, y0, y1);
+      add_rows<uint16_t, int32_t>(frame, bk.i32.data() + b * n, negative, dc, bits, bit_stride_, sat, y0, y1);
     } else {
-      add_rows<float, float>(frame, bk.f32.data() + b * n, negative, dc, flags, static_cast<float>(full_scale_), y0, y1);
+      add_rows<float, float>(frame, bk.f32.data() + b * n, negative, dc, bits, bit_stride_,
+                              static_cast<float>(full_scale_), y0, y1);
     }
   });
   seen_[focus] |= 1u << shift;

@@ -22,7 +22,8 @@
 // per focus setting in progress (one set when frames arrive in plan order):
 // O(pixels × F), never O(pixels × frames).
 //
-// Flags per pixel (bit set = the pixel is unusable): kSaturated (some frame
+// Saturation, one bit per pixel (so the per-frame check costs no memory
+// traffic): set when some frame
 // reached the camera's full scale - 2^bits - 1, or 1.0 for F32 frames - or
 // an F32 value was not finite).
 //
@@ -42,8 +43,6 @@ namespace procam::defocus {
 
 inline constexpr uint32_t kPeriodPx = 24;  // pattern period = shifts per focus setting (§2.3.2)
 inline constexpr uint32_t kHarmonic = 3;   // DFT coefficient used (§2.2: "the most informative")
-
-enum PixelFlag : uint8_t { kSaturated = 1 };
 
 class E3Accumulator {
  public:
@@ -72,7 +71,12 @@ class E3Accumulator {
   const std::vector<float>& e3(uint32_t focus) const { return e3_[focus]; }
   // Mean of the profile (DN) over focus setting 0's frames.
   const std::vector<float>& mean() const noexcept { return mean_; }
-  const std::vector<uint8_t>& flags() const noexcept { return flags_; }
+  // Whether pixel (x, y) saturated (kSaturated) in any frame.
+  bool saturated(uint32_t x, uint32_t y) const noexcept {
+    return (sat_bits_[size_t{y} * bit_stride_ + x / 8] >> (x % 8)) & 1u;
+  }
+  // Row y of the saturation bits: bit x % 8 of byte x / 8.
+  const uint8_t* saturation_row(uint32_t y) const noexcept { return sat_bits_.data() + size_t{y} * bit_stride_; }
 
  private:
   struct Buckets;
@@ -81,7 +85,8 @@ class E3Accumulator {
   std::vector<std::vector<float>> e3_;
   std::vector<float> mean_;
   std::vector<float> dc_;     // running sum over focus 0 (float: exact for integer DN sums < 2^24)
-  std::vector<uint8_t> flags_;
+  std::vector<uint8_t> sat_bits_;  // 1 bit per pixel, rows of bit_stride_ bytes
+  size_t bit_stride_ = 0;
   std::vector<uint32_t> seen_;       // per focus: bit t set when shift t was added
   std::vector<std::unique_ptr<Buckets>> active_;  // per focus in progress
   std::vector<std::unique_ptr<Buckets>> spare_;   // recycled bucket sets

@@ -52,8 +52,9 @@ float fbar_from_e3(const float* e, uint32_t F, float floor) noexcept {
   return std::isnan(off) ? kNaN : static_cast<float>(k) + off;
 }
 
-bool usable(const E3Accumulator& acc, size_t i, const Validity& rule) noexcept {
-  return acc.flags()[i] == 0 && static_cast<double>(acc.mean()[i]) >= rule.black_dn;
+bool usable(const E3Accumulator& acc, uint32_t x, uint32_t y, const Validity& rule) noexcept {
+  return !acc.saturated(x, y) &&
+         static_cast<double>(acc.mean()[size_t{y} * acc.width() + x]) >= rule.black_dn;
 }
 
 namespace {
@@ -68,8 +69,9 @@ size_t map_pixels(const E3Accumulator& acc, const Validity& rule, uint32_t threa
   sdk::parallel_rows(acc.height(), threads, [&](uint32_t y0, uint32_t y1) {
     for (uint32_t y = y0; y < y1; ++y) {
       size_t c = 0;
-      for (size_t i = size_t{y} * w; i < size_t{y + 1} * w; ++i) {
-        if (!usable(acc, i, rule)) continue;
+      for (uint32_t x = 0; x < w; ++x) {
+        const size_t i = size_t{y} * w + x;
+        if (!usable(acc, x, y, rule)) continue;
         const float v = value(i);
         out[i] = v;
         c += std::isfinite(v) ? 1u : 0u;
@@ -84,13 +86,7 @@ size_t map_pixels(const E3Accumulator& acc, const Validity& rule, uint32_t threa
 }  // namespace
 
 size_t fbar_map(const E3Accumulator& acc, const Validity& rule, uint32_t threads, std::vector<float>& out) {
-  const uint32_t F = acc.focus_count();
-  if (F > 64) throw std::invalid_argument("fbar_map: at most 64 focus settings");
-  return map_pixels(acc, rule, threads, out, [&](size_t i) {
-    float e[64];
-    for (uint32_t f = 0; f < F; ++f) e[f] = acc.e3(f)[i];
-    return fbar_from_e3(e, F, static_cast<float>(rule.min_modulation) * acc.mean()[i]);
-  });
+  return fbar_depth_map(acc, rule, nullptr, threads, out, nullptr);
 }
 
 // Eq. 2.10: Omega = E(f2) / E(f1); both must carry a measurable pattern (the

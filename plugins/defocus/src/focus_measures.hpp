@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "e3_accumulator.hpp"
+#include "procam/sdk/calibration_table.hpp"
 
 namespace procam::defocus {
 
@@ -54,7 +55,15 @@ size_t omega_map(const E3Accumulator& acc, uint32_t f1, uint32_t f2, const Valid
 size_t modulation_map(const E3Accumulator& acc, uint32_t f, const Validity& rule, uint32_t threads,
                       std::vector<float>& out);
 
-// Whether pixel i passes the flags / black tests (not the E tests).
-bool usable(const E3Accumulator& acc, size_t i, const Validity& rule) noexcept;
+// Whether pixel (x, y) passes the saturation / black tests (not the E tests).
+bool usable(const E3Accumulator& acc, uint32_t x, uint32_t y, const Validity& rule) noexcept;
+
+// fbar_map and, when `table` is not null, depth_mm = table->lookup(fbar) in
+// the same pass (the multi-focal hot path: one read of the E maps, rows in
+// cache). Same results as fbar_from_e3 per pixel up to the fast logarithm
+// (|error| < 1e-6 in fbar) and as CalibrationTable::lookup. Returns the
+// number of valid fbar values.
+size_t fbar_depth_map(const E3Accumulator& acc, const Validity& rule, const sdk::CalibrationTable* table,
+                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm);
 
 }  // namespace procam::defocus

@@ -123,6 +123,50 @@ TEST(FbarMap, ValidOnlyWithAnInnerPeak) {
   EXPECT_TRUE(std::isnan(fbar[2]));  // flat
 }
 
+// The fused, vectorised multi-focal kernel against the per-pixel reference
+// (fbar_from_e3 + CalibrationTable::lookup) on random curves, ties, edges,
+// flat and weak ones included.
+TEST(FbarDepthMap, MatchesThePerPixelReference) {
+  const uint32_t F = 6, w = 37;
+  std::vector<std::vector<double>> e3(w, std::vector<double>(F));
+  std::vector<double> means(w, 100.0);
+  uint32_t seed = 12345;
+  auto rnd = [&] { return double((seed = seed * 1103515245u + 12345u) >> 8) / double(1u << 24); };
+  for (uint32_t x = 0; x < w; ++x)
+    for (uint32_t f = 0; f < F; ++f) e3[x][f] = 40.0 * std::exp(-0.5 * std::pow((f - 5.5 * rnd()) / (0.5 + rnd()), 2));
+  e3[0] = {10, 20, 20, 10, 5, 1};   // exact tie
+  e3[1] = {30, 30, 30, 30, 30, 30};  // flat
+  e3[2] = {1, 1.5, 1.9, 1.2, 1, 1};  // below min_modulation (2 % of 100)
+  e3[3] = {0, 0, 5, 0, 0, 0};        // zero neighbours
+  auto acc = make_acc(e3, means);
+  sdk::CalibrationTable table;
+  for (int k = 0; k <= 12; ++k) table.samples.emplace_back(0.4 + 0.35 * k + 0.05 * (k % 3), 600 + 37.0 * k * k);
+  Validity rule;
+  std::vector<float> fbar, depth;
+  const size_t valid = fbar_depth_map(acc, rule, &table, 2, fbar, &depth);
+  size_t expect_valid = 0;
+  for (uint32_t x = 0; x < w; ++x) {
+    float e[F];
+    for (uint32_t f = 0; f < F; ++f) e[f] = acc.e3(f)[x];
+    const float ref = fbar_from_e3(e, F, 0.02f * acc.mean()[x]);
+    expect_valid += std::isnan(ref) ? 0u : 1u;
+    if (std::isnan(ref)) {
+      EXPECT_TRUE(std::isnan(fbar[x])) << x;
+      EXPECT_TRUE(std::isnan(depth[x])) << x;
+    } else {
+      EXPECT_NEAR(fbar[x], ref, 2e-5) << x;
+      const float d = table.lookup(double(fbar[x]));
+      if (std::isnan(d)) EXPECT_TRUE(std::isnan(depth[x])) << x;
+      else EXPECT_NEAR(depth[x], d, 1e-3) << x;
+    }
+  }
+  EXPECT_EQ(valid, expect_valid);
+  EXPECT_TRUE(std::isnan(fbar[1]));
+  EXPECT_TRUE(std::isnan(fbar[2]));
+  EXPECT_TRUE(std::isnan(fbar[3]));
+  EXPECT_NEAR(fbar[0], 1.5, 1e-4);
+}
+
 TEST(ModulationMap, AmplitudeOverMean) {
   Validity rule;
   auto acc = make_acc({{25}, {0.5}}, {100, 100});

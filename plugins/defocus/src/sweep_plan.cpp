@@ -174,7 +174,7 @@ nlohmann::json invariance_summary(const E3Accumulator& acc, const std::vector<Pi
   for (const PixelPair& pr : pairs) {
     const size_t b = size_t{pr.yb} * w + pr.xb, a = size_t{pr.ya} * w + pr.xa;
     std::vector<double> g, eb, ea;
-    bool ok = acc.flags()[a] == 0 && acc.flags()[b] == 0;
+    bool ok = !acc.saturated(pr.xa, pr.ya) && !acc.saturated(pr.xb, pr.yb);
     for (uint32_t f = 0; f < acc.focus_count(); ++f) {
       eb.push_back(acc.e3(f)[b]);
       ea.push_back(acc.e3(f)[a]);
