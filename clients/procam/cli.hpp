@@ -64,5 +64,6 @@ int cmd_keygen(const Args&);  // service.cpp (issue 6): CURVE keys, cancel, ping
 int cmd_cancel(const Args&);
 int cmd_ping(const Args&);
 int cmd_calibrate_latency(const Args&);  // hw.cpp (issue 5): display/camera latency of a rig
+int cmd_calibrate_geometry(const Args&);  // calibrate.cpp (issue 16): intrinsics, distortion, cam_from_proj
 
 }  // namespace procam::cli

@@ -57,6 +57,12 @@ const std::vector<Command> kCommands = {
     {"calibrate-latency", cmd_calibrate_latency, {"rig", "cycles", "write"},
      "calibrate-latency --rig RIG.json [--cycles N] [--write 1]\n"
      "                                offline (stop procamd): measure display/camera latency; --write stores it in the rig config"},
+    {"calibrate-geometry", cmd_calibrate_geometry,
+     {"captures", "projector", "board", "square-mm", "layout", "out", "force", "plugins"},
+     "calibrate-geometry --captures DIR... --projector WxH --board COLSxROWS --square-mm S --out RIG.json\n"
+     "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json] [--force 1]\n"
+     "                                offline: camera + projector intrinsics with distortion and cam_from_proj\n"
+     "                                from chessboard poses under Gray codes with rows (one folder per pose)"},
     {"keygen", cmd_keygen, {"out"},
      "keygen --out NAME               new CURVE key pair: NAME.pub, NAME.secret (README \"Remote access\")"},
 };

@@ -3,6 +3,9 @@
 // ray table, row kernel (baseline + AVX2 twin), row-ordered point compaction.
 #include "procam/sdk/triangulate.hpp"
 
+#include <immintrin.h>
+
+#include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <cstring>
@@ -72,6 +75,24 @@ __attribute__((target("avx2"))) void row_avx2(const Coeffs& k, const float* col,
 using RowFn = void (*)(const Coeffs&, const float*, const float*, const float*, uint32_t, float*,
                        float*, float*);
 
+// Copies n floats to dst with non-temporal (streaming) stores where dst is
+// 16-byte aligned: the maps are written once and read later by someone else,
+// so bringing their lines into the cache first (a read for ownership per
+// line, i.e. doubling the write traffic) is pure waste. The call is memory
+// bound: that traffic is most of its time. Callers issue _mm_sfence() before
+// other threads read dst (stream_fence below).
+void stream_floats(float* __restrict dst, const float* __restrict src, size_t n) {
+  size_t i = 0;
+  while (i < n && (reinterpret_cast<uintptr_t>(dst + i) & 15u) != 0) {
+    dst[i] = src[i];
+    ++i;
+  }
+  for (; i + 4 <= n; i += 4) _mm_stream_ps(dst + i, _mm_loadu_ps(src + i));
+  for (; i < n; ++i) dst[i] = src[i];
+}
+// Orders this thread's streaming stores before what follows (the pool's join).
+void stream_fence() { _mm_sfence(); }
+
 bool same(const Intrinsics& a, const Intrinsics& b) {
   return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
          a.cx == b.cx && a.cy == b.cy;
@@ -95,17 +116,15 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
   bt_ = dot(b, t);
   r2_[0] = r2.x, r2_[1] = r2.y, r2_[2] = r2.z;
   r2t_ = dot(r2, t);
-  // Pinhole camera: the undistorted ray of each pixel centre.
-  const size_t n = size_t{width} * height;
-  ray_x_.resize(n);
-  ray_y_.resize(n);
+  // Pinhole camera: the ray of pixel (x, y) is ((x - cx) / fx, (y - cy) / fy,
+  // 1), so its x depends on the column only and its y on the row only: two
+  // short tables (the same floats a per-pixel table held) instead of 2 x
+  // width x height floats to stream through memory on every call.
   const Intrinsics& k = cam.intrinsics;
-  for (uint32_t y = 0; y < height; ++y)
-    for (uint32_t x = 0; x < width; ++x) {
-      const Vec3 d = k.ray(x, y);
-      ray_x_[size_t{y} * width + x] = static_cast<float>(d.x);
-      ray_y_[size_t{y} * width + x] = static_cast<float>(d.y);
-    }
+  ray_x_.resize(width);
+  ray_y_.resize(height);
+  for (uint32_t x = 0; x < width; ++x) ray_x_[x] = static_cast<float>(k.ray(x, 0).x);
+  for (uint32_t y = 0; y < height; ++y) ray_y_[y] = static_cast<float>(k.ray(0, y).y);
 }
 
 bool ColumnTriangulator::matches(const CameraCalibration& cam, const Intrinsics& projector,
@@ -146,11 +165,12 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   // Pass 2: rays meet planes row by row; each row's points are compacted in
   // L1 scratch, then copied to the row's slots.
   parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
-    std::vector<float> X(w), Y(w), quad(size_t{w} * 4 + 4);
+    std::vector<float> X(w), Y(w), Z(w), ry(w), quad(size_t{w} * 4 + 4);
     for (uint32_t y = y0; y < y1; ++y) {
       const size_t i0 = size_t{y} * w;
-      float* Z = out.depth_mm.data() + i0;
-      row(k, map.col + i0, ray_x_.data() + i0, ray_y_.data() + i0, w, X.data(), Y.data(), Z);
+      std::fill(ry.begin(), ry.end(), ray_y_[y]);  // this row's ray y (L1)
+      row(k, map.col + i0, ray_x_.data(), ry.data(), w, X.data(), Y.data(), Z.data());
+      stream_floats(out.depth_mm.data() + i0, Z.data(), w);
       const float* I = map.intensity != nullptr ? map.intensity + i0 : nullptr;
       float* q = quad.data();
       for (uint32_t x = 0; x < w; ++x) {  // branch-free: always write, advance if valid
@@ -161,9 +181,10 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
         q += std::isnan(Z[x]) ? 0 : 4;
       }
       const auto m = static_cast<size_t>(q - quad.data());
-      std::memcpy(pts + first[y] * 4, quad.data(), m * sizeof(float));
+      stream_floats(pts + first[y] * 4, quad.data(), m);
       count[y] = static_cast<uint32_t>(m / 4);
     }
+    stream_fence();
   });
   // Close the gaps of finite columns that made no point (rare: behind a
   // device, parallel rays); a no-op when every finite column made one.

@@ -4,6 +4,7 @@
 #include "binarize.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <limits>
 
@@ -233,24 +234,58 @@ void intensity_u8(const uint8_t* src, size_t n, float inv_scale, float* out) {
   intensity_u8_scalar(src, 0, n, inv_scale, out);
 }
 
+namespace {
+// |margin| of one pixel, saturated to 0..255: |L - R| for a real inverse,
+// |2L - W - B| for a synthesized one (B may be absent).
+inline uint8_t abs_margin_u8(const uint8_t* L, const uint8_t* R, const uint8_t* B, bool synthetic,
+                             size_t i) {
+  const int32_t d = synthetic ? 2 * int32_t{L[i]} - int32_t{R[i]} - (B != nullptr ? int32_t{B[i]} : 0)
+                              : int32_t{L[i]} - int32_t{R[i]};
+  const int32_t a0 = d < 0 ? -d : d;
+  return static_cast<uint8_t>(a0 > 255 ? 255 : a0);
+}
+
+// The update for one row once the margins `a` are known: branch-free so the
+// vectoriser turns it into byte min/max/blend (the branches on `synthetic`
+// and `first` are hoisted out by the caller).
+inline void track_row(const uint8_t* __restrict a, size_t n, uint8_t plane, uint8_t* __restrict m1,
+                      uint8_t* __restrict m2, uint8_t* __restrict p1) {
+  for (size_t i = 0; i < n; ++i) {
+    const uint8_t o = m1[i], v = a[i];
+    const uint8_t hi = o > v ? o : v;
+    m2[i] = m2[i] < hi ? m2[i] : hi;
+    p1[i] = v < o ? plane : p1[i];
+    m1[i] = v < o ? v : o;
+  }
+}
+}  // namespace
+
 void track_u8(const uint8_t* __restrict L, const uint8_t* __restrict R, const uint8_t* __restrict B,
               bool synthetic, size_t n, uint8_t plane, bool first, uint8_t* __restrict m1,
               uint8_t* __restrict m2, uint8_t* __restrict p1) {
-  for (size_t i = 0; i < n; ++i) {
-    const int32_t d = synthetic ? 2 * int32_t{L[i]} - int32_t{R[i]} - (B != nullptr ? int32_t{B[i]} : 0)
-                                : int32_t{L[i]} - int32_t{R[i]};
-    const int32_t a0 = d < 0 ? -d : d;
-    const auto a = static_cast<uint8_t>(a0 > 255 ? 255 : a0);
-    if (first) {
-      m1[i] = a;
-      m2[i] = 255;
-      p1[i] = plane;
-      continue;
+  if (first) {
+    for (size_t i = 0; i < n; ++i) m1[i] = abs_margin_u8(L, R, B, synthetic, i);
+    std::memset(m2, 255, n);
+    std::memset(p1, plane, n);
+    return;
+  }
+  // Margins of a chunk first (u8 |L - R| is max - min: no widening), then the
+  // update; both loops vectorise. 256 bytes stay in L1.
+  constexpr size_t kChunk = 256;
+  uint8_t a[kChunk];
+  for (size_t x0 = 0; x0 < n; x0 += kChunk) {
+    const size_t m = std::min(kChunk, n - x0);
+    if (!synthetic) {
+      const uint8_t* l = L + x0;
+      const uint8_t* r = R + x0;
+      for (size_t i = 0; i < m; ++i) {
+        const uint8_t hi = l[i] > r[i] ? l[i] : r[i], lo = l[i] > r[i] ? r[i] : l[i];
+        a[i] = static_cast<uint8_t>(hi - lo);
+      }
+    } else {
+      for (size_t i = 0; i < m; ++i) a[i] = abs_margin_u8(L, R, B, true, x0 + i);
     }
-    const uint8_t o = m1[i];
-    m2[i] = std::min(m2[i], std::max(o, a));
-    p1[i] = a < o ? plane : p1[i];
-    m1[i] = std::min(o, a);
+    track_row(a, m, plane, m1 + x0, m2 + x0, p1 + x0);
   }
 }
 

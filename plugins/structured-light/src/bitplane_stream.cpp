@@ -5,6 +5,7 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -22,12 +23,17 @@ constexpr size_t kHugePage = size_t{2} << 20;
 constexpr uint32_t kCopyAheadRows = 3;  // keep(): rows prefetched ahead of the copy
 }
 
-// Process-wide cache of released huge-page buffers: a scan's decoder state
-// (~35 MB at 1920x1200) would otherwise be fresh memory every round, which the
-// kernel zeroes page by page. Buffers are reused by exact (2 MiB-rounded)
-// size; at most kCacheBytes stay cached while no decoder holds them.
+// Process-wide cache of released state buffers: a scan's decoder state
+// (~35 MB at 1920x1200, ~10 MB at 1280x800 in 1 MB buffers) would otherwise
+// be fresh memory every round, which the kernel faults in and zeroes page by
+// page (at 1280x800 that was half of a Gray decode). Buffers of at least
+// kCacheMinBytes are reused by exact rounded size (2 MiB, huge pages advised,
+// from kHugePage / 2 up; 4 KiB pages below); at most kCacheBytes stay cached
+// while no decoder holds them.
 namespace {
 constexpr size_t kCacheBytes = size_t{96} << 20;
+constexpr size_t kCacheMinBytes = size_t{64} << 10;
+constexpr size_t kPage = 4096;
 struct BufferCache {
   std::mutex mutex;
   std::vector<std::pair<size_t, void*>> free;  // (rounded bytes, pointer)
@@ -60,8 +66,10 @@ void FreeDeleter::operator()(void* p) const noexcept {
 }
 
 void* allocate_pixels(size_t bytes) {
-  if (bytes >= kHugePage / 2) {
-    const size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+  if (bytes >= kCacheMinBytes) {
+    const bool huge = bytes >= kHugePage / 2;
+    const size_t unit = huge ? kHugePage : kPage;
+    const size_t rounded = (bytes + unit - 1) / unit * unit;
     BufferCache& c = cache();
     {
       std::lock_guard<std::mutex> lock(c.mutex);
@@ -74,9 +82,9 @@ void* allocate_pixels(size_t bytes) {
           return p;
         }
     }
-    void* p = std::aligned_alloc(kHugePage, rounded);
+    void* p = std::aligned_alloc(unit, rounded);
     if (p == nullptr) throw std::bad_alloc();
-    sdk::advise_huge_pages(p, rounded);
+    if (huge) sdk::advise_huge_pages(p, rounded);
     std::lock_guard<std::mutex> lock(c.mutex);
     c.sizes.emplace(p, rounded);
     return p;
@@ -137,9 +145,13 @@ void BitPlaneStream::set_format(const procam_image& frame) {
   const size_t n = size_t{width_} * height_;
   if (layout_.inverse) {
     const size_t sn = size_t{width_} * ((height_ + kNoiseRowStep - 1) / kNoiseRowStep);
-    noise_sum_.assign(sn, 0.0);
-    noise_sq_.assign(sn, 0.0);
-    noise_bad_.assign(sn, 0);
+    noise_n_ = sn;
+    noise_sum_ = make_pixel_array<double>(sn);  // cached buffers: zeroing only
+    noise_sq_ = make_pixel_array<double>(sn);
+    noise_bad_ = make_pixel_array<uint8_t>(sn);
+    std::fill_n(noise_sum_.get(), sn, 0.0);
+    std::fill_n(noise_sq_.get(), sn, 0.0);
+    std::fill_n(noise_bad_.get(), sn, uint8_t{0});
   }
   for (CodeState& s : codes_) {
     const int margins = s.has_weak ? 2 : 1;
@@ -311,9 +323,9 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
 void BitPlaneStream::sample_noise(const procam_image& plane, const procam_image& inverse,
                                   uint32_t y) {
   const size_t w = width_, off = size_t{y / kNoiseRowStep} * w;
-  double* sum = noise_sum_.data() + off;
-  double* sq = noise_sq_.data() + off;
-  uint8_t* bad = noise_bad_.data() + off;
+  double* sum = noise_sum_.get() + off;
+  double* sq = noise_sq_.get() + off;
+  uint8_t* bad = noise_bad_.get() + off;
   const float fs = full_scale_;
   auto add = [&](size_t x, float l, float lb) {
     const double s = double{l} + double{lb};
@@ -334,50 +346,54 @@ void BitPlaneStream::sample_noise(const procam_image& plane, const procam_image&
   for (size_t x = 0; x < w; ++x) add(x, l[x], lb[x]);
 }
 
-NoiseFit BitPlaneStream::fit_noise() const {
-  if (noise_pairs_ < 3) return NoiseFit{};
-  const double n = noise_pairs_;
-  std::vector<double> mean, var;
-  mean.reserve(noise_sum_.size());
-  var.reserve(noise_sum_.size());
-  for (size_t i = 0; i < noise_sum_.size(); ++i) {
-    if (noise_bad_[i] != 0) continue;
-    const double m = noise_sum_[i] / n;
-    mean.push_back(m);
-    var.push_back(std::max(0.0, (noise_sq_[i] - n * m * m) / (n - 1.0)));
-  }
-  return fit_noise_samples(mean, var, noise_pairs_, full_scale_);
-}
-
-NoiseFit fit_noise_samples(const std::vector<double>& mean_sum, const std::vector<double>& variance,
-                           uint32_t pairs, double full_scale) {
+namespace {
+// fit_noise_samples (bitplane_stream.hpp) over `count` samples read through
+// `sample(i, s, var)` (false: skip sample i). Two passes (count per bin, then
+// scatter into one buffer), so a fit allocates one array, not a growing
+// vector per bin: it runs once per scan on ~130 k samples and must not cost
+// more page faults than the decode it serves.
+template <class Sample>
+NoiseFit fit_binned(size_t count, const Sample& sample, uint32_t pairs, double full_scale) {
   NoiseFit f;
   f.pairs = pairs;
-  if (pairs < 3 || mean_sum.empty() || !(full_scale > 0)) return f;
+  if (pairs < 3 || count == 0 || !(full_scale > 0)) return f;
   constexpr size_t kBins = 64, kMinBin = 20;
   const double nu = pairs - 1.0;
   const double median_factor = std::pow(1.0 - 2.0 / (9.0 * nu), 3.0);  // median(chi2_nu) / nu
-  std::vector<std::vector<double>> bins(kBins);
-  std::vector<double> bin_s(kBins, 0.0);
-  for (size_t i = 0; i < mean_sum.size(); ++i) {
-    const double s = mean_sum[i];
-    if (!std::isfinite(s) || !std::isfinite(variance[i]) || s < 0) continue;
-    const auto b = std::min(kBins - 1, static_cast<size_t>(s / (2.0 * full_scale) * kBins));
-    bins[b].push_back(variance[i]);
-    bin_s[b] += s;
-  }
+  auto bin_of = [&](double s) {
+    return std::min(kBins - 1, static_cast<size_t>(s / (2.0 * full_scale) * kBins));
+  };
+  auto usable = [](double s, double v) { return std::isfinite(s) && std::isfinite(v) && s >= 0; };
+  std::array<size_t, kBins + 1> start{};
+  std::array<double, kBins> bin_s{};
+  double s = 0, v = 0;
+  for (size_t i = 0; i < count; ++i)
+    if (sample(i, s, v) && usable(s, v)) {
+      const size_t b = bin_of(s);
+      ++start[b + 1];
+      bin_s[b] += s;
+    }
+  for (size_t b = 0; b < kBins; ++b) start[b + 1] += start[b];
+  std::vector<double> sorted(start[kBins]);
+  std::array<size_t, kBins> fill{};
+  for (size_t i = 0; i < count; ++i)
+    if (sample(i, s, v) && usable(s, v)) {
+      const size_t b = bin_of(s);
+      sorted[start[b] + fill[b]++] = v;
+    }
   double sw = 0, ss = 0, sy = 0, sss = 0, ssy = 0;
   size_t used_bins = 0;
   for (size_t b = 0; b < kBins; ++b) {
-    std::vector<double>& v = bins[b];
-    if (v.size() < kMinBin) continue;
-    auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
+    const size_t n = start[b + 1] - start[b];
+    if (n < kMinBin) continue;
+    auto first = sorted.begin() + static_cast<std::ptrdiff_t>(start[b]);
+    auto mid = first + static_cast<std::ptrdiff_t>(n / 2);
+    std::nth_element(first, mid, first + static_cast<std::ptrdiff_t>(n));
     const double y = *mid / median_factor;
-    const double s = bin_s[b] / static_cast<double>(v.size());
-    const auto w = static_cast<double>(v.size());
-    sw += w, ss += w * s, sy += w * y, sss += w * s * s, ssy += w * s * y;
-    f.pixels += v.size();
+    const double sb = bin_s[b] / static_cast<double>(n);
+    const auto w = static_cast<double>(n);
+    sw += w, ss += w * sb, sy += w * y, sss += w * sb * sb, ssy += w * sb * y;
+    f.pixels += n;
     ++used_bins;
   }
   if (used_bins == 0) return f;
@@ -398,6 +414,33 @@ NoiseFit fit_noise_samples(const std::vector<double>& mean_sum, const std::vecto
     f.b = sss > 0 ? ssy / sss : 0;
   }
   return f;
+}
+}  // namespace
+
+NoiseFit BitPlaneStream::fit_noise() const {
+  if (noise_pairs_ < 3) return NoiseFit{};
+  const double n = noise_pairs_;
+  return fit_binned(
+      noise_n_,
+      [&](size_t i, double& mean, double& var) {
+        if (noise_bad_[i] != 0) return false;
+        mean = noise_sum_[i] / n;
+        var = std::max(0.0, (noise_sq_[i] - n * mean * mean) / (n - 1.0));
+        return true;
+      },
+      noise_pairs_, full_scale_);
+}
+
+NoiseFit fit_noise_samples(const std::vector<double>& mean_sum, const std::vector<double>& variance,
+                           uint32_t pairs, double full_scale) {
+  return fit_binned(
+      std::min(mean_sum.size(), variance.size()),
+      [&](size_t i, double& mean, double& var) {
+        mean = mean_sum[i];
+        var = variance[i];
+        return true;
+      },
+      pairs, full_scale);
 }
 
 void BitPlaneStream::fold_waiting_planes() {

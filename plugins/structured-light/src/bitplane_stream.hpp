@@ -235,8 +235,9 @@ class BitPlaneStream {
   bool have_format_ = false, u8_ = false;
   uint32_t pixel_type_ = 0, bit_depth_ = 0;
   float full_scale_ = 0;
-  std::vector<double> noise_sum_, noise_sq_;  // per sampled pixel (row y / kNoiseRowStep)
-  std::vector<uint8_t> noise_bad_;             // 1: some value clipped, <= 0 or non-finite
+  size_t noise_n_ = 0;                          // sampled pixels (rows y % kNoiseRowStep == 0)
+  PixelArray<double> noise_sum_, noise_sq_;     // per sampled pixel (row y / kNoiseRowStep)
+  PixelArray<uint8_t> noise_bad_;               // 1: some value clipped, <= 0 or non-finite
   uint32_t noise_pairs_ = 0;
   bool track_ = false;
   float* intensity_out_ = nullptr;

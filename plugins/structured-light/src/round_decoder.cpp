@@ -96,7 +96,7 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
   CoarseMap coarse[2];
   if (uncertain[0] && stream_.code(0).has_weak) coarse[0] = coarse_map(cols_, tolerable_[0]);
   if (uncertain[1] && stream_.code(1).has_weak) coarse[1] = coarse_map(rows_, tolerable_[1]);
-  if (uncertain_) sdk::allocate_map(r.cols.uncertainty, n);
+  if (uncertain_) sdk::take_map(r.cols.uncertainty, n);  // every element written below
   std::vector<float> row_unc;  // rows: the interval is not reported, only its centre
   if (uncertain[1]) row_unc.resize(n);
   std::vector<size_t> weak;

@@ -84,9 +84,10 @@ class ColumnTriangulator {
   CameraCalibration cam_;
   Intrinsics projector_;
   uint32_t width_ = 0, height_ = 0;
-  // Camera ray directions, one per pixel (z = 1), row-major: the only place
-  // the camera model enters. Lens distortion (later) changes only how these
-  // two tables are filled (undistorted ray of each pixel), not the kernel.
+  // Camera ray directions (z = 1): the only place the camera model enters.
+  // Pinhole: x of the ray by column (width floats), y by row (height floats).
+  // Lens distortion (later) makes the ray depend on both: per-pixel tables
+  // passed to the same row kernel, which already takes one ray row per call.
   std::vector<float> ray_x_, ray_y_;
   // Plane coefficients n(c) = a + c b, n(c).t = at + c bt; r2 = R_2 (the
   // projector's z axis in the camera frame) and r2t = R_2.t for the
