@@ -278,5 +278,45 @@ TEST(SimClaims, InvarianceOfGlobalBlurOnTheCandle) {
   EXPECT_GT(relative_variation(eb), 0.25);
 }
 
+// Fig. 2.13, the failure case: a distant mirror sends the board its own
+// pattern defocused over ~1750 mm. The invariance does not hold for that
+// light (its blur changes with focus unlike the board's), so the global-light
+// invariant methods are mitigated but not cured: on the board pixels the
+// mirror reaches, their error grows well above the covered-mirror control,
+// yet stays below the single-focal baseline's.
+TEST(SimClaims, DistantMirrorIsMitigatedButNotRemoved) {
+  const auto& lit = scan("ch2-mirror", false);
+  const auto& dark = scan("ch2-mirror-covered", false);
+  const Depths d = depths("ch2-mirror"), dc = depths("ch2-mirror-covered");
+  // Board pixels that the mirror lights: mean raised by > 15 % over the control.
+  size_t board = 0;
+  std::vector<uint8_t> reached(lit.depth_mm.size(), 0);
+  for (size_t i = 0; i < reached.size(); ++i) {
+    if (lit.object[i] != 0) continue;
+    ++board;
+    reached[i] = lit.acc->mean()[i] > 1.15f * dark.acc->mean()[i] ? 1 : 0;
+  }
+  const auto keep = [&](size_t i) { return reached[i] != 0; };
+  size_t n = 0;
+  for (uint8_t r : reached) n += r;
+  const ErrorStats m = rel_rms(d.multi, lit.depth_mm, keep), t = rel_rms(d.two, lit.depth_mm, keep),
+                   s1 = rel_rms(d.single, lit.depth_mm, keep);
+  const ErrorStats mc = rel_rms(dc.multi, dark.depth_mm, keep), tc = rel_rms(dc.two, dark.depth_mm, keep),
+                   sc = rel_rms(dc.single, dark.depth_mm, keep);
+  std::printf("mirror: %zu of %zu board pixels reached; rel RMS with mirror / covered: multi %.2f / %.2f %% (%zu/%zu "
+              "valid), two %.2f / %.2f %%, single %.2f / %.2f %%\n",
+              n, board, 100 * m.rel_rms, 100 * mc.rel_rms, m.valid, m.total, 100 * t.rel_rms, 100 * tc.rel_rms,
+              100 * s1.rel_rms, 100 * sc.rel_rms);
+  ASSERT_GT(n, board / 10) << "the mirror must light a good part of the board";
+  // Measured (seed 1): multi 1.15 % vs 0.47 % covered, two-focal 3.0 % vs
+  // 1.4 %, single-focal 9.8 % vs 2.6 %.
+  // Not removed: the mirror at least 1.8x the error without it.
+  EXPECT_GT(m.rel_rms, 1.8 * mc.rel_rms);
+  EXPECT_GT(t.rel_rms, 1.8 * tc.rel_rms);
+  // Mitigated: well below the baseline's error on the same pixels.
+  EXPECT_LT(m.rel_rms, s1.rel_rms / 3);
+  EXPECT_LT(t.rel_rms, s1.rel_rms / 2);
+}
+
 }  // namespace
 }  // namespace procam::defocus
