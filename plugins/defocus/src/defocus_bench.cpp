@@ -66,9 +66,11 @@ void BM_MultiFocalAfterLastFrame(benchmark::State& state) {
   std::vector<float> fbar, depth;
   Validity rule;
   const auto threads = static_cast<uint32_t>(state.range(0));
-  for (auto _ : state) benchmark::DoNotOptimize(fbar_depth_map(acc, rule, &table, threads, fbar, &depth));
+  const bool lookup = state.range(1) != 0;  // 0: fbar alone (to see what the table lookup costs)
+  for (auto _ : state)
+    benchmark::DoNotOptimize(fbar_depth_map(acc, rule, lookup ? &table : nullptr, threads, fbar, lookup ? &depth : nullptr));
 }
-BENCHMARK(BM_MultiFocalAfterLastFrame)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
+BENCHMARK(BM_MultiFocalAfterLastFrame)->Args({2, 1})->Args({1, 1})->Args({2, 0})->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
 
 }  // namespace
 }  // namespace procam::defocus
