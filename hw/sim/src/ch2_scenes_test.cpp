@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Ideal planar mirrors (global_mirror.cpp) against an independent
+// The thesis ch. 2 scenes on the co-located rig: each loads and lies where
+// hw/sim/SCENES.md says; and ideal planar mirrors (global_mirror.cpp) against an independent
 // construction: instead of reflecting the projector, reflect the lit point X
 // in the mirror plane (X'); the projector ray towards X' crosses the mirror at
 // the mirror point, the unfolded path is |C X'|, and X' lies at depth z' on the
@@ -7,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <tuple>
+#include <utility>
 
 #include "global_internal.hpp"
 #include "procam/hw/sim/global.hpp"
@@ -92,6 +95,30 @@ TEST(Mirror, BlurFollowsTheUnfoldedPath) {
   ASSERT_GT(sigma_at_750, 2.0);
   EXPECT_GE(s.mirror->levels_needed(750), 4u);  // σ >= 2 px needs levels up to 2 px and above
   EXPECT_LE(s.mirror->levels_needed(0.5 * double(zmin + zmax)), 2u);
+}
+
+// Depth range (truth) of a scene's visible surfaces on the co-located rig.
+std::pair<float, float> depth_range(const std::string& scene) {
+  MirrorSetup s = setup(scene);
+  float lo = 1e9f, hi = 0;
+  for (float z : s.renderer->view().depth_mm)
+    if (std::isfinite(z)) {
+      lo = std::min(lo, z);
+      hi = std::max(hi, z);
+    }
+  return {lo, hi};
+}
+
+TEST(Ch2Scenes, DepthRangesAreAsDocumented) {
+  auto [lo, hi] = depth_range("ch2-candle-marble");
+  EXPECT_LT(lo, 330.f);   // the candle at ~310-330 mm
+  EXPECT_GT(hi, 1990.f);  // the wall at 2000 mm: 0.3-2 m
+  std::tie(lo, hi) = depth_range("ch2-calibration-plane");
+  EXPECT_NEAR(lo, 655.f, 10.f);
+  EXPECT_NEAR(hi, 1210.f, 15.f);
+  std::tie(lo, hi) = depth_range("ch2-v-groove");
+  EXPECT_NEAR(lo, 750.f, 3.f);  // the faces' outer edges
+  EXPECT_NEAR(hi, 1000.f, 1.f);  // the wall
 }
 
 }  // namespace
