@@ -98,7 +98,9 @@ inline void binary_stripes(Plan& plan, uint32_t i, StripeAxis axis, uint32_t per
 // a Gaussian around t that falls on white, i.e. the sum over the white
 // intervals [n·period + shift - 0.5, n·period + shift - 0.5 + ceil(period/2))
 // of Φ((t - a)/σ) - Φ((t - b)/σ). A pre-filter against aliasing (thesis §2.4,
-// footnote 5): harmonics k of the period are scaled by exp(-2π²σ²k²/period²).
+// footnote 5): harmonics k of the period are scaled by exp(-2π²σ²k²/period²)
+// (of the continuous square wave; sampling at pixel centres adds aliases of
+// harmonics k ± period, negligible for sigma >= 1).
 // sigma_px 0 gives binary_stripes exactly. Requires period_px >= 2 and
 // 0 <= sigma_px <= period_px.
 inline void smoothed_stripes(Plan& plan, uint32_t i, StripeAxis axis, uint32_t period_px,
