@@ -95,7 +95,7 @@ void stream_fence() { _mm_sfence(); }
 
 bool same(const Intrinsics& a, const Intrinsics& b) {
   return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
-         a.cx == b.cx && a.cy == b.cy;
+         a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion;
 }
 
 }  // namespace
@@ -119,12 +119,26 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
   // Pinhole camera: the ray of pixel (x, y) is ((x - cx) / fx, (y - cy) / fy,
   // 1), so its x depends on the column only and its y on the row only: two
   // short tables (the same floats a per-pixel table held) instead of 2 x
-  // width x height floats to stream through memory on every call.
+  // width x height floats to stream through memory on every call. A camera
+  // with lens distortion needs the undistorted ray of every pixel: full tables.
   const Intrinsics& k = cam.intrinsics;
-  ray_x_.resize(width);
-  ray_y_.resize(height);
-  for (uint32_t x = 0; x < width; ++x) ray_x_[x] = static_cast<float>(k.ray(x, 0).x);
-  for (uint32_t y = 0; y < height; ++y) ray_y_[y] = static_cast<float>(k.ray(0, y).y);
+  per_pixel_rays_ = k.distorted();
+  if (per_pixel_rays_) {
+    const size_t n = size_t{width} * height;
+    ray_x_.resize(n);
+    ray_y_.resize(n);
+    for (uint32_t y = 0; y < height; ++y)
+      for (uint32_t x = 0; x < width; ++x) {
+        const Vec3 d = k.ray(x, y);
+        ray_x_[size_t{y} * width + x] = static_cast<float>(d.x);
+        ray_y_[size_t{y} * width + x] = static_cast<float>(d.y);
+      }
+  } else {
+    ray_x_.resize(width);
+    ray_y_.resize(height);
+    for (uint32_t x = 0; x < width; ++x) ray_x_[x] = static_cast<float>(k.ray(x, 0).x);
+    for (uint32_t y = 0; y < height; ++y) ray_y_[y] = static_cast<float>(k.ray(0, y).y);
+  }
 }
 
 bool ColumnTriangulator::matches(const CameraCalibration& cam, const Intrinsics& projector,
@@ -146,6 +160,9 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   const bool avx2 = isa == TriangulateIsa::avx2 ||
                     (isa == TriangulateIsa::automatic && cpu_has_avx2());
   const RowFn row = avx2 ? row_avx2 : row_baseline;
+  // A distorted projector's column is not a plane; with the decoded row the
+  // pixel's ideal (undistorted) column is known and its plane is exact.
+  const bool correct_projector = projector_.distorted() && map.row != nullptr;
   out.depth_mm.resize(n);
   // Pass 1: an upper bound on each row's points (its finite columns), so each
   // row knows where its points go before they exist: no growing vectors.
@@ -165,11 +182,32 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   // Pass 2: rays meet planes row by row; each row's points are compacted in
   // L1 scratch, then copied to the row's slots.
   parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
-    std::vector<float> X(w), Y(w), Z(w), ry(w), quad(size_t{w} * 4 + 4);
+    std::vector<float> X(w), Y(w), Z(w), ry(w), cu(correct_projector ? w : 0), quad(size_t{w} * 4 + 4);
     for (uint32_t y = y0; y < y1; ++y) {
       const size_t i0 = size_t{y} * w;
-      std::fill(ry.begin(), ry.end(), ray_y_[y]);  // this row's ray y (L1)
-      row(k, map.col + i0, ray_x_.data(), ry.data(), w, X.data(), Y.data(), Z.data());
+      const float* rx_row = ray_x_.data();
+      const float* ry_row = ry.data();
+      if (per_pixel_rays_) {
+        rx_row += i0;
+        ry_row = ray_y_.data() + i0;
+      } else {
+        std::fill(ry.begin(), ry.end(), ray_y_[y]);  // this row's ray y (L1)
+      }
+      const float* col_row = map.col + i0;
+      if (correct_projector) {  // the ideal column of each decoded (column, row)
+        for (uint32_t x = 0; x < w; ++x) {
+          const float c = col_row[x], r = map.row[i0 + x];
+          if (!(std::abs(c) <= FLT_MAX) || !(std::abs(r) <= FLT_MAX)) {
+            cu[x] = c;  // NaN stays invalid; a missing row keeps the column as decoded
+            continue;
+          }
+          double xn, yn;
+          projector_.undistort(c, r, xn, yn);
+          cu[x] = static_cast<float>(projector_.fx * xn + projector_.cx);
+        }
+        col_row = cu.data();
+      }
+      row(k, col_row, rx_row, ry_row, w, X.data(), Y.data(), Z.data());
       stream_floats(out.depth_mm.data() + i0, Z.data(), w);
       const float* I = map.intensity != nullptr ? map.intensity + i0 : nullptr;
       float* q = quad.data();
@@ -206,7 +244,7 @@ DepthResult ColumnTriangulator::run(const ColumnMap& map, uint32_t threads) cons
 
 DepthResult triangulate_columns(const CameraCalibration& cam, const Intrinsics& projector,
                                 uint32_t width, uint32_t height, const float* col,
-                                const float* intensity, uint32_t threads) {
+                                const float* intensity, uint32_t threads, const float* row) {
   static std::mutex mutex;
   static std::shared_ptr<const ColumnTriangulator> last;
   std::shared_ptr<const ColumnTriangulator> t;
@@ -216,7 +254,7 @@ DepthResult triangulate_columns(const CameraCalibration& cam, const Intrinsics& 
       last = std::make_shared<const ColumnTriangulator>(cam, projector, width, height);
     t = last;
   }
-  return t->run(ColumnMap{col, intensity}, threads);
+  return t->run(ColumnMap{col, intensity, row}, threads);
 }
 
 }  // namespace procam::sdk

@@ -152,6 +152,72 @@ TEST(Triangulate, PlaneAtKnownDepthExactColumns) {
   }
 }
 
+// Lens distortion in both devices: a plane at known depth seen through a
+// distorted camera and lit by a distorted projector. Truth per pixel: its
+// undistorted ray (checked independently: distorting it back gives the pixel)
+// meets the plane; the point projected into the distorted projector gives
+// the decoded (column, row).
+TEST(Triangulate, LensDistortionOfCameraAndProjector) {
+  Geometry g = make_geometry();
+  g.cam.intrinsics.distortion = {-0.18, 0.09, 0.0012, -0.0007, 0.0};
+  g.proj.distortion = {0.06, -0.03, 0.0008, 0.0004, 0.0};
+  const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
+  std::vector<float> col(size_t{w} * h), row(col.size());
+  std::vector<Vec3> truth(col.size());
+  const double z0 = 450.0, slope = 0.2;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const size_t i = size_t{y} * w + x;
+      const Vec3 d = g.cam.intrinsics.ray(x, y);
+      double u, v;
+      g.cam.intrinsics.project(d, u, v);  // forward model: must land on the pixel
+      ASSERT_NEAR(u, x, 1e-6);
+      ASSERT_NEAR(v, y, 1e-6);
+      const double s = z0 / (1.0 - slope * d.x);
+      truth[i] = d * s;
+      const Vec3 xp = g.cam.cam_from_proj.rotation.transposed() * (truth[i] - g.cam.cam_from_proj.translation_mm);
+      double c, r;
+      g.proj.project(xp, c, r);
+      col[i] = static_cast<float>(c);
+      row[i] = static_cast<float>(r);
+    }
+  auto worst_error = [&](const DepthResult& res) {
+    double worst = 0;
+    size_t p = 0;
+    for (size_t i = 0; i < col.size(); ++i) {
+      if (std::isnan(res.depth_mm[i])) continue;
+      worst = std::max(worst, norm(Vec3{res.points[4 * p], res.points[4 * p + 1], res.points[4 * p + 2]} - truth[i]));
+      ++p;
+    }
+    return worst;
+  };
+  const DepthResult with_rows = triangulate_columns(g.cam, g.proj, w, h, col.data(), nullptr, 2, row.data());
+  ASSERT_EQ(with_rows.point_count, col.size());
+  EXPECT_LT(worst_error(with_rows), 0.05) << "both lenses modelled";
+  // What each correction is worth: without the row map the projector's
+  // columns are bent; a pinhole camera model bends every ray.
+  const DepthResult no_rows = triangulate_columns(g.cam, g.proj, w, h, col.data(), nullptr, 2);
+  EXPECT_GT(worst_error(no_rows), 1.0);
+  Geometry pinhole = g;
+  pinhole.cam.intrinsics.distortion = {};
+  const DepthResult bent = triangulate_columns(pinhole.cam, g.proj, w, h, col.data(), nullptr, 2, row.data());
+  EXPECT_GT(worst_error(bent), 5.0);
+}
+
+TEST(Triangulate, DistortionJsonRoundTripAndErrors) {
+  Intrinsics k{320, 240, 400.0, 401.0, 159.5, 119.5};
+  nlohmann::json j = k;
+  EXPECT_FALSE(j.contains("distortion")) << "a pinhole writes no distortion";
+  k.distortion = {-0.1, 0.02, 0.001, 0.0, 0.003};
+  j = k;
+  const Intrinsics back = j.get<Intrinsics>();
+  EXPECT_EQ(back.distortion, k.distortion);
+  j["distortion"] = {0.1, 0.2, 0.0, 0.0};  // four coefficients: k3 = 0
+  EXPECT_EQ(j.get<Intrinsics>().distortion[4], 0.0);
+  j["distortion"] = {0.1, 0.2};
+  EXPECT_THROW(j.get<Intrinsics>(), nlohmann::json::exception);
+}
+
 TEST(Triangulate, ThreadCountDoesNotChangeResult) {
   const Geometry g = make_geometry();
   const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;

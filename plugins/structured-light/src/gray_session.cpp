@@ -84,7 +84,9 @@ class GraySession final : public StreamingSession<BinaryRoundDecoder> {
     if (rig_.can_triangulate(0))
       depth_ = sdk::triangulate_columns(cam.calibration, rig_.projector, cam.width, cam.height,
                                         result_.cols.coord.data(), result_.intensity.data(),
-                                        rig_.threads);
+                                        rig_.threads,
+                                        // rows decoded: a distorted projector's columns are corrected
+                                        result_.rows.coord.empty() ? nullptr : result_.rows.coord.data());
     return sdk::ok();
   }
 

@@ -4,7 +4,8 @@
 // fast: cached camera rays, closed-form column planes, vectorised rows.
 //
 // Model (the one of procam::triangulate_column, procam/base/calibration.hpp):
-// pinhole camera, pixel centres at integer coordinates; projector column c
+// camera with optional lens distortion (the ray of a pixel is its undistorted
+// direction), pixel centres at integer coordinates; projector column c
 // (continuous, column centres at integers, so the edges are -0.5 and W-0.5) is
 // the plane through the projector centre with normal n_p(c) = (fx_p, 0,
 // -(c - cx_p)) in the projector frame. In the camera frame that normal is
@@ -48,6 +49,11 @@ struct DepthResult {
 struct ColumnMap {
   const float* col = nullptr;        // projector column per pixel; NaN (or inf): invalid
   const float* intensity = nullptr;  // stored as the points' 4th field; null: 0
+  // Decoded projector row per pixel (optional). Used only when the projector
+  // has lens distortion: (column, row) is undistorted to the ideal column,
+  // whose plane is exact. Without it a distorted projector's columns are
+  // taken as planes (error grows with the distortion toward the image edge).
+  const float* row = nullptr;
 };
 
 // Which row kernel run() uses: the compiler-vectorised baseline (SSE2), or the
@@ -86,9 +92,10 @@ class ColumnTriangulator {
   uint32_t width_ = 0, height_ = 0;
   // Camera ray directions (z = 1): the only place the camera model enters.
   // Pinhole: x of the ray by column (width floats), y by row (height floats).
-  // Lens distortion (later) makes the ray depend on both: per-pixel tables
-  // passed to the same row kernel, which already takes one ray row per call.
+  // With lens distortion the undistorted ray depends on both: per-pixel
+  // tables (per_pixel_rays_), passed to the same row kernel row by row.
   std::vector<float> ray_x_, ray_y_;
+  bool per_pixel_rays_ = false;
   // Plane coefficients n(c) = a + c b, n(c).t = at + c bt; r2 = R_2 (the
   // projector's z axis in the camera frame) and r2t = R_2.t for the
   // behind-the-projector test.
@@ -100,9 +107,11 @@ class ColumnTriangulator {
 // `intensity` the per-pixel 4th point field (may be null: 0). Keeps the last
 // ColumnTriangulator built (process-wide, mutex-guarded) and reuses it while
 // the calibration and size stay the same.
+// `row` (optional): the decoded projector row map, used to undistort a
+// distorted projector's columns (ColumnMap::row).
 DepthResult triangulate_columns(const CameraCalibration& cam, const Intrinsics& projector,
                                 uint32_t width, uint32_t height, const float* col,
-                                const float* intensity, uint32_t threads);
+                                const float* intensity, uint32_t threads, const float* row = nullptr);
 
 // Writes depth_mm (F32 map, mm, NaN: none) and points (x,y,z,intensity) when
 // `depth` holds a result (moving its storage out); nothing otherwise.
