@@ -2,7 +2,8 @@
 // Scene-renderer assembly: prepares the view and adds the global transport components the options enable.
 //
 // The models live one per file: global_radiosity.cpp (inter-reflection),
-// global_glossy.cpp (glossy transport), global_diffusion.cpp (sub-surface
+// global_glossy.cpp (glossy transport), global_mirror.cpp (ideal planar
+// mirrors), global_diffusion.cpp (sub-surface
 // scattering, thin sheets); shared helpers in global_internal.hpp.
 #include "procam/hw/sim/global.hpp"
 
@@ -53,6 +54,11 @@ Result<std::unique_ptr<Renderer>> make_scene_renderer(const Scene& scene, const 
     st.glossy_entries += gv.pixel.size();
     if (!gv.pixel.empty()) glossy_view = std::make_unique<GlossyViewComponent>(std::move(gv));
   }
+  std::unique_ptr<MirrorComponent> mirror;
+  if (options.glossy) {
+    MirrorModel mm = build_mirror_paths(scene, *view, projector, world_from_cam, world_from_proj);
+    if (!mm.pixel.empty()) mirror = std::make_unique<MirrorComponent>(std::move(mm), projector);
+  }
   std::unique_ptr<DiffusionComponent> diff;
   if (options.diffusion) {
     t0 = std::chrono::steady_clock::now();
@@ -65,6 +71,7 @@ Result<std::unique_ptr<Renderer>> make_scene_renderer(const Scene& scene, const 
   if (inter) r->add_component(std::move(inter));
   if (glossy_view) r->add_component(std::move(glossy_view));
   if (diff) r->add_component(std::move(diff));
+  if (mirror) r->add_component(std::move(mirror));
   if (stats) *stats = st;
   return r;
 }

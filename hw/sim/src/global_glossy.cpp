@@ -24,7 +24,7 @@ void add_glossy_transport(const Scene& scene, const PreparedView& view, const Pr
                           const Rigid3& world_from_cam, const Rigid3& world_from_proj,
                           const GlobalOptions& options, RadiosityModel& m) {
   bool any = false;
-  for (const auto& o : scene.objects) any = any || o.material.glossy();
+  for (const auto& o : scene.objects) any = any || (o.material.glossy() && !is_planar_mirror(o));
   if (!any || m.size() == 0) return;
   const SceneTracer tracer(scene);
   const Intrinsics& Kp = projector.intrinsics;
@@ -46,7 +46,7 @@ void add_glossy_transport(const Scene& scene, const PreparedView& view, const Pr
       Hit h;
       if (!tracer.first_hit(pc, d, 1e-9, h)) continue;
       const Material& mat = tracer.material(h.object);
-      if (!mat.glossy()) continue;
+      if (!mat.glossy() || is_planar_mirror(scene.objects[static_cast<size_t>(h.object)])) continue;  // mirrors: global_mirror.cpp
       Vec3 n = h.normal;
       if (dot(n, d) > 0) n = -n;
       // Power leaving the projector through the block per unit emitted:
@@ -90,7 +90,7 @@ GlossyViewModel build_glossy_view(const Scene& scene, const PreparedView& view, 
                                   const GlobalOptions& options) {
   GlossyViewModel out;
   bool any = false;
-  for (const auto& o : scene.objects) any = any || o.material.glossy();
+  for (const auto& o : scene.objects) any = any || (o.material.glossy() && !is_planar_mirror(o));
   if (!any) return out;
   const SceneTracer tracer(scene);
   const Intrinsics& Kp = projector.intrinsics;
@@ -104,8 +104,9 @@ GlossyViewModel build_glossy_view(const Scene& scene, const PreparedView& view, 
   std::normal_distribution<double> gauss(0.0, 1.0);
   for (size_t i = 0; i < view.pixel_count(); ++i) {
     if (view.object[i] < 0) continue;
-    const Material& mat = scene.objects[static_cast<size_t>(view.object[i])].material;
-    if (!mat.glossy()) continue;
+    const Object& obj = scene.objects[static_cast<size_t>(view.object[i])];
+    const Material& mat = obj.material;
+    if (!mat.glossy() || is_planar_mirror(obj)) continue;
     const Vec3 x = world_from_cam * view_point(view, i);
     const Vec3 n = normalized(world_from_cam.rotation * view_normal(view, i));
     const Vec3 d = normalized(x - world_from_cam.translation_mm);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "procam/base/geometry.hpp"
@@ -37,6 +38,9 @@ inline double pixel_area(const PreparedView& v, size_t i) {
 // by rows (no pivoting needed). Both N×N row-major doubles. (global_solver.cpp)
 void solve_dense(std::vector<double>& A, std::vector<double>& R, size_t n, int threads);
 
+// Blur-stack level k of σ (σ_k ≤ σ < σ_{k+1}, clamped to the top) and the
+// variance-matching weight of level k + 1 (renderer.cpp).
+std::pair<uint8_t, float> blur_level(double sigma);
 // ---- filters (global_filters.cpp) ----
 
 // Gaussian of σ sampled at integers, truncated at 3σ (rounded up; at least

@@ -8,6 +8,7 @@
 #include <limits>
 #include <utility>
 
+#include "global_internal.hpp"
 #include "parallel.hpp"
 #include "procam/hw/sim/raycast.hpp"
 
@@ -156,7 +157,7 @@ Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& proj
   return prepare_view(scene, projector, camera, camera.cam_from_proj, threads);
 }
 
-namespace {
+namespace detail {
 // Blur-stack level k (σ_k ≤ σ < σ_{k+1}, σ clamped to the top level) and the
 // weight of level k + 1 that matches the variance: w = (σ² − σ_k²)/(σ_{k+1}² − σ_k²).
 std::pair<uint8_t, float> blur_level(double sigma) {
@@ -170,7 +171,8 @@ std::pair<uint8_t, float> blur_level(double sigma) {
   }
   return {static_cast<uint8_t>(k), static_cast<float>(w)};
 }
-}  // namespace
+}  // namespace detail
+using detail::blur_level;
 
 DefocusMap compute_defocus(const PreparedView& view, const ProjectorModel& projector, double focus_mm) {
   DefocusMap d;
@@ -481,7 +483,9 @@ Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance
                  "prepared pattern is " + std::to_string(pattern.width()) + "x" + std::to_string(pattern.height()) +
                      ", the projector is " + std::to_string(view_.proj_width) + "x" + std::to_string(view_.proj_height));
   if (radiance == nullptr) return Error(Code::invalid_argument, "render_radiance: null output buffer");
-  pattern.build_levels(defocus_.levels_needed, threads_);
+  size_t levels = defocus_.levels_needed;
+  for (const auto& c : components_) levels = std::max(levels, c->levels_needed(defocus_.focus_mm));
+  pattern.build_levels(levels, threads_);
   auto wanted = [parts](const TransportComponent& c) {
     return parts == Parts::all || (parts == Parts::global_only) == c.is_global();
   };

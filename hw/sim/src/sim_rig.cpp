@@ -111,7 +111,10 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
   try {
     ParseErrors errors{source, {}};
     FieldReader root(config, "", errors);
-    root.only({"name", "description", "comment", "scene", "seed", "threads", "projector", "cameras"});
+    // calibration_tables: rig-level, read by the daemon (copied into the rig
+    // description for plugins); the sim itself does not use them.
+    root.only({"name", "description", "comment", "scene", "seed", "threads", "projector", "cameras",
+               "calibration_tables"});
     SimRigConfig c;
     c.name = root.string("name", std::string("sim"));
     c.description = root.string("description", std::string());

@@ -53,6 +53,45 @@ TEST(SdkPatterns, VerticalStripesMatchAWalkedReference) {
     }
 }
 
+// Pre-filtered stripes (thesis §2.4 fn. 5): sigma 0 is binary_stripes; the
+// blur keeps each period's mean; the k-th harmonic of one period is the
+// continuous square wave's, |c_k| = |sin(pi k W / P)| / (pi k) with W the
+// white width, scaled by the Gaussian's transfer exp(-2 pi^2 sigma^2 k^2 / P^2)
+// (aliases from k +- P are below 1e-10 at sigma 1).
+TEST(SdkPatterns, SmoothedStripesAreGaussianFilteredSquareWaves) {
+  for (int64_t shift : {int64_t{0}, int64_t{5}, int64_t{-7}}) {
+    sdk::Plan plan;
+    const uint32_t a = frame(plan, 48, 2), b = frame(plan, 48, 2);
+    sdk::binary_stripes(plan, a, sdk::StripeAxis::vertical, 24, shift);
+    sdk::smoothed_stripes(plan, b, sdk::StripeAxis::vertical, 24, shift, 0.0);
+    for (uint32_t x = 0; x < 96; ++x) ASSERT_EQ(plan.pattern_u8(a)[x], plan.pattern_u8(b)[x]) << x;
+  }
+  for (double sigma : {1.0, 2.0}) {
+    sdk::Plan plan;
+    const uint32_t i = frame(plan, 24, 1, PROCAM_PIXEL_F32);
+    sdk::smoothed_stripes(plan, i, sdk::StripeAxis::vertical, 24, 3, sigma);
+    auto px = plan.pattern_f32(i);
+    double mean = 0, re = 0, im = 0;
+    for (uint32_t x = 0; x < 24; ++x) {
+      const double v = double(px[x]);
+      mean += v / 24.0;
+      re += v * std::cos(2 * std::numbers::pi * 3 * x / 24.0) / 24.0;
+      im += v * std::sin(2 * std::numbers::pi * 3 * x / 24.0) / 24.0;
+    }
+    EXPECT_NEAR(mean, 0.5, 1e-6) << sigma;
+    const double c3 = 1.0 / (3 * std::numbers::pi) *
+                      std::exp(-2 * std::numbers::pi * std::numbers::pi * sigma * sigma * 9 / 576.0);
+    EXPECT_NEAR(std::hypot(re, im), c3, 2e-6) << sigma;
+    size_t grey = 0;  // ramps, not hard edges: both edges of the period have grey pixels
+    for (float v : px) grey += (v > 0.01f && v < 0.99f) ? 1u : 0u;
+    EXPECT_GE(grey, 4u) << sigma;
+  }
+  sdk::Plan plan;
+  const uint32_t i = frame(plan, 8, 1);
+  EXPECT_THROW(sdk::smoothed_stripes(plan, i, sdk::StripeAxis::vertical, 24, 0, -1.0), std::invalid_argument);
+  EXPECT_THROW(sdk::smoothed_stripes(plan, i, sdk::StripeAxis::vertical, 1, 0, 1.0), std::invalid_argument);
+}
+
 TEST(SdkPatterns, HorizontalStripesVaryWithYOnly) {
   sdk::Plan plan;
   const uint32_t i = frame(plan, 4, 30, PROCAM_PIXEL_F32);

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Pattern generators that write into sdk::Plan frames: binary stripes,
+// Pattern generators that write into sdk::Plan frames: binary stripes (also
+// Gaussian pre-filtered against aliasing),
 // shifted periodic stripe series (thesis §2.2: period 24 px shifted one pixel
 // at a time), sinusoids, checkerboards and shifted checkerboard series
 // (thesis §2.5: 8x8 px checkers shifted 5 x 5 times by 3 px), and geometric
@@ -89,6 +90,45 @@ inline void binary_stripes(Plan& plan, uint32_t i, StripeAxis axis, uint32_t per
   fill_pattern(plan, i, [&](uint32_t x, uint32_t y) {
     const int64_t t = axis == StripeAxis::vertical ? int64_t{x} : int64_t{y};
     return 2 * detail::floor_mod(t - shift_px, p) < p ? 1.0 : 0.0;
+  });
+}
+
+// binary_stripes (same period, shift and white pixels) blurred by a Gaussian
+// of sigma_px projector pixels: the value at pixel centre t is the fraction of
+// a Gaussian around t that falls on white, i.e. the sum over the white
+// intervals [n·period + shift - 0.5, n·period + shift - 0.5 + ceil(period/2))
+// of Φ((t - a)/σ) - Φ((t - b)/σ). A pre-filter against aliasing (thesis §2.4,
+// footnote 5): harmonics k of the period are scaled by exp(-2π²σ²k²/period²)
+// (of the continuous square wave; sampling at pixel centres adds aliases of
+// harmonics k ± period, negligible for sigma >= 1).
+// sigma_px 0 gives binary_stripes exactly. Requires period_px >= 2 and
+// 0 <= sigma_px <= period_px.
+inline void smoothed_stripes(Plan& plan, uint32_t i, StripeAxis axis, uint32_t period_px,
+                             int64_t shift_px, double sigma_px) {
+  if (period_px < 2) throw std::invalid_argument("smoothed_stripes: period must be >= 2 px");
+  if (!(sigma_px >= 0.0) || !(sigma_px <= double(period_px)))
+    throw std::invalid_argument("smoothed_stripes: sigma must be in [0, period] px");
+  if (sigma_px == 0.0) {
+    binary_stripes(plan, i, axis, period_px, shift_px);
+    return;
+  }
+  const int64_t p = period_px;
+  const double white = double((p + 1) / 2);
+  // One period of values by phase m = (t - shift) mod period.
+  std::vector<double> table(period_px);
+  const auto phi = [&](double u) { return 0.5 * std::erfc(-u / (sigma_px * std::numbers::sqrt2)); };
+  for (int64_t m = 0; m < p; ++m) {
+    double v = 0;
+    const int64_t reach = int64_t(std::ceil(6.0 * sigma_px / double(p))) + 1;  // periods within 6 sigma
+    for (int64_t n = -reach; n <= reach; ++n) {
+      const double a = double(n * p) - 0.5, b = a + white;
+      v += phi(double(m) - a) - phi(double(m) - b);
+    }
+    table[size_t(m)] = v;
+  }
+  fill_pattern(plan, i, [&](uint32_t x, uint32_t y) {
+    const int64_t t = axis == StripeAxis::vertical ? int64_t{x} : int64_t{y};
+    return table[size_t(detail::floor_mod(t - shift_px, p))];
   });
 }
 

@@ -212,6 +212,40 @@ GlossyViewModel build_glossy_view(const Scene& scene, const PreparedView& view, 
                                   const Rigid3& world_from_cam, const Rigid3& world_from_proj,
                                   const GlobalOptions& options);
 
+// ---- Planar mirrors (global_mirror.cpp) ----------------------------------------
+// A finite plane whose material is specular with roughness_rad <= 0.002
+// (lobe under ~0.1 deg) is an ideal mirror: it forms a virtual projector (the
+// real one reflected in the mirror plane), and a point X that this virtual
+// projector reaches through the mirror rectangle, unoccluded on both legs,
+// receives the pattern as the real projector shows it at the mirror point,
+// defocused over the unfolded path: sigma from X's depth z' along the
+// reflected projector axis (thesis Fig. 2.13: a distant mirror's light is
+// blurred unlike the point's own). The glossy models skip mirrors.
+bool is_planar_mirror(const Object& object);
+
+struct MirrorModel {
+  std::vector<uint32_t> pixel;  // camera pixel index, ascending
+  std::vector<float> gain;      // ru per unit emitted: specular · albedo/π · I · cos / d'^2
+  std::vector<float> proj_x;    // projector pixel seen through the mirror (continuous)
+  std::vector<float> proj_y;
+  std::vector<float> z_virtual_mm;  // depth of X along the reflected projector axis
+};
+MirrorModel build_mirror_paths(const Scene& scene, const PreparedView& view, const ProjectorModel& projector,
+                               const Rigid3& world_from_cam, const Rigid3& world_from_proj);
+
+class MirrorComponent final : public TransportComponent {
+public:
+  MirrorComponent(MirrorModel model, ProjectorModel projector);
+  std::string name() const override { return "mirror"; }
+  size_t levels_needed(double focus_mm) const override;
+  void apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end, float* radiance) const override;
+  const MirrorModel& model() const { return model_; }
+
+private:
+  MirrorModel model_;
+  ProjectorModel projector_;
+};
+
 // Prepares `scene` for one camera and returns a renderer with the direct
 // component plus the global components `options` enables (those that have
 // anything to do in the scene). `world_from_proj` is camera 0's cam_from_proj.

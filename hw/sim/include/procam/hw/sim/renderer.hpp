@@ -166,6 +166,10 @@ public:
   virtual bool is_global() const { return true; }
   // Whether begin_frame/apply read FrameContext::irradiance.
   virtual bool needs_irradiance() const { return false; }
+  // Blur-stack levels (kBlurLevelSigmaPx) this component samples at focus
+  // `focus_mm`, beyond those the camera pixels' own defocus needs (e.g. light
+  // reaching a point by a mirror is defocused over its unfolded path).
+  virtual size_t levels_needed(double focus_mm) const { (void)focus_mm; return 1; }
   // Once per frame, before any apply(), on the rendering thread: whole-image
   // work (e.g. patch irradiance, blurs). May use `threads` workers.
   virtual void begin_frame(const FrameContext& frame, int threads) { (void)frame; (void)threads; }

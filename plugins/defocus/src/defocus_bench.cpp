@@ -1,0 +1,78 @@
+// SPDX-License-Identifier: MIT
+// Speed of multi-focal (issue 12 goal): 1920x1200 8-bit frames, 2 threads,
+// 6 focus settings x 24 shifts = 144 frames: work per added frame (the
+// streaming accumulation, the fold of each finished setting included) and the
+// work after the last frame (fbar by Gaussian interpolation + table lookup).
+// Goals: <= 1 ms per frame, <= 10 ms after the last.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <vector>
+
+#include "calibration.hpp"
+#include "e3_accumulator.hpp"
+#include "focus_measures.hpp"
+
+namespace procam::defocus {
+namespace {
+
+constexpr uint32_t kW = 1920, kH = 1200, kF = 6, kThreads = 2;
+
+// Frame (focus f, shift t): a blurred stripe profile whose contrast peaks at a
+// focus index that varies across the image (a tilted plane).
+std::vector<uint8_t> make_frame(uint32_t f, uint32_t t) {
+  std::vector<uint8_t> v(size_t{kW} * kH);
+  for (uint32_t y = 0; y < kH; ++y)
+    for (uint32_t x = 0; x < kW; ++x) {
+      const double peak = 0.5 + 4.0 * x / kW;
+      const double c = std::exp(-0.5 * (f - peak) * (f - peak));
+      const double s = std::cos(2 * M_PI * 3 * ((double(x) - t) / 24.0));
+      v[size_t{y} * kW + x] = static_cast<uint8_t>(std::lround(110 + 90 * c * s + (x * 7 + y * 13) % 3));
+    }
+  return v;
+}
+
+void BM_MultiFocalAddFrame(benchmark::State& state) {
+  std::vector<std::vector<uint8_t>> frames;
+  for (uint32_t t = 0; t < 24; ++t) frames.push_back(make_frame(2, t));
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  auto acc = std::make_unique<E3Accumulator>(kW, kH, kF, PROCAM_PIXEL_U8, 255, threads);
+  uint32_t k = 0;
+  for (auto _ : state) {
+    if (k == kF * 24) {
+      state.PauseTiming();
+      acc = std::make_unique<E3Accumulator>(kW, kH, kF, PROCAM_PIXEL_U8, 255, threads);
+      k = 0;
+      state.ResumeTiming();
+    }
+    const procam_image img = sdk::gray_view(frames[k % 24].data(), kW, kH, 8);
+    benchmark::DoNotOptimize(acc->add(k / 24, k % 24, img));
+    ++k;
+  }
+  state.counters["frames"] = static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_MultiFocalAddFrame)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(288)->Repetitions(3)->UseRealTime();
+
+void BM_MultiFocalAfterLastFrame(benchmark::State& state) {
+  E3Accumulator acc(kW, kH, kF, PROCAM_PIXEL_U8, 255, kThreads);
+  for (uint32_t f = 0; f < kF; ++f)
+    for (uint32_t t = 0; t < 24; ++t) {
+      auto fr = make_frame(f, t);
+      (void)acc.add(f, t, sdk::gray_view(fr.data(), kW, kH, 8));
+    }
+  sdk::CalibrationTable table;
+  table.name = "defocus.multi-focal";
+  for (int k = 0; k <= 50; ++k) table.samples.emplace_back(0.1 * k, 600 + 10.0 * k);
+  std::vector<float> fbar, depth;
+  Validity rule;
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  const bool lookup = state.range(1) != 0;  // 0: fbar alone (to see what the table lookup costs)
+  for (auto _ : state)
+    benchmark::DoNotOptimize(fbar_depth_map(acc, rule, lookup ? &table : nullptr, threads, fbar, lookup ? &depth : nullptr));
+}
+BENCHMARK(BM_MultiFocalAfterLastFrame)->Args({2, 1})->Args({1, 1})->Args({2, 0})->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
+
+}  // namespace
+}  // namespace procam::defocus
+
+BENCHMARK_MAIN();
