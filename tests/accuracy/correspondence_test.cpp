@@ -18,7 +18,9 @@ class Correspondence : public ::testing::TestWithParam<suite::MethodCase> {};
 TEST_P(Correspondence, PlaneWithinOneColumnAndFewGrossErrors) {
   const suite::MethodCase& c = GetParam();
   suite::SimRun run;
-  ASSERT_TRUE(suite::run_on_sim(c.plugin, c.method, "plane", run));
+  const bool ran = suite::run_on_sim(c.plugin, c.method, "plane", run);
+  if (!run.skip_reason.empty()) GTEST_SKIP() << "needs rig data the shipped sim rig lacks: " << run.skip_reason;
+  ASSERT_TRUE(ran);
   if (suite::find_output(run.outputs, "proj_col_px") == nullptr)
     GTEST_SKIP() << c.plugin << "/" << c.method << " outputs no proj_col_px: no correspondence to evaluate";
   auto truth = run.rig->ground_truth(0);

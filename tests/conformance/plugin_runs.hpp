@@ -65,13 +65,49 @@ inline std::unique_ptr<hw::Rig> sim_rig(const std::string& scene) {
   return std::move(*rig);
 }
 
+// The inputs a method declares as required (describe() "inputs", ABI 2),
+// made from what the sim rig knows: "depth_mm" is the ground-truth depth of
+// the scene; any other F32 input a camera-sized map of ones. `storage` owns
+// the pixels the returned views point into.
+inline std::vector<host::InputImage> required_inputs(const nlohmann::json& describe, hw::Rig& rig,
+                                                     std::vector<std::vector<float>>& storage) {
+  std::vector<host::InputImage> inputs;
+  if (!describe.contains("inputs") || !describe["inputs"].is_array()) return inputs;
+  auto truth = rig.ground_truth(0);
+  EXPECT_TRUE(truth.ok()) << truth.status().message();
+  if (!truth.ok()) return inputs;
+  const uint32_t w = truth->depth_mm.width(), h = truth->depth_mm.height();
+  storage.reserve(describe["inputs"].size());
+  for (const auto& in : describe["inputs"]) {
+    if (!in.value("required", false)) continue;
+    const std::string name = in.value("name", "");
+    const float* src = name == "depth_mm" ? truth->depth_mm.ptr<float>() : nullptr;
+    storage.emplace_back(size_t{w} * h, 1.0f);
+    if (src != nullptr) std::copy(src, src + storage.back().size(), storage.back().begin());
+    host::InputImage img;
+    img.name = name;
+    img.unit = in.value("unit", "");
+    img.description = "conformance suite: sim ground truth";
+    img.image = procam_image{.width = w, .height = h, .channels = 1, .pixel_type = PROCAM_PIXEL_F32,
+                             .bit_depth = 32, .reserved = 0, .stride_bytes = size_t{w} * sizeof(float),
+                             .data = storage.back().data()};
+    inputs.push_back(img);
+  }
+  return inputs;
+}
+
 // One finished scan. `session` owns the memory `outputs` point into.
+// `skip_reason`: set (and the run not started) when the method refused the
+// rig with failed_precondition, i.e. it needs rig data the shipped sim rig
+// does not have (a calibration table made on another rig): the caller skips
+// with that reason instead of failing.
 struct SimRun {
   std::unique_ptr<hw::Rig> rig;
   nlohmann::json rig_json;
   std::optional<host::Session> session;
   engine::ScanOutcome outcome;
   std::vector<host::Output> outputs;
+  std::string skip_reason;
 };
 
 // Runs plugin/method with default parameters on `scene`; ADD_FAILUREs and
@@ -82,7 +118,18 @@ inline bool run_on_sim(const std::string& plugin, const std::string& method, con
   host::PluginHost host;
   host.load_directories({PROCAM_PLUGIN_DIR});
   run.rig_json = engine::plugin_rig_json(*run.rig, 2);
-  auto session = host.create_session(plugin, method, "{}", run.rig_json.dump());
+  nlohmann::json describe;
+  if (const auto* p = host.find(plugin))
+    for (const auto& m : p->methods)
+      if (m.name == method) describe = m.describe;
+  std::vector<std::vector<float>> storage;
+  const std::vector<host::InputImage> inputs = required_inputs(describe, *run.rig, storage);
+  auto session = host.create_session(plugin, method, "{}", run.rig_json.dump(), inputs);
+  if (!session.ok() && session.status().code() == Code::failed_precondition &&
+      !session.status().message().empty()) {
+    run.skip_reason = session.status().message();
+    return false;
+  }
   if (!session.ok()) {
     ADD_FAILURE() << "create_session: " << session.status().message();
     return false;

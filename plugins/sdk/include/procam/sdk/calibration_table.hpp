@@ -112,8 +112,8 @@ inline Error parse_table(const nlohmann::json& j, CalibrationTable& table) {
   std::string where = "calibration table: ";
   if (j.contains("name") && j.at("name").is_string())
     where = "calibration table '" + j.at("name").get<std::string>() + "': ";
-  for (const auto& [key, value] : j.items()) {
-    (void)value;
+  for (const auto& item : j.items()) {
+    const std::string key = item.key();  // (a structured binding cannot be captured before C++20 in clang)
     static const char* kKeys[] = {"format", "version", "name", "x", "y", "samples", "extra", "made"};
     if (std::find_if(std::begin(kKeys), std::end(kKeys), [&](const char* k) { return key == k; }) ==
         std::end(kKeys))
