@@ -36,9 +36,11 @@ sdk::Error table_from_rig(const sdk::Rig& rig, const CueKind& kind, const std::v
                           sdk::CalibrationTable& out) {
   const nlohmann::json* j = rig.table(kind.table_name);
   if (j == nullptr)
-    return sdk::invalid_argument("rig has no calibration table '" + std::string(kind.table_name) +
-                                 "': run `procam calibrate defocus/" + std::string(kind.method) +
-                                 "` on a plane (docs/calibration.md) and add the table to the rig config");
+    return sdk::failed_precondition("rig has no calibration table '" + std::string(kind.table_name) +
+                                    "': make one with method calibrate-" + std::string(kind.method) +
+                                    " on an inclined plane (`procam calibrate defocus/calibrate-" +
+                                    std::string(kind.method) + "`, docs/calibration.md) and add it to the rig "
+                                    "config's calibration_tables");
   if (sdk::Error e = sdk::parse_table(*j, out); !e.ok()) return e;
   std::vector<double> made_with;
   if (out.extra.is_object() && out.extra.contains("focus_mm") && out.extra.at("focus_mm").is_array())

@@ -27,13 +27,16 @@ const CueKind* cue_of(Method m) {
 
 class SweepSession final : public sdk::Session {
  public:
+  // `plane_depth` non-empty: a calibrate-* session, which makes the table of
+  // `method` from the cue and the plane's depth instead of using one.
   SweepSession(Method method, const sdk::Rig& rig, SweepConfig config, sdk::CalibrationTable table,
-               std::vector<PixelPair> pairs)
+               std::vector<PixelPair> pairs, std::vector<float> plane_depth = {})
       : method_(method),
         rig_(rig),
         config_(std::move(config)),
         table_(std::move(table)),
-        pairs_(std::move(pairs)) {}
+        pairs_(std::move(pairs)),
+        plane_depth_(std::move(plane_depth)) {}
 
   sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
     if (planned_) return sdk::ok();
@@ -69,6 +72,13 @@ class SweepSession final : public sdk::Session {
       case Method::two_focal: cue_valid_ = omega_map(*acc_, 0, 1, rule, th, cue_); break;
       case Method::single_focal: cue_valid_ = modulation_map(*acc_, 0, rule, th, cue_); break;
     }
+    if (calibrating()) {
+      // The multi-focal kernel fuses the table lookup; here the cue alone.
+      if (method_ == Method::multi_focal) cue_valid_ = fbar_map(*acc_, rule, th, cue_);
+      table_error_ = make_table(*cue_of(method_), cue_, plane_depth_, config_.focus_mm, config_.table_bins, table_);
+      table_.made = {{"plugin", "defocus"}, {"method", std::string("calibrate-") + method_name()}};
+      return sdk::ok();  // a failed fit is reported in outputs (the frames were fine)
+    }
     if (method_ == Method::two_focal || method_ == Method::single_focal) depth_from_cue(table_, cue_, th, depth_);
     return sdk::ok();
   }
@@ -85,7 +95,18 @@ class SweepSession final : public sdk::Session {
                              {"min_modulation", config_.validity.min_modulation}};
     size_t valid = 0;
     std::vector<uint8_t> valid_map(n, 0);
-    if (const CueKind* kind = cue_of(method_)) {
+    if (calibrating()) {
+      if (!table_error_.ok()) return table_error_;  // says why no table could be fitted
+      out.add_json("calibration_table",
+                   "table " + table_.name + " (procam-calibration-table v1): add it to the rig config's "
+                   "calibration_tables (docs/calibration.md)",
+                   sdk::to_json(table_).dump());
+      for (size_t i = 0; i < n; ++i)
+        valid_map[i] = std::isfinite(cue_[i]) && std::isfinite(plane_depth_[i]) ? 255 : 0;
+      valid = static_cast<size_t>(std::count(valid_map.begin(), valid_map.end(), uint8_t{255}));
+      report["table"] = {{"name", table_.name}, {"samples", table_.samples.size()},
+                         {"x_range", {table_.x_min(), table_.x_max()}}};
+    } else if (const CueKind* kind = cue_of(method_)) {
       out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
                                           " table; NaN: invalid", w, h, depth_);
       for (size_t i = 0; i < n; ++i) valid_map[i] = std::isfinite(depth_[i]) ? 255 : 0;
@@ -139,12 +160,15 @@ class SweepSession final : public sdk::Session {
   SweepConfig config_;
   sdk::CalibrationTable table_;
   std::vector<PixelPair> pairs_;
+  std::vector<float> plane_depth_;  // calibrate-*: the plane's depth (input depth_mm)
+  sdk::Error table_error_;
   std::unique_ptr<E3Accumulator> acc_;
   std::vector<float> cue_, depth_;
   size_t cue_valid_ = 0;
   bool planned_ = false;
   double decode_ms_ = 0;
 
+  bool calibrating() const { return !plane_depth_.empty(); }
   double full_scale() const {
     const uint32_t bits = rig_.cameras[0].bit_depth;
     return bits >= 32 ? 1.0 : std::ldexp(1.0, static_cast<int>(bits)) - 1.0;
@@ -184,11 +208,21 @@ sdk::Error create_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Sess
   SweepConfig config;
   std::vector<PixelPair> pairs;
   if (sdk::Error e = parse_sweep_config(args.method, args.params, rig, config, pairs); !e.ok()) return e;
+  const bool calibrate = args.method.rfind("calibrate-", 0) == 0;
+  const std::string base = calibrate ? args.method.substr(std::string("calibrate-").size()) : args.method;
   Method m = Method::invariance;
-  if (args.method == "multi-focal") m = Method::multi_focal;
-  else if (args.method == "two-focal") m = Method::two_focal;
-  else if (args.method == "single-focal") m = Method::single_focal;
+  if (base == "multi-focal") m = Method::multi_focal;
+  else if (base == "two-focal") m = Method::two_focal;
+  else if (base == "single-focal") m = Method::single_focal;
   sdk::CalibrationTable table;
+  if (calibrate) {
+    std::vector<float> depth;
+    const sdk::RigCamera& cam = rig.cameras[0];
+    if (sdk::Error e = args.inputs.image_f32("depth_mm", cam.width, cam.height, depth); !e.ok()) return e;
+    out = std::make_unique<SweepSession>(m, rig, std::move(config), std::move(table), std::move(pairs),
+                                         std::move(depth));
+    return sdk::ok();
+  }
   if (const CueKind* kind = cue_of(m))
     if (sdk::Error e = table_from_rig(rig, *kind, config.focus_mm, table); !e.ok()) return e;
   out = std::make_unique<SweepSession>(m, rig, std::move(config), std::move(table), std::move(pairs));

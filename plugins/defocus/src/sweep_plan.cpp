@@ -45,6 +45,14 @@ std::vector<ParamSpec> sweep_specs() {
 }
 
 std::vector<ParamSpec> specs_of(const std::string& method) {
+  if (method.rfind("calibrate-", 0) == 0) {  // the scan method's parameters, plus the table's resolution
+    auto s = specs_of(method.substr(std::string("calibrate-").size()));
+    s.push_back({"bins", ParamType::integer, 32, 2, 4096, {},
+                 "table samples: the plane's pixels are split into this many equal-count bins by the cue, each "
+                 "giving (median cue, median depth); 32 resolve the curve while each bin still holds thousands of "
+                 "pixels of a 320x200 or larger camera"});
+    return s;
+  }
   if (method == "two-focal") {
     auto s = common_specs();
     s.insert(s.begin(), {
@@ -108,35 +116,54 @@ std::vector<sdk::MethodDescription> method_descriptions() {
     for (const char* c : kOutputsCommon) o.emplace_back(c);
     return o;
   };
-  std::vector<sdk::MethodDescription> d(4);
+  std::vector<sdk::MethodDescription> d(7);
   d[0] = {"multi-focal",
           "depth under global light from a focal sweep (thesis sec. 2.4.1, Eq. 2.9): fbar = argmax_f E(3, f) by "
           "Gaussian interpolation, through table defocus.multi-focal",
-          6 * 24, "24 * focus_count", 1, "", with_common({"depth_mm", "fbar", "e3_peak_dn"}), specs_of("multi-focal")};
+          6 * 24, "24 * focus_count", 1, "", with_common({"depth_mm", "fbar", "e3_peak_dn"}), specs_of("multi-focal"), {}};
   d[1] = {"two-focal",
           "depth under global light from two focus settings (sec. 2.4.2, Eq. 2.10): Omega = E(f2)/E(f1) through "
           "table defocus.two-focal",
-          48, "", 1, "", with_common({"depth_mm", "omega", "e3_peak_dn"}), specs_of("two-focal")};
+          48, "", 1, "", with_common({"depth_mm", "omega", "e3_peak_dn"}), specs_of("two-focal"), {}};
   d[2] = {"single-focal",
           "baseline (Zhang & Nayar 2006): depth from the blur E/mean at one focus setting through table "
           "defocus.single-focal; global light corrupts it",
-          24, "", 1, "", with_common({"depth_mm", "modulation", "e3_peak_dn"}), specs_of("single-focal")};
+          24, "", 1, "", with_common({"depth_mm", "modulation", "e3_peak_dn"}), specs_of("single-focal"), {}};
   d[3] = {"invariance",
           "diagnostic (sec. 2.3.2, Eq. 2.8): E(3, f) maps over a focal sweep, fbar, and G(f) = E_B/E_A at given "
           "pixel pairs of equal depth in the report",
           6 * 24, "24 * focus_count", 1, "", with_common({"fbar", "e3_f0_dn", "e3_f1_dn", "e3_f2_dn"}),
-          specs_of("invariance")};
+          specs_of("invariance"), {}};
+  // Calibration methods (docs/calibration.md): the same sweep on a plane
+  // whose depth comes in as input depth_mm; output the table.
+  const char* bases[3] = {"multi-focal", "two-focal", "single-focal"};
+  for (size_t k = 0; k < 3; ++k) {
+    sdk::MethodDescription& c = d[4 + k];
+    c = d[k];
+    c.name = std::string("calibrate-") + bases[k];
+    c.summary = std::string("calibration of ") + bases[k] + ": the same frames on an inclined matte plane plus its "
+                "depth (input depth_mm, e.g. structured light's depth_mm of the plane); outputs the table " +
+                "defocus." + bases[k] + " as calibration_table";
+    c.outputs = with_common({"calibration_table", k == 0 ? "fbar" : (k == 1 ? "omega" : "modulation")});
+    c.params = specs_of(c.name);
+    c.inputs = {{"depth_mm", "image_f32", "mm", true,
+                 "depth of every camera pixel of the calibration plane (NaN unknown): structured-light's depth_mm "
+                 "of the same plane from a rig that can triangulate, or a known plane's depth"}};
+  }
   return d;
 }
 
-sdk::Error parse_sweep_config(const std::string& method, const nlohmann::json& params, const sdk::Rig& rig,
+sdk::Error parse_sweep_config(const std::string& method_name, const nlohmann::json& params, const sdk::Rig& rig,
                               SweepConfig& config, std::vector<PixelPair>& pairs) {
   sdk::Params p;
-  if (sdk::Error e = sdk::parse_params(params, specs_of(method), p, method); !e.ok()) return e;
+  if (sdk::Error e = sdk::parse_params(params, specs_of(method_name), p, method_name); !e.ok()) return e;
+  const bool calibrate = method_name.rfind("calibrate-", 0) == 0;
+  const std::string method = calibrate ? method_name.substr(std::string("calibrate-").size()) : method_name;
   config = SweepConfig{};
   config.prefilter_sigma_px = p.get_number("prefilter_sigma_px");
   config.black_fraction = p.get_number("black_fraction");
   config.validity.min_modulation = p.get_number("min_modulation");
+  if (calibrate) config.table_bins = static_cast<size_t>(p.get_int("bins"));
   if (method == "two-focal") {
     const double f1 = p.get_number("f1_mm"), f2 = p.get_number("f2_mm");
     if (std::abs(f1 - f2) < 1e-6 * f1)

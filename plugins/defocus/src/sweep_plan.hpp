@@ -23,6 +23,7 @@ struct SweepConfig {
   double prefilter_sigma_px = 1.0;  // anti-aliasing pre-filter of the stripes
   double black_fraction = 0.02;     // mean below this fraction of full scale: black
   Validity validity;                // min_modulation (black_dn set from black_fraction)
+  size_t table_bins = 0;            // calibrate-* methods: samples of the table they make
 };
 
 // Pixel pair for Eq. 2.8: B receives global light, A (same depth) does not.

@@ -445,7 +445,7 @@ sdk::Error create_session_with_depth(const sdk::CreateArgs& args, std::optional<
     cfg.settings.min_contrast = p.get_number("min_contrast");
     const nlohmann::json* j = rig.table(kOneFocalTable);
     if (j == nullptr)
-      return sdk::invalid_argument(std::string("rig has no calibration table '") + kOneFocalTable +
+      return sdk::failed_precondition(std::string("rig has no calibration table '") + kOneFocalTable +
                                    "': run method calibrate-one-focal of plugin separation on a tilted matte plane "
                                    "with its depth map as input, at the same focus_mm (docs/calibration.md)");
     if (sdk::Error e = sdk::parse_table(*j, table); !e.ok()) return e;

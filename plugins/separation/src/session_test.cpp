@@ -136,6 +136,7 @@ TEST(Sessions, ErrorsSayWhatIsWrongAndWhatToDo) {
   e = create_session_with_depth({"one-focal-depth", nlohmann::json::object(), kRig},
                                 std::vector<float>(size_t{kW} * kH, 900.f), s);
   EXPECT_NE(e.message.find("no calibration table 'separation.one-focal-depth'"), std::string::npos) << e.message;
+  EXPECT_EQ(e.code, PROCAM_ERR_FAILED_PRECONDITION) << "the rig lacks data: not a bad argument";
   EXPECT_NE(e.message.find("calibrate-one-focal"), std::string::npos) << e.message;
   e = create_session_with_depth({"calibrate-one-focal", nlohmann::json::object(), kRig}, std::vector<float>(5, 1.f),
                                 s);
