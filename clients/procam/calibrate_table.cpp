@@ -91,6 +91,13 @@ int cmd_calibrate(const Args& a) {
   nlohmann::json table;
   for (const auto& o : cal_manifest->value("outputs", nlohmann::json::array()))
     if (o.value("name", "") == "calibration_table" && o.value("kind", "") == "json") table = o.value("value", nlohmann::json());
+  std::string why;  // a calibration method that could not fit says so in its report
+  for (const auto& o : cal_manifest->value("outputs", nlohmann::json::array()))
+    if (o.value("name", "") == "report" && o.contains("value") && o["value"].is_object())
+      why = o["value"].value("table_error", "");
+  if (table.is_null() && !why.empty())
+    return report(Error(Code::failed_precondition, "scan " + cal_id + " (" + a.positional + ") made no table: " + why,
+                        "docs/calibration.md: the plane, its placement and the focus settings"));
   if (table.is_null())
     return report(Error(Code::not_found, "scan " + cal_id + " (" + a.positional + ") has no JSON output 'calibration_table'",
                         "is " + a.positional + " a calibration method? `procam plugins` lists each method's outputs"));

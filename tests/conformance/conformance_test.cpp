@@ -306,18 +306,20 @@ TEST_P(MethodAbi, MisuseCodesPlansAndLifetimes) {
   }
   const bool has_create2 =
       vt.struct_size > PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE && vt.session_create2 != nullptr;
-  if (!in.empty()) ASSERT_TRUE(has_create2) << "a method with required inputs needs session_create2";
-  const int rc = !in.empty() ? vt.session_create2(c.method.c_str(), "{}", rig_json.c_str(), in.data(),
+  if (!in.empty()) {
+    ASSERT_TRUE(has_create2) << "a method with required inputs needs session_create2";
+  }
+  const int created = !in.empty() ? vt.session_create2(c.method.c_str(), "{}", rig_json.c_str(), in.data(),
                                                   static_cast<uint32_t>(in.size()), &s, &err)
                              : vt.session_create(c.method.c_str(), "{}", rig_json.c_str(), &s, &err);
-  if (rc == PROCAM_ERR_FAILED_PRECONDITION) {
+  if (created == PROCAM_ERR_FAILED_PRECONDITION) {
     // Needs rig data this rig lacks (e.g. a calibration table made on another
     // rig): refused before any work, with a message, and no session.
     EXPECT_NE(err.message[0], '\0') << "a refusal must say what is missing";
     EXPECT_EQ(s, nullptr);
     GTEST_SKIP() << "needs rig data the shipped sim rig lacks: " << err.message;
   }
-  ASSERT_EQ(rc, PROCAM_OK) << err.message;
+  ASSERT_EQ(created, PROCAM_OK) << err.message;
   ASSERT_NE(s, nullptr);
 
   auto expect_fails = [&](int rc, int code, const char* what) {

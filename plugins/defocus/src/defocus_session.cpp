@@ -87,7 +87,7 @@ class SweepSession final : public sdk::Session {
     sdk::ScopedMs timer(decode_ms_);
     const uint32_t w = rig_.cameras[0].width, h = rig_.cameras[0].height;
     const size_t n = size_t{w} * h;
-    nlohmann::json report = {{"method", method_name()},
+    nlohmann::json report = {{"method", calibrating() ? std::string("calibrate-") + method_name() : method_name()},
                              {"focus_mm", config_.focus_mm},
                              {"model", model_text()},
                              {"prefilter_sigma_px", config_.prefilter_sigma_px},
@@ -96,16 +96,21 @@ class SweepSession final : public sdk::Session {
     size_t valid = 0;
     std::vector<uint8_t> valid_map(n, 0);
     if (calibrating()) {
-      if (!table_error_.ok()) return table_error_;  // says why no table could be fitted
-      out.add_json("calibration_table",
-                   "table " + table_.name + " (procam-calibration-table v1): add it to the rig config's "
-                   "calibration_tables (docs/calibration.md)",
-                   sdk::to_json(table_).dump());
+      // A plane that gives no table (unlit, flat, out of the sweep) is a
+      // finished scan without calibration_table; the report says why.
+      if (table_error_.ok())
+        out.add_json("calibration_table",
+                     "table " + table_.name + " (procam-calibration-table v1): add it to the rig config's "
+                     "calibration_tables (docs/calibration.md)",
+                     sdk::to_json(table_).dump());
+      else
+        report["table_error"] = table_error_.message;
       for (size_t i = 0; i < n; ++i)
         valid_map[i] = std::isfinite(cue_[i]) && std::isfinite(plane_depth_[i]) ? 255 : 0;
       valid = static_cast<size_t>(std::count(valid_map.begin(), valid_map.end(), uint8_t{255}));
-      report["table"] = {{"name", table_.name}, {"samples", table_.samples.size()},
-                         {"x_range", {table_.x_min(), table_.x_max()}}};
+      if (table_error_.ok())
+        report["table"] = {{"name", table_.name}, {"samples", table_.samples.size()},
+                           {"x_range", {table_.x_min(), table_.x_max()}}};
     } else if (const CueKind* kind = cue_of(method_)) {
       out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
                                           " table; NaN: invalid", w, h, depth_);

@@ -221,7 +221,8 @@ class SeparationSession final : public sdk::Session {
     std_out.report = report();
     if (cfg_.method == Method::calibrate) {
       std_out.valid_pixels = calibration_pixels_;
-      out.add_json("calibration_table",
+      if (!table_json_.is_null())
+        out.add_json("calibration_table",
                    "table 'separation.one-focal-depth': beta+ - beta- (Eq. 2.19) against depth, for one-focal-depth",
                    table_json_.dump());
     } else {
@@ -273,10 +274,15 @@ class SeparationSession final : public sdk::Session {
     t.extra = {{"focus_mm", cfg_.focus_mm[0]}, {"square_px", cfg_.square}, {"shifts", cfg_.shifts},
                {"step_px", cfg_.step}, {"quantity", "beta+ - beta- (thesis Eq. 2.19)"}};
     t.made = {{"plugin", "separation"}, {"method", "calibrate-one-focal"}};
-    if (sdk::Error e = sdk::fit_monotonic(depths, contrasts, cfg_.bins, t); !e.ok())
-      return sdk::invalid_argument("calibrate-one-focal: " + e.message +
-                                   " (scan a matte plane with no global light, tilted across the depths to "
-                                   "calibrate, with the focal plane in front of all of it)");
+    // A plane that gives no table (unlit, flat, wrong focus) is a finished
+    // scan without a calibration_table: the report says why (table_error),
+    // and `procam calibrate` passes that on.
+    if (sdk::Error e = sdk::fit_monotonic(depths, contrasts, cfg_.bins, t); !e.ok()) {
+      table_error_ = "calibrate-one-focal: " + e.message +
+                     " (scan a matte plane with no global light, tilted across the depths to calibrate, with the "
+                     "focal plane in front of all of it)";
+      return sdk::ok();
+    }
     table_json_ = sdk::to_json(t);
     return sdk::ok();
   }
@@ -284,6 +290,7 @@ class SeparationSession final : public sdk::Session {
   nlohmann::json report() const {
     nlohmann::json r = {{"method", cfg_.method_name}, {"params", cfg_.params.json()},
                         {"patterns", pattern_count_}, {"focus_settings_mm", cfg_.focus_mm}};
+    if (!table_error_.empty()) r["table_error"] = table_error_;
     switch (cfg_.method) {
       case Method::checker:
       case Method::checker_pair:
@@ -325,6 +332,7 @@ class SeparationSession final : public sdk::Session {
   double decode_ms_ = 0;
   Maps maps_;
   size_t calibration_pixels_ = 0;
+  std::string table_error_;  // calibrate: why no table could be fitted (empty: fitted)
   nlohmann::json table_json_;
 };
 
