@@ -16,16 +16,13 @@
 
 #include "procam/calibration/captures.hpp"
 #include "procam/calibration/geometric.hpp"
+#include "core/testing/real_sample.hpp"
 
 namespace procam::calibration {
 namespace {
 namespace fs = std::filesystem;
 
-fs::path sample_dir() {
-  const char* env = std::getenv("PROCAM_DATA_DIR");
-  const fs::path data = env != nullptr && *env != 0 ? fs::path(env) : fs::path(PROCAM_SOURCE_DIR) / ".." / "shared" / "data";
-  return data / "real" / "procam-calibration-sample" / "sample_data";
-}
+fs::path sample_dir() { return testing::real_sample_dir(); }  // core/testing/real_sample.hpp
 
 constexpr double kReferenceRms = 0.85657309970713724;  // calibration_result.xml "rms"
 

@@ -24,18 +24,13 @@
 #include "procam/engine/rig_json.hpp"
 #include "procam/engine/scan_runner.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "core/testing/real_sample.hpp"
 
 namespace procam::engine {
 namespace {
 namespace fs = std::filesystem;
 
-// shared/data beside the repository; PROCAM_DATA_DIR (a shared/data folder)
-// overrides it, e.g. for a git worktree elsewhere.
-fs::path sample_dir() {
-  const char* env = std::getenv("PROCAM_DATA_DIR");
-  const fs::path data = env != nullptr && *env != 0 ? fs::path(env) : fs::path(PROCAM_SOURCE_DIR) / ".." / "shared" / "data";
-  return data / "real" / "procam-calibration-sample" / "sample_data";
-}
+fs::path sample_dir() { return testing::real_sample_dir(); }  // core/testing/real_sample.hpp
 const fs::path kSample = sample_dir();
 constexpr uint32_t kW = 1280, kH = 1024;
 constexpr int kColPlanes = 10;
