@@ -219,7 +219,8 @@ void Server::run(int stop_fd) {
                                {nullptr, event_fd_, ZMQ_POLLIN, 0},
                                {nullptr, stop_fd, ZMQ_POLLIN, 0}};
     try {
-      zmq::poll(items, 3, std::chrono::milliseconds(-1));
+      // Events waiting for a slow client are retried every 5 ms.
+      zmq::poll(items, 3, std::chrono::milliseconds(backlog_.empty() ? -1 : 5));
     } catch (const zmq::error_t& e) {
       if (e.num() == EINTR) continue;
       PROCAM_LOG(daemon, error) << "poll failed: " << e.what();
@@ -228,8 +229,10 @@ void Server::run(int stop_fd) {
     if (items[2].revents & ZMQ_POLLIN) {
       PROCAM_LOG(daemon, info) << "stop requested";
       drain_events();
+      flush_backlog();
       return;
     }
+    flush_backlog();
     if (items[1].revents & ZMQ_POLLIN) {
       uint64_t v;
       [[maybe_unused]] auto n = ::read(event_fd_, &v, sizeof v);
@@ -253,32 +256,75 @@ void Server::run(int stop_fd) {
   }
 }
 
-void Server::reply(const Envelope& env, const std::string& body, const std::string* extra) {
-  // Never block the loop on one client: a full queue (EAGAIN) drops this
-  // reply. The first frame decides: once it is queued, ZeroMQ accepts the
-  // rest of the multipart message atomically.
+Server::Sent Server::try_send(const Envelope& env, const std::string& body, const std::string* extra) {
+  // Never block the loop on one client: a full queue is EAGAIN. The first
+  // frame decides: once it is queued, ZeroMQ accepts the rest of the
+  // multipart message atomically.
   const auto more = zmq::send_flags::sndmore | zmq::send_flags::dontwait;
   try {
     // env[0] is the routing id: it picks the client's queue and fails if full.
-    if (!env.empty() && router_.send(zmq::buffer(env[0]), more).has_value()) {
-      for (size_t k = 1; k < env.size(); ++k) router_.send(zmq::buffer(env[k]), more);
-      router_.send(zmq::buffer(body), extra ? more : zmq::send_flags::dontwait);
-      if (extra) router_.send(zmq::buffer(*extra), zmq::send_flags::dontwait);
-      return;
-    }
-    ++replies_dropped_;
-    const auto now = std::chrono::steady_clock::now();
-    if (now - dropped_window_ > std::chrono::minutes(1)) {
-      dropped_window_ = now;
-      dropped_logged_ = 0;
-    }
-    if (dropped_logged_++ < 10)
-      PROCAM_LOG(daemon, warn) << "a client is not reading its replies: " << kReplyQueueMessages
-                               << " are waiting, so this one was dropped (" << replies_dropped_
-                               << " dropped since start)";
+    if (env.empty()) return Sent::client_gone;
+    if (!router_.send(zmq::buffer(env[0]), more).has_value()) return Sent::queue_full;
+    for (size_t k = 1; k < env.size(); ++k) router_.send(zmq::buffer(env[k]), more);
+    router_.send(zmq::buffer(body), extra ? more : zmq::send_flags::dontwait);
+    if (extra) router_.send(zmq::buffer(*extra), zmq::send_flags::dontwait);
+    return Sent::yes;
   } catch (const zmq::error_t& e) {
     // EHOSTUNREACH: the client went away (router_mandatory reports it).
     PROCAM_LOG(daemon, debug) << "reply not sent: " << e.what();
+    return Sent::client_gone;
+  }
+}
+
+void Server::note_dropped(const char* what) {
+  ++replies_dropped_;
+  const auto now = std::chrono::steady_clock::now();
+  if (now - dropped_window_ > std::chrono::minutes(1)) {
+    dropped_window_ = now;
+    dropped_logged_ = 0;
+  }
+  if (dropped_logged_++ < 10)
+    PROCAM_LOG(daemon, warn) << "a client is not reading its replies: " << what << " was dropped ("
+                             << replies_dropped_ << " dropped since start)";
+}
+
+void Server::reply(const Envelope& env, const std::string& body, const std::string* extra) {
+  if (try_send(env, body, extra) == Sent::queue_full)
+    note_dropped(("a reply (" + std::to_string(kReplyQueueMessages) + " waiting)").c_str());
+}
+
+void Server::send_event(const Envelope& env, const std::string& scan_id, bool progress, const std::string& body) {
+  auto it = backlog_.find(env);
+  if (it == backlog_.end()) {
+    const Sent s = try_send(env, body, nullptr);
+    if (s != Sent::queue_full) return;  // sent, or nobody to send to
+    it = backlog_.emplace(env, std::deque<Backlogged>{}).first;
+  }
+  auto& q = it->second;
+  if (progress && !q.empty() && q.back().progress && q.back().scan_id == scan_id) {
+    q.back().body = body;  // only the newest progress matters
+    return;
+  }
+  if (q.size() >= kEventBacklog) {
+    note_dropped(("an event (" + std::to_string(kEventBacklog) + " waiting)").c_str());
+    return;
+  }
+  q.push_back({scan_id, progress, body});
+}
+
+void Server::flush_backlog() {
+  for (auto it = backlog_.begin(); it != backlog_.end();) {
+    auto& q = it->second;
+    while (!q.empty()) {
+      const Sent s = try_send(it->first, q.front().body, nullptr);
+      if (s == Sent::queue_full) break;
+      if (s == Sent::client_gone) {
+        q.clear();
+        break;
+      }
+      q.pop_front();
+    }
+    it = q.empty() ? backlog_.erase(it) : std::next(it);
   }
 }
 
@@ -295,7 +341,7 @@ void Server::drain_events() {
     auto it = subscribers_.find(ev.scan_id);
     if (it != subscribers_.end()) {
       const std::string body = proto::encode_event(ev.scan_id, seq, ev.event, ev.fields);
-      for (const auto& env : it->second) reply(env, body);
+      for (const auto& env : it->second) send_event(env, ev.scan_id, ev.event == "progress", body);
       if (final_state) subscribers_.erase(it);
     }
     if (final_state) seq_.erase(ev.scan_id);
@@ -388,7 +434,7 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
             nlohmann::json ev = {{"state", st}};
             if (auto summ = service_.scan_summary(sid); summ && !(*summ)["error"].is_null())
               ev["error"] = (*summ)["error"];
-            reply(env, proto::encode_event(sid, seq_.count(sid) ? seq_[sid] : 0, "state", ev));
+            send_event(env, sid, false, proto::encode_event(sid, seq_.count(sid) ? seq_[sid] : 0, "state", ev));
             return;
           }
           auto& subs = subscribers_[sid];

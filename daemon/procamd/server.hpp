@@ -38,6 +38,10 @@ namespace procam::daemon {
 // replies are at most 8 MiB, so one connection can hold at most ~128 MiB of
 // daemon memory however many fetches it sends without reading them.
 inline constexpr int kReplyQueueMessages = 16;
+// Events that may wait for one client whose queue is full (see
+// Server::send_event). Progress events of a scan coalesce to the newest, so
+// this bounds a client that never reads, not a busy one.
+inline constexpr size_t kEventBacklog = 256;
 
 class Server {
 public:
@@ -57,7 +61,18 @@ public:
 private:
   using Envelope = std::vector<std::string>;
   void handle(std::vector<zmq::message_t>& msg);
+  enum class Sent { yes, queue_full, client_gone };
+  Sent try_send(const Envelope& env, const std::string& body, const std::string* extra);
+  // A reply to a request: dropped (counted, logged) when the client's queue
+  // is full; the client's own timeout then tells it.
   void reply(const Envelope& env, const std::string& body, const std::string* extra = nullptr);
+  // An event: never dropped while the client is connected and reads at
+  // all. When its queue is full the event waits in a per-client backlog that
+  // the loop retries every few ms; a waiting progress event of the same scan
+  // is replaced by the newer one, state and log events keep their order.
+  void send_event(const Envelope& env, const std::string& scan_id, bool progress, const std::string& body);
+  void flush_backlog();
+  void note_dropped(const char* what);
   void drain_events();
   void zap_loop();
   bool key_allowed(const std::string& key32);
@@ -72,6 +87,8 @@ private:
   std::deque<PendingEvent> events_;
   std::map<std::string, std::vector<Envelope>> subscribers_;
   std::map<std::string, uint64_t> seq_;
+  struct Backlogged { std::string scan_id; bool progress; std::string body; };
+  std::map<Envelope, std::deque<Backlogged>> backlog_;  // main thread only
   uint64_t requests_ = 0, bad_requests_ = 0;  // main thread only
   // Replies (or events) not sent because the client's queue was full: it is
   // not reading what it asked for (see kReplyQueueMessages). Main thread only.

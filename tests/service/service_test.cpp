@@ -147,18 +147,104 @@ TEST(ServiceQueue, EventsReportProgressAndFinalState) {
   int progress = 0, states = 0;
   uint64_t last_seq = 0;
   bool ordered = true, first = true;
+  std::string seen;  // every event, for the failure message
   auto fin = c.scan(tiny_scan(), [&](const proto::Event& e) {
     progress += e.event == "progress";
     states += e.event == "state";
+    seen += std::to_string(e.seq) + ":" + e.event + (e.event == "state" ? "=" + e.body.value("state", "") : "") + " ";
     if (!first && e.seq <= last_seq) ordered = false;
     first = false;
     last_seq = e.seq;
   });
   ASSERT_TRUE(fin.ok()) << fin.status().to_string();
   EXPECT_EQ((*fin)["state"], "done");
-  EXPECT_GT(progress, 5);
-  EXPECT_GE(states, 3);
-  EXPECT_TRUE(ordered);
+  EXPECT_GT(progress, 5) << seen;
+  EXPECT_GE(states, 3) << seen;
+  EXPECT_TRUE(ordered) << seen;
+}
+
+// A client whose queue is full when its scan runs (here: stuffed with large
+// fetch replies it has not read yet) still gets every state event, in order,
+// once it reads: events wait in a per-client backlog instead of being dropped
+// (the CI failure of 2026-11-23 lost "writing" on a loaded machine), and
+// progress events coalesce there to the newest.
+TEST(ServiceQueue, StateEventsWaitForASlowClientInsteadOfBeingDropped) {
+  ServiceDaemon sd;
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 30s);
+  auto fin = c.scan(tiny_scan(), nullptr);
+  ASSERT_TRUE(fin.ok()) << fin.status().to_string();
+  const std::string first_id = (*fin)["scan_id"];
+  auto m = c.call(proto::ResultQuery{first_id});
+  ASSERT_TRUE(m.ok());
+  std::string big;
+  uint64_t big_size = 0;
+  for (const auto& f : (*m)["manifest"]["files"]) {
+    if (f.value("size_bytes", uint64_t{0}) > big_size) {
+      big_size = f["size_bytes"];
+      big = f["name"];
+    }
+  }
+  ASSERT_GE(big_size, uint64_t{16} << 10) << "need a result file of some size; largest is " << big;
+
+  zmq::context_t ctx;
+  zmq::socket_t slow(ctx, zmq::socket_type::dealer);
+  slow.set(zmq::sockopt::linger, 0);
+  slow.set(zmq::sockopt::rcvhwm, 1);  // its I/O thread stops reading almost at once
+  slow.set(zmq::sockopt::rcvbuf, 16384);
+  slow.connect(sd.endpoint());
+  auto send = [&](const std::string& body) {
+    slow.send(zmq::message_t(), zmq::send_flags::sndmore);
+    slow.send(zmq::buffer(body), zmq::send_flags::none);
+  };
+  // Enough unread bytes to fill the daemon's queue and both kernel buffers.
+  const int fetches = static_cast<int>(std::max<uint64_t>(40, (uint64_t{8} << 20) / big_size));
+  for (int i = 0; i < fetches; ++i)
+    send(json{{"procam", 1}, {"id", "f" + std::to_string(i)}, {"type", "fetch"}, {"scan_id", first_id},
+              {"file", big}, {"max_bytes", big_size}}.dump());
+  proto::Scan s = tiny_scan("tilted-box", "slow-events");
+  s.events = true;
+  send(proto::encode_request(proto::Request{"slow-scan", s}));
+  // Wait (through another client) until that scan is done, not reading `slow`.
+  for (int k = 0; k < 600; ++k) {
+    auto st = c.call(proto::StatusQuery{});
+    ASSERT_TRUE(st.ok()) << st.status().to_string();
+    if ((*st)["daemon"]["scans"].value("done", 0) >= 2) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  // Now read everything the daemon sends `slow`.
+  slow.set(zmq::sockopt::rcvtimeo, 1500);
+  std::vector<std::string> states;
+  std::string seen, scan_id;
+  uint64_t last_seq = 0;
+  bool ordered = true, any = false;
+  int progress = 0;
+  for (;;) {
+    std::vector<zmq::message_t> msg;
+    if (!zmq::recv_multipart(slow, std::back_inserter(msg))) break;  // quiet for 1.5 s: all read
+    size_t i = 0;
+    while (i < msg.size() && msg[i].size() == 0) ++i;
+    ASSERT_LT(i, msg.size());
+    auto in = proto::decode_incoming(std::string_view(static_cast<const char*>(msg[i].data()), msg[i].size()));
+    ASSERT_TRUE(in.ok()) << in.status().to_string();
+    auto* ev = std::get_if<proto::Event>(&in->message);
+    if (!ev) continue;  // fetch replies (some dropped: that is the reply queue's bound) and the scan's reply
+    if (!scan_id.empty()) {
+      EXPECT_EQ(ev->scan_id, scan_id);
+    }
+    scan_id = ev->scan_id;
+    if (any && ev->seq <= last_seq) ordered = false;
+    any = true;
+    last_seq = ev->seq;
+    progress += ev->event == "progress";
+    if (ev->event == "state") states.push_back(ev->body.value("state", ""));
+    seen += std::to_string(ev->seq) + ":" + ev->event + " ";
+  }
+  EXPECT_NE(scan_id, first_id);
+  EXPECT_EQ(states, (std::vector<std::string>{"capturing", "writing", "done"})) << seen;
+  EXPECT_GE(progress, 1) << seen;
+  EXPECT_TRUE(ordered) << seen;
+  EXPECT_TRUE(sd.d->alive());
 }
 
 // 50 concurrent clients x 100 requests: status (most), list_plugins, scans.
