@@ -5,6 +5,13 @@
 BUILD ?= build
 JOBS ?= $(shell nproc)
 BUILD_TYPE ?= RelWithDebInfo
+# ccache (installed by scripts/install-deps.sh) is used when present: the
+# sim-only build test (tests/build/sim_only_build.cmake) configures a second
+# build tree and then reuses this tree's objects instead of compiling them
+# again, and rebuilds after `git pull` are faster. Paths are hashed relative
+# to the checkout so both trees share entries.
+export CCACHE_BASEDIR ?= $(CURDIR)
+export CCACHE_NOHASHDIR ?= 1
 
 .PHONY: all deps configure build test demo bench clean
 
@@ -14,7 +21,9 @@ deps:
 	@scripts/install-deps.sh
 
 configure: deps
-	@cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) > $(BUILD).configure.log 2>&1 || \
+	@launcher=""; if command -v ccache >/dev/null 2>&1; then \
+	  launcher="-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache"; fi; \
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) $$launcher > $(BUILD).configure.log 2>&1 || \
 	  { cat $(BUILD).configure.log; exit 1; }
 
 build: configure

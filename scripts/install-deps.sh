@@ -8,6 +8,7 @@ set -euo pipefail
 PACKAGES=(
   # toolchain
   build-essential cmake pkg-config git
+  ccache                                 # the sim-only build test reuses the main build's objects (Makefile)
   # libraries (see README "Dependencies")
   libopenimageio-dev openimageio-tools   # result files: EXR, PNG, TIFF
   libopencv-dev                          # required by OpenImageIO's CMake package
