@@ -59,6 +59,8 @@ void progress_line(const proto::Event& ev);
 int cmd_plugins(const Args&);
 int cmd_rig(const Args&);
 int cmd_status(const Args&);
+int cmd_scans(const Args&);
+int cmd_rig_options(const Args&);
 int cmd_scan(const Args&);
 int cmd_result(const Args&);
 int cmd_decode(const Args&);

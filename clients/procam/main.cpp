@@ -36,6 +36,11 @@ const std::vector<Command> kCommands = {
      "                                --save-frames 1 also keeps the raw frames (frame-r<round>-<i>.png)\n"
      "                                for `procam decode --frames DIR`; --input feeds output OUTPUT (default\n"
      "                                NAME) of a finished scan to the method's input NAME (procam plugins lists them)"},
+    {"scans", cmd_scans, {"endpoint", "timeout", "state", "limit"},
+     "scans [--state queued|capturing|decoding|writing|done|failed|active] [--limit N]\n"
+     "                                list the daemon's scans, newest first (default 20)"},
+    {"rig-options", cmd_rig_options, {"endpoint", "timeout"},
+     "rig-options                     the rig_options a scan may carry (the sim rig: its scenes)"},
     {"result", cmd_result, {"endpoint", "timeout", "scan", "out"},
      "result --scan ID --out DIR      download a finished scan's results"},
     {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins", "layout", "input"},

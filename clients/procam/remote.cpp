@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // CLI commands that talk to procamd: plugins, rig, status, scan, result.
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 
 #include "cli.hpp"
@@ -56,6 +57,53 @@ int cmd_rig(const Args& a) {
   if (tables.empty()) std::printf("  calibration tables: none\n");
   for (const auto& [name, table] : tables.items())
     std::printf("  table      %s\n", engine::describe_calibration_table(name, table).c_str());
+  return 0;
+}
+
+int cmd_scans(const Args& a) {
+  client::Client c = a.connect();
+  proto::ListScans q;
+  q.limit = 20;
+  if (a.has("state")) q.state = a.get("state");
+  if (a.has("limit")) {
+    const std::string v = a.get("limit");
+    char* end = nullptr;
+    const unsigned long n = std::strtoul(v.c_str(), &end, 10);
+    if (v.empty() || *end != '\0' || n < 1 || n > proto::kMaxListScans)
+      return report(Error(Code::invalid_argument, "--limit must be an integer 1.." + std::to_string(proto::kMaxListScans)));
+    q.limit = static_cast<uint32_t>(n);
+  }
+  auto r = c.call(q);
+  if (!r) return report(r.status());
+  if (a.json) { std::cout << r->dump(2) << "\n"; return 0; }
+  const auto& scans = (*r)["scans"];
+  if (scans.empty()) std::printf("no scans%s\n", q.state ? (" in state " + *q.state).c_str() : "");
+  for (const auto& s : scans) {
+    std::printf("%-24s %-9s %s/%s", s.value("scan_id", "").c_str(), s.value("state", "").c_str(),
+                s.value("plugin", "").c_str(), s.value("method", "").c_str());
+    if (!s.value("label", "").empty()) std::printf("  \"%s\"", s.value("label", "").c_str());
+    std::printf("  %s\n", s.value("created_utc", "").c_str());
+  }
+  if ((*r).value("truncated", false))
+    std::printf("(%zu of %llu shown: --limit N for more)\n", scans.size(),
+                static_cast<unsigned long long>((*r).value("total", uint64_t{0})));
+  return 0;
+}
+
+int cmd_rig_options(const Args& a) {
+  client::Client c = a.connect();
+  auto r = c.call(proto::ListRigOptions{});
+  if (!r) return report(r.status());
+  if (a.json) { std::cout << r->dump(2) << "\n"; return 0; }
+  const auto& opts = (*r)["options"];
+  if (opts.empty()) std::printf("rig %s takes no rig_options\n", (*r).value("rig", "").c_str());
+  for (const auto& [key, o] : opts.items()) {
+    std::printf("%s (%s): %s", key.c_str(), o.value("type", "").c_str(), o.value("description", "").c_str());
+    if (o.contains("default")) std::printf("; default %s", o["default"].dump().c_str());
+    std::printf("\n");
+    for (const auto& v : o.value("values", nlohmann::json::array()))
+      std::printf("  %-28s %s\n", v.value("name", "").c_str(), v.value("description", "").c_str());
+  }
   return 0;
 }
 

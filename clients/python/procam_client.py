@@ -213,6 +213,14 @@ class Client:
     def ping(self):
         return self.call("ping")
 
+    def list_scans(self, state=None, limit=None):
+        """Scan summaries, newest first: {"scans", "total", "truncated"}."""
+        return self.call("list_scans", state=state, limit=limit)
+
+    def list_rig_options(self):
+        """{"<option>": {"type", "description", "default", "values"}}; the sim rig lists its scenes."""
+        return self.call("list_rig_options")["options"]
+
     def status(self, scan_id=None):
         r = self.call("status", scan_id=scan_id)
         return r["scan"] if scan_id else r["daemon"]

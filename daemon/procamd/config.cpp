@@ -22,12 +22,12 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
   if (!j.is_object()) return Error(Code::invalid_argument, "daemon config must be a JSON object");
   static const std::set<std::string> known = {"rig", "plugin_paths", "scene_dirs", "endpoint", "results_dir",
                                               "log", "threads", "max_queue", "probe_plugins", "curve",
-                                              "retention", "comment"};
+                                              "retention", "queued_scans", "comment"};
   for (auto it = j.begin(); it != j.end(); ++it)
     if (!known.count(it.key()))
       return Error(Code::invalid_argument, "daemon config: unknown key '" + it.key() + "'",
                    "known keys: rig, plugin_paths, scene_dirs, endpoint, results_dir, log, threads, max_queue, "
-                   "probe_plugins, curve, retention");
+                   "probe_plugins, curve, retention, queued_scans");
   Config c;
   std::string key, rig_file;
   try {
@@ -107,6 +107,30 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
         } else if (it.key() != "comment") {
           return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
                        "known keys: max_age_days, max_scans, min_free_mb");
+        }
+      }
+    }
+    key = "queued_scans";
+    if (j.contains("queued_scans") && !j["queued_scans"].is_null()) {
+      const auto& qv = j["queued_scans"];
+      if (!qv.is_object())
+        return Error(Code::invalid_argument, "daemon config: 'queued_scans' must be an object",
+                     "{\"on_restart\": \"run\", \"max_age_s\": 3600}");
+      for (auto it = qv.begin(); it != qv.end(); ++it) {
+        key = "queued_scans." + it.key();
+        if (it.key() == "on_restart") {
+          const std::string v = it->is_string() ? it->get<std::string>() : "";
+          if (v != "run" && v != "fail")
+            return Error(Code::invalid_argument, "daemon config: 'queued_scans.on_restart' must be \"run\" or \"fail\"",
+                         "\"run\" queues them again after a crash, \"fail\" reports them failed");
+          c.run_queued_on_restart = v == "run";
+        } else if (it.key() == "max_age_s") {
+          if (!it->is_number_unsigned() || it->get<uint64_t>() > 365ull * 86400)
+            return Error(Code::invalid_argument, "daemon config: 'queued_scans.max_age_s' must be an integer 0..31536000");
+          c.queued_max_age_s = it->get<uint64_t>();
+        } else if (it.key() != "comment") {
+          return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
+                       "known keys: on_restart, max_age_s");
         }
       }
     }

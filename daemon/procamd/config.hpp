@@ -38,6 +38,11 @@ struct Config {
   double retention_max_age_days = 0;
   size_t retention_max_scans = 0;
   uint64_t retention_min_free_mb = 0;
+  // "queued_scans": {"on_restart": "run" | "fail", "max_age_s": 3600}: what a
+  // start does with scans that were queued when the daemon died
+  // (engine::ServiceConfig::run_queued_on_restart / queued_max_age).
+  bool run_queued_on_restart = true;
+  uint64_t queued_max_age_s = 3600;
 };
 
 // True for endpoints only this machine can reach: ipc://, inproc://,

@@ -128,6 +128,8 @@ int main(int argc, char** argv) {
   scfg.max_queue = cfg->max_queue;
   scfg.retention.max_age_days = cfg->retention_max_age_days;
   scfg.retention.max_scans = cfg->retention_max_scans;
+  scfg.run_queued_on_restart = cfg->run_queued_on_restart;
+  scfg.queued_max_age = std::chrono::seconds(static_cast<int64_t>(cfg->queued_max_age_s));
   scfg.retention.min_free_mb = cfg->retention_min_free_mb;
   scfg.calibration_tables = cfg->calibration_tables;
   for (const auto& [name, table] : cfg->calibration_tables.items())

@@ -393,8 +393,10 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
         auto v = proto::negotiate_version(h);
         if (!v) return err(v.status());
         ok({{"version", *v}, {"daemon", "procamd 0.1.0"}, {"rig", service_.rig_name()},
-            {"capabilities", curve_ ? nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe", "curve"}
-                                    : nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe"}}});
+            {"capabilities", curve_ ? nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe",
+                                                     "list_scans", "list_rig_options", "curve"}
+                                    : nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe",
+                                                     "list_scans", "list_rig_options"}}});
       },
       [&](const proto::ListPlugins&) {
         nlohmann::json plugins = nlohmann::json::array(), rejected = nlohmann::json::array();
@@ -442,6 +444,8 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
         }
         ok(*r);
       },
+      [&](const proto::ListScans& l) { ok(service_.list_scans(l.state, l.limit)); },
+      [&](const proto::ListRigOptions&) { ok(service_.rig_options()); },
       [&](const proto::Cancel& c) {
         auto r = service_.cancel(c.scan_id);
         if (!r) return err(r.status());

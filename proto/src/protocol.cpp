@@ -19,8 +19,9 @@ namespace {
 using json = nlohmann::json;
 
 // In RequestBody's variant order.
-constexpr std::array<std::string_view, 9> kTypes = {
-    "hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch", "cancel", "ping"};
+constexpr std::array<std::string_view, 11> kTypes = {
+    "hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch", "cancel", "ping",
+    "list_scans", "list_rig_options"};
 
 constexpr const char* kSpecHint = "see proto/PROTOCOL.md";
 
@@ -363,6 +364,30 @@ Result<RequestBody> decode_fetch(const Fields& f) {
   return RequestBody{std::move(r)};
 }
 
+Result<RequestBody> decode_list_scans(const Fields& f) {
+  PROCAM_TRY(f.only({"state", "limit"}));
+  ListScans r;
+  auto state = f.string("state", false, 16);
+  PROCAM_TRY(state);
+  if (*state) {
+    static const std::array<std::string_view, 7> kStates = {"queued", "capturing", "decoding", "writing",
+                                                             "done",   "failed",    "active"};
+    if (std::find(kStates.begin(), kStates.end(), **state) == kStates.end())
+      return Error(Code::invalid_argument, "field 'state' is '" + **state + "', not a scan state",
+                   "one of queued, capturing, decoding, writing, done, failed, or active (not yet final)");
+    r.state = std::move(**state);
+  }
+  auto limit = f.unsigned_int("limit");
+  PROCAM_TRY(limit);
+  const uint64_t n = limit->value_or(kDefaultListScans);
+  if (n < 1 || n > kMaxListScans)
+    return Error(Code::invalid_argument,
+                 "field 'limit' is " + std::to_string(n) + "; it must be 1.." + std::to_string(kMaxListScans),
+                 "omit it for the newest " + std::to_string(kDefaultListScans));
+  r.limit = static_cast<uint32_t>(n);
+  return RequestBody{std::move(r)};
+}
+
 // A request too broken to parse may still carry its id: find a top-level-looking
 // "id": "<text>" in the raw bytes so the error reply can be correlated. Only a
 // plain id (printable ASCII, no escapes, 1..kMaxIdBytes) is taken; anything
@@ -461,6 +486,11 @@ Result<Request> decode_request_impl(std::string_view bytes, std::string* id_out)
   } else if (type == "ping") {
     Status s = f.only({});
     body = s.ok() ? Result<RequestBody>(RequestBody{Ping{}}) : Result<RequestBody>(s);
+  } else if (type == "list_scans") {
+    body = decode_list_scans(f);
+  } else if (type == "list_rig_options") {
+    Status s = f.only({});
+    body = s.ok() ? Result<RequestBody>(RequestBody{ListRigOptions{}}) : Result<RequestBody>(s);
   } else {
     std::vector<std::string> names(kTypes.begin(), kTypes.end());
     return Error(Code::unknown_type, "unknown request type '" + type + "'",
@@ -505,6 +535,12 @@ json request_fields(const RequestBody& body) {
     }
     json operator()(const Cancel& c) const { return {{"scan_id", c.scan_id}}; }
     json operator()(const Ping&) const { return json::object(); }
+    json operator()(const ListScans& l) const {
+      json j = {{"limit", l.limit}};
+      if (l.state) j["state"] = *l.state;
+      return j;
+    }
+    json operator()(const ListRigOptions&) const { return json::object(); }
   };
   return std::visit(Visitor{}, body);
 }

@@ -71,6 +71,9 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
       {"9", Fetch{"s", "f.ply"}},
       {"10", Cancel{"scan-1"}},
       {"11", Ping{}},
+      {"12", ListScans{}},
+      {"13", ListScans{"active", 5}},
+      {"14", ListRigOptions{}},
       {std::string(kMaxIdBytes, 'x'), ListPlugins{}},
   };
   std::set<std::string_view> types;
@@ -83,6 +86,22 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
     types.insert(type_name(req.body));
   }
   EXPECT_EQ(types.size(), std::variant_size_v<RequestBody>);
+}
+
+TEST(ProtoRequest, ListScansFiltersAreChecked) {
+  auto r = decode_request(R"({"procam":1,"id":"a","type":"list_scans"})");
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  EXPECT_EQ(std::get<ListScans>(r->body).limit, kDefaultListScans);
+  EXPECT_FALSE(std::get<ListScans>(r->body).state.has_value());
+  r = decode_request(R"({"procam":1,"id":"a","type":"list_scans","limit":1000,"state":"failed"})");
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  EXPECT_EQ(std::get<ListScans>(r->body).limit, 1000u);
+  expect_error(R"({"procam":1,"id":"a","type":"list_scans","state":"sleeping"})", Code::invalid_argument, "'state'");
+  expect_error(R"({"procam":1,"id":"a","type":"list_scans","limit":0})", Code::invalid_argument, "'limit'");
+  expect_error(R"({"procam":1,"id":"a","type":"list_scans","limit":1001})", Code::invalid_argument, "1..1000");
+  expect_error(R"({"procam":1,"id":"a","type":"list_scans","limit":"5"})", Code::bad_message, "'limit'");
+  expect_error(R"({"procam":1,"id":"a","type":"list_scans","since":"x"})", Code::bad_message, "'since'");
+  expect_error(R"({"procam":1,"id":"a","type":"list_rig_options","scene":"x"})", Code::bad_message, "'scene'");
 }
 
 TEST(ProtoRequest, DefaultsApplyWhenFieldsAreAbsent) {
@@ -764,7 +783,7 @@ TEST(ProtoSpec, EveryExampleInProtocolMdDecodes) {
     }
   }
   for (auto t : {"hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch",
-                 "cancel", "ping"}) {
+                 "cancel", "ping", "list_scans", "list_rig_options"}) {
     EXPECT_TRUE(request_types.count(t)) << "no request example of type " << t;
     EXPECT_TRUE(reply_types.count(t)) << "no reply example of type " << t;
   }

@@ -339,6 +339,12 @@ TEST(DaemonLifecycle, BadConfigIsRefusedWithTheKeyNamed) {
   int rc = run_command({bin("procamd"), "--config", (d.path / "bad.json").string()}, &text);
   EXPECT_EQ(rc, 2);
   EXPECT_NE(text.find("endpiont"), std::string::npos) << text;
+  // A wrong value of a nested key names it and the allowed values.
+  std::ofstream(d.path / "bad2.json") << R"({"rig": {"name": "x"}, "queued_scans": {"on_restart": "later"}})";
+  rc = run_command({bin("procamd"), "--config", (d.path / "bad2.json").string()}, &text);
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(text.find("queued_scans.on_restart"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"run\" or \"fail\""), std::string::npos) << text;
 }
 
 TEST(DaemonLifecycle, RestartServesEarlierScansAndStopsCleanly) {

@@ -93,6 +93,11 @@ def plain(args, tmp):
         for f in m["files"]:
             check(os.path.getsize(os.path.join(out, f["name"])) == f["size_bytes"], f["name"])
         check(os.path.exists(os.path.join(out, "manifest.json")), "manifest.json written")
+        listed = c.list_scans(state="done", limit=5)
+        check(listed["scans"] and listed["scans"][0]["scan_id"] == summary["scan_id"],
+              f"list_scans: newest done scan first: {listed}")
+        scenes = [v["name"] for v in c.list_rig_options()["scene"]["values"]]
+        check("plane" in scenes and "tilted-box" in scenes, f"list_rig_options: {scenes}")
         # Errors are exceptions with the daemon's code.
         try:
             c.result("no-such-scan")

@@ -24,6 +24,7 @@ struct ConfigOptions {
   size_t max_queue = 16;
   nlohmann::json curve;            // null: off
   nlohmann::json retention;        // null: off
+  nlohmann::json queued_scans;     // null: the daemon's default (run queued scans after a restart)
   std::vector<std::string> plugin_paths;
 };
 
@@ -56,6 +57,7 @@ inline std::string write_config(const fs::path& dir, const ConfigOptions& o) {
                         {"max_queue", o.max_queue}};
   if (!o.curve.is_null()) cfg["curve"] = o.curve;
   if (!o.retention.is_null()) cfg["retention"] = o.retention;
+  if (!o.queued_scans.is_null()) cfg["queued_scans"] = o.queued_scans;
   const std::string path = (dir / "procamd-test.json").string();
   std::ofstream(path) << cfg.dump(2);
   return path;

@@ -130,7 +130,12 @@ TEST(ServiceQueue, PingAndStatusAnswerPromptlyWhileAScanRuns) {
     ASSERT_TRUE(st.ok()) << st.status().to_string();
     if (i % 2 == 0 && (*st)["daemon"]["state"] == "scanning") saw_running = true;
     auto s = c.call(proto::StatusQuery{id});
-    if ((*s)["scan"]["state"] == "done" || (*s)["scan"]["state"] == "failed") break;
+    ASSERT_TRUE(s.ok()) << s.status().to_string();
+    const std::string state = (*s)["scan"]["state"];
+    if (state != "queued") {  // where it is, from its first moment (never null once started)
+      EXPECT_TRUE((*s)["scan"]["progress"].is_object()) << state << ": " << (*s)["scan"].dump();
+    }
+    if (state == "done" || state == "failed") break;
   }
   EXPECT_TRUE(saw_running);
   const double p50 = percentile(ms, 50), p99 = percentile(ms, 99);
@@ -241,10 +246,92 @@ TEST(ServiceQueue, StateEventsWaitForASlowClientInsteadOfBeingDropped) {
     seen += std::to_string(ev->seq) + ":" + ev->event + " ";
   }
   EXPECT_NE(scan_id, first_id);
-  EXPECT_EQ(states, (std::vector<std::string>{"capturing", "writing", "done"})) << seen;
+  EXPECT_EQ(states, (std::vector<std::string>{"capturing", "decoding", "writing", "done"})) << seen;
   EXPECT_GE(progress, 1) << seen;
   EXPECT_TRUE(ordered) << seen;
   EXPECT_TRUE(sd.d->alive());
+}
+
+// Issue 17 item 8: a client can list the daemon's scans and the rig_options
+// (the sim rig's scenes) instead of guessing them.
+TEST(ServiceListing, ListScansNewestFirstFilteredAndLimited) {
+  ServiceDaemon sd;
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 20s);
+  auto empty = c.call(proto::ListScans{});
+  ASSERT_TRUE(empty.ok()) << empty.status().to_string();
+  EXPECT_TRUE((*empty)["scans"].empty());
+  EXPECT_EQ((*empty)["total"], 0);
+  std::vector<std::string> ids;
+  for (int i = 0; i < 3; ++i) {
+    auto fin = c.scan(tiny_scan(i % 2 ? "plane" : "tilted-box", "list " + std::to_string(i)), nullptr);
+    ASSERT_TRUE(fin.ok()) << fin.status().to_string();
+    ids.push_back((*fin)["scan_id"]);
+    std::this_thread::sleep_for(1100ms);  // distinct created_utc seconds
+  }
+  auto bad = c.call(tiny_scan("no-such-scene"));  // refused: never listed
+  EXPECT_FALSE(bad.ok());
+  auto all = c.call(proto::ListScans{});
+  ASSERT_TRUE(all.ok()) << all.status().to_string();
+  ASSERT_EQ((*all)["scans"].size(), 3u) << all->dump();
+  EXPECT_EQ((*all)["total"], 3);
+  EXPECT_EQ((*all)["truncated"], false);
+  for (size_t k = 0; k < 3; ++k) {  // newest first
+    EXPECT_EQ((*all)["scans"][k]["scan_id"], ids[2 - k]);
+    EXPECT_EQ((*all)["scans"][k]["label"], "list " + std::to_string(2 - k));
+  }
+  proto::ListScans two;
+  two.limit = 2;
+  auto lim = c.call(two);
+  ASSERT_TRUE(lim.ok());
+  EXPECT_EQ((*lim)["scans"].size(), 2u);
+  EXPECT_EQ((*lim)["total"], 3);
+  EXPECT_EQ((*lim)["truncated"], true);
+  proto::ListScans active;
+  active.state = "active";
+  auto act = c.call(active);
+  ASSERT_TRUE(act.ok());
+  EXPECT_TRUE((*act)["scans"].empty()) << act->dump();
+  proto::ListScans done;
+  done.state = "done";
+  EXPECT_EQ((*c.call(done))["total"], 3);
+  // Bad filters are the client's error, named.
+  zmq::context_t ctx;
+  zmq::socket_t s(ctx, zmq::socket_type::dealer);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::rcvtimeo, 5000);
+  s.connect(sd.endpoint());
+  const std::string b1 = raw_exchange(s, {json{{"procam", 1}, {"id", "l1"}, {"type", "list_scans"}, {"state", "sleeping"}}.dump()});
+  EXPECT_NE(b1.find("invalid_argument"), std::string::npos) << b1;
+  EXPECT_NE(b1.find("'state'"), std::string::npos) << b1;
+  const std::string b2 = raw_exchange(s, {json{{"procam", 1}, {"id", "l2"}, {"type", "list_scans"}, {"limit", 0}}.dump()});
+  EXPECT_NE(b2.find("invalid_argument"), std::string::npos) << b2;
+}
+
+TEST(ServiceListing, RigOptionsListEverySceneTheRigAccepts) {
+  ServiceDaemon sd;
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 20s);
+  auto r = c.call(proto::ListRigOptions{});
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  EXPECT_EQ((*r)["rig"], "sim-tiny");
+  const json& scene = (*r)["options"]["scene"];
+  EXPECT_EQ(scene["type"], "string");
+  std::set<std::string> listed;
+  for (const auto& v : scene["values"]) listed.insert(v["name"].get<std::string>());
+  // The truth: the scene files in the configured folder.
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(source("configs/scenes")))
+    if (e.is_regular_file() && e.path().extension() == ".json") files.insert(e.path().stem().string());
+  EXPECT_EQ(listed, files);
+  EXPECT_TRUE(listed.count(scene["default"].get<std::string>())) << scene.dump();
+  // Every listed name is accepted by a scan request (two, to keep it short), a
+  // name not listed is not.
+  for (const std::string& name : {std::string("plane"), *listed.rbegin()}) {
+    auto ok = c.call(tiny_scan(name));
+    EXPECT_TRUE(ok.ok()) << name << ": " << ok.status().to_string();
+  }
+  EXPECT_FALSE(c.call(tiny_scan("not-" + *listed.begin())).ok());
 }
 
 // 50 concurrent clients x 100 requests: status (most), list_plugins, scans.
@@ -396,6 +483,123 @@ TEST(ServicePersistence, KillNineDuringAndAfterScansLosesNothingFinished) {
       EXPECT_NE(f["name"].get<std::string>()[0], '.');
     EXPECT_EQ(sd.d->stop(), 0);
   }
+}
+
+// Issue 17 item 5: scans queued behind a running one survive kill -9. The
+// next start queues them again with their ids, labels and parameters and runs
+// them to the end; the one that was running is reported interrupted. With
+// queued_scans.on_restart "fail" they fail instead, saying why.
+namespace {
+struct KilledQueue {
+  std::string running;
+  std::vector<std::string> queued;
+};
+// A full-size scan (~1 s), then `n` tiny-rig scans queued behind it; kill -9
+// once the first one is capturing.
+KilledQueue kill_with_queue(const std::string& results, int n) {
+  KilledQueue out;
+  ConfigOptions big;
+  big.tiny_rig = false;
+  ServiceDaemon sd(big, results);
+  EXPECT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 20s);
+  auto r = c.call(tiny_scan("tilted-box", "running at the kill"));
+  EXPECT_TRUE(r.ok()) << r.status().to_string();
+  if (!r) return out;
+  out.running = (*r)["scan_id"];
+  for (int i = 0; i < n; ++i) {
+    proto::Scan s = tiny_scan(i % 2 ? "plane" : "tilted-box", "queued " + std::to_string(i));
+    s.params = {{"min_bit_margin", 0.05}};
+    auto q = c.call(s);
+    EXPECT_TRUE(q.ok()) << q.status().to_string();
+    if (q) out.queued.push_back((*q)["scan_id"]);
+  }
+  for (int i = 0; i < 1000; ++i) {
+    auto st = c.call(proto::StatusQuery{out.running});
+    if (st && (*st)["scan"]["progress"].is_object() && (*st)["scan"]["progress"].value("done", 0) >= 2) break;
+    std::this_thread::sleep_for(5ms);
+  }
+  kill9(*sd.d);
+  return out;
+}
+}  // namespace
+
+TEST(ServicePersistence, QueuedScansSurviveKillNineAndRunAfterTheRestart) {
+  TempDir home;
+  const std::string results = (home.path / "results").string();
+  const KilledQueue k = kill_with_queue(results, 3);
+  ASSERT_EQ(k.queued.size(), 3u);
+  ServiceDaemon sd({}, results);
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 20s);
+  auto run = c.call(proto::StatusQuery{k.running});
+  ASSERT_TRUE(run.ok()) << run.status().to_string();
+  EXPECT_EQ((*run)["scan"]["state"], "failed");
+  EXPECT_NE((*run)["scan"]["error"]["message"].get<std::string>().find("interrupted"), std::string::npos);
+  std::vector<std::string> finished;
+  for (size_t i = 0; i < k.queued.size(); ++i) {
+    const json fin = wait_final(c, k.queued[i]);
+    ASSERT_FALSE(fin.is_null()) << k.queued[i] << " never finished; log:\n" << sd.d->log();
+    EXPECT_EQ(fin["state"], "done") << fin.dump();
+    EXPECT_EQ(fin["label"], "queued " + std::to_string(i));
+    finished.push_back(fin["finished_utc"]);
+    auto m = c.call(proto::ResultQuery{k.queued[i]});
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ((*m)["manifest"]["params"].value("min_bit_margin", -1.0), 0.05) << "the parameters were kept";
+    for (const auto& f : (*m)["manifest"]["files"]) EXPECT_NE(f["name"], "request.json");
+  }
+  EXPECT_TRUE(std::is_sorted(finished.begin(), finished.end())) << "they ran in their old order";
+  EXPECT_NE(sd.d->log().find("3 queued again, 0 failed"), std::string::npos) << sd.d->log();
+  EXPECT_EQ(sd.d->stop(), 0);
+  // A second restart finds them finished: nothing runs twice.
+  ServiceDaemon again({}, results);
+  ASSERT_TRUE(again.d->wait_ready()) << again.d->log();
+  EXPECT_EQ(again.d->log().find("queued again"), std::string::npos) << again.d->log();
+}
+
+TEST(ServicePersistence, QueuedScansFailWithAReasonWhenConfiguredOrStale) {
+  TempDir home;
+  const std::string results = (home.path / "results").string();
+  const KilledQueue k = kill_with_queue(results, 2);
+  ASSERT_EQ(k.queued.size(), 2u);
+  // Make the second one stale: accepted two hours before the restart.
+  {
+    const fs::path mp = fs::path(results) / k.queued[1] / "manifest.json";
+    std::ifstream in(mp);
+    json m = json::parse(in);
+    ASSERT_EQ(m["state"], "queued");
+    m["created_utc"] = "2000-01-01T00:00:00Z";
+    std::ofstream(mp) << m.dump();
+  }
+  ConfigOptions o;
+  o.queued_scans = {{"on_restart", "run"}, {"max_age_s", 3600}};
+  {
+    ServiceDaemon sd(o, results);
+    ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+    client::Client c(sd.endpoint(), 20s);
+    EXPECT_EQ(wait_final(c, k.queued[0])["state"], "done");
+    const json stale = wait_final(c, k.queued[1]);
+    EXPECT_EQ(stale["state"], "failed");
+    EXPECT_EQ(stale["error"]["code"], "cancelled");
+    EXPECT_NE(stale["error"]["message"].get<std::string>().find("stale"), std::string::npos) << stale.dump();
+    EXPECT_EQ(sd.d->stop(), 0);
+  }
+  // on_restart "fail": a fresh kill with one queued scan.
+  TempDir home2;
+  const std::string results2 = (home2.path / "results").string();
+  const KilledQueue k2 = kill_with_queue(results2, 1);
+  ASSERT_EQ(k2.queued.size(), 1u);
+  o.queued_scans = {{"on_restart", "fail"}};
+  ServiceDaemon sd(o, results2);
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 20s);
+  const json f = wait_final(c, k2.queued[0]);
+  EXPECT_EQ(f["state"], "failed");
+  EXPECT_NE(f["error"]["message"].get<std::string>().find("restarted before this scan started"), std::string::npos)
+      << f.dump();
+  auto m = c.call(proto::ResultQuery{k2.queued[0]});
+  ASSERT_TRUE(m.ok());
+  EXPECT_EQ((*m)["manifest"]["label"], "queued 0");
 }
 
 TEST(ServicePersistence, RetentionKeepsNewestAndNeverADownloadingScan) {
@@ -608,6 +812,12 @@ TEST(ServiceSecurity, ResultFilesCannotEscapeTheResultsFolder) {
       s, {json{{"procam", 1}, {"id", "e2"}, {"type", "fetch"}, {"scan_id", "../" + id}, {"file", "depth_mm.exr"}}.dump()});
   EXPECT_NE(body2.find("\"ok\":false"), std::string::npos) << body2;
   EXPECT_EQ(body2.find("secret"), std::string::npos);
+  // A scan id that cannot exist is an unknown scan (not_found, naming the id),
+  // not a complaint about the (valid) file name.
+  auto bad = c.call(proto::Fetch{"../" + id, "valid.png", 0, 100});
+  EXPECT_EQ(bad.status().code(), Code::not_found) << bad.status().to_string();
+  EXPECT_NE(bad.status().message().find("no scan with id"), std::string::npos) << bad.status().to_string();
+  EXPECT_EQ(bad.status().message().find("plain file name"), std::string::npos) << bad.status().to_string();
 }
 
 long rss_kib(pid_t pid) {

@@ -59,6 +59,7 @@ using service_detail::error_json;
 using service_detail::files_bytes;
 using service_detail::fsync_dir;
 using service_detail::is_final;
+using service_detail::persist_queued;
 using service_detail::scan_files;
 
 ScanService::ScanService(std::unique_ptr<hw::Rig> rig, const host::PluginHost& plugins,
@@ -154,25 +155,33 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
                    "the queue holds " + std::to_string(cfg_.max_queue) + " scans; retry later with back-off");
     }
   }
-  // rig_options are checked now, not when the scan runs: a bad one is the
-  // client's error (invalid_argument) and must never be queued.
-  PROCAM_TRY(rig_->check_scan_options(req.rig_options));
-  auto inputs_loaded = load_inputs(req);  // service_inputs.cpp; read now, released after create
-  if (!inputs_loaded) return inputs_loaded.status();
-  auto session = plugins_.create_session(req.plugin, req.method, req.params.dump(), plugin_rig_json_.dump(),
-                                         inputs_loaded->views());
+  auto session = make_session(req);
   if (!session) return session.status();
   auto rec = std::make_shared<Record>();
   rec->id = new_scan_id();
   rec->req = req;
   rec->created_utc = utc_now();
   rec->session.emplace(std::move(*session));
-  nlohmann::json reply;
   {
+    // Reserve the id (state "queued", not yet in the queue: a cancel now is
+    // "just starting", retry), persist the request outside the lock, then queue.
     std::lock_guard lock(mu_);
     if (stopping_) return Error(Code::unavailable, "the daemon is shutting down", "retry when it is back");
     while (scans_.count(rec->id)) rec->id = new_scan_id();
     scans_[rec->id] = rec;
+  }
+  if (Status ps = persist_queued(cfg_.results_dir, rec->id, req, base_manifest(*rec)); !ps) {
+    std::lock_guard lock(mu_);
+    scans_.erase(rec->id);
+    return ps;
+  }
+  nlohmann::json reply;
+  {
+    std::lock_guard lock(mu_);
+    if (stopping_) {
+      scans_.erase(rec->id);
+      return Error(Code::unavailable, "the daemon is shutting down", "retry when it is back");
+    }
     queue_.push_back(rec);
     reply = {{"scan_id", rec->id}, {"state", "queued"},
              {"queue_position", queue_.size() - 1 + (running_ ? 1 : 0)}};
@@ -185,6 +194,16 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
   cv_.notify_all();
   PROCAM_LOG(engine, info) << "scan " << rec->id << " queued: " << req.plugin << "/" << req.method;
   return reply;
+}
+
+Result<host::Session> ScanService::make_session(const ScanRequest& req) const {
+  // rig_options are checked now, not when the scan runs: a bad one is the
+  // client's error (invalid_argument) and must never be queued.
+  PROCAM_TRY(rig_->check_scan_options(req.rig_options));
+  auto inputs_loaded = load_inputs(req);  // service_inputs.cpp; read now, released after create
+  if (!inputs_loaded) return inputs_loaded.status();
+  return plugins_.create_session(req.plugin, req.method, req.params.dump(), plugin_rig_json_.dump(),
+                                 inputs_loaded->views());
 }
 
 Result<nlohmann::json> ScanService::cancel(const std::string& scan_id) {
@@ -292,6 +311,12 @@ void ScanService::run_one(Record& rec) {
     Status ws = write_file_atomic((fs::path(dir) / "manifest.json").string(), running.dump(2));
     if (!ws) PROCAM_LOG(engine, warn) << "scan " << rec.id << ": " << ws.to_string();
   }
+  {
+    // status shows where the scan is from its first moment, not null until
+    // the first frame arrives.
+    std::lock_guard lock(mu_);
+    rec.progress = Progress{"capture", 1, 0, 0, "preparing the rig"};
+  }
   set_state("capturing");
   Status st = rig_->apply_scan_options(rec.req.rig_options);
   {
@@ -307,12 +332,15 @@ void ScanService::run_one(Record& rec) {
   host::Session& session = *rec.session;
   std::string last_stage;
   auto progress = [&](const Progress& p) {
+    std::string changed;  // the state this progress moves the scan into, if any
     {
       std::lock_guard lock(mu_);
       rec.progress = p;
-      if (p.stage == "decode" && rec.state != "decoding") rec.state = "decoding";
-      else if (p.stage == "capture" && rec.state != "capturing") rec.state = "capturing";
+      if (p.stage == "decode" && rec.state != "decoding") changed = rec.state = "decoding";
+      else if (p.stage == "capture" && rec.state != "capturing") changed = rec.state = "capturing";
     }
+    // Every state change is a state event (PROTOCOL.md 7), decoding included.
+    if (!changed.empty()) emit(rec, "state", {{"state", changed}});
     emit(rec, "progress", {{"stage", p.stage}, {"round", p.round}, {"done", p.done}, {"total", p.total},
                            {"message", p.message}});
   };

@@ -61,6 +61,16 @@ nlohmann::json scan_files(const std::string& dir);
 std::string str_field(const nlohmann::json& j, const char* key);
 // Sum of "size_bytes" over a manifest's "files" (0 when it has none).
 uint64_t files_bytes(const nlohmann::json& manifest);
+// A queued scan on disk: <results_dir>/<id>/request.json (the whole request,
+// request_to_json) and manifest.json (`manifest` with state "queued"), both
+// written atomically and the folder fsync'd. io_error naming the folder.
+Status persist_queued(const std::string& results_dir, const std::string& id, const ScanRequest& req,
+                      nlohmann::json manifest);
+nlohmann::json request_to_json(const ScanRequest& req);
+// corrupt_data saying which field is wrong.
+Result<ScanRequest> request_from_json(const nlohmann::json& j);
+// Seconds since an RFC 3339 UTC time "YYYY-MM-DDTHH:MM:SSZ"; nullopt if unreadable.
+std::optional<double> seconds_since_utc(const std::string& utc);
 
 }  // namespace service_detail
 }  // namespace procam::engine

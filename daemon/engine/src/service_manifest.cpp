@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: MIT
 // ScanService manifests and status JSON: the manifest skeleton every scan
 // starts from, scan summaries and the daemon status reply.
+#include <algorithm>
 #include <chrono>
+#include <tuple>
+#include <vector>
 
 #include "procam/proto/protocol.hpp"
 #include "service_internal.hpp"
@@ -100,6 +103,25 @@ nlohmann::json ScanService::rig_description() const {
 std::string ScanService::rig_name() const {
   std::lock_guard lock(mu_);
   return rig_description_.value("name", "");
+}
+
+nlohmann::json ScanService::list_scans(const std::optional<std::string>& state, uint32_t limit) const {
+  std::vector<const Record*> match;
+  std::lock_guard lock(mu_);
+  for (const auto& [id, r] : scans_) {
+    if (state && !(*state == "active" ? !service_detail::is_final(r->state) : r->state == *state)) continue;
+    match.push_back(r.get());
+  }
+  std::sort(match.begin(), match.end(), [](const Record* a, const Record* b) {
+    return std::tie(a->created_utc, a->id) > std::tie(b->created_utc, b->id);
+  });
+  nlohmann::json scans = nlohmann::json::array();
+  for (size_t i = 0; i < match.size() && i < limit; ++i) scans.push_back(summary_locked(*match[i]));
+  return {{"scans", std::move(scans)}, {"total", match.size()}, {"truncated", match.size() > limit}};
+}
+
+nlohmann::json ScanService::rig_options() const {
+  return {{"rig", rig_name_}, {"options", rig_->scan_options()}};
 }
 
 }  // namespace procam::engine

@@ -4,7 +4,11 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
 #include <filesystem>
+#include <tuple>
 
 #include "procam/core/log.hpp"
 #include "procam/engine/results.hpp"
@@ -25,12 +29,86 @@ void fsync_dir(const std::string& dir) {
 }
 
 // The files `fetch` serves: everything in the folder but manifest.json (its
-// content is the `result` reply) and temporaries.
+// content is the `result` reply), request.json (the daemon's record of the
+// request, also in the manifest) and temporaries.
 nlohmann::json scan_files(const std::string& dir) {
   nlohmann::json out = nlohmann::json::array();
-  for (auto& f : list_files(dir))
-    if (f.value("name", "") != "manifest.json") out.push_back(f);
+  for (auto& f : list_files(dir)) {
+    const std::string n = f.value("name", "");
+    if (n != "manifest.json" && n != "request.json") out.push_back(f);
+  }
   return out;
+}
+
+nlohmann::json request_to_json(const ScanRequest& req) {
+  nlohmann::json inputs = nlohmann::json::object();
+  for (const auto& [name, src] : req.inputs) inputs[name] = {{"scan", src.scan_id}, {"output", src.output}};
+  return {{"procam", 1},         {"plugin", req.plugin},   {"method", req.method},
+          {"label", req.label},  {"params", req.params},   {"rig_options", req.rig_options},
+          {"save_frames", req.save_frames}, {"inputs", inputs}};
+}
+
+Result<ScanRequest> request_from_json(const nlohmann::json& j) {
+  auto bad = [](const std::string& what) {
+    return Error(Code::corrupt_data, "request.json: " + what, "the scan folder was changed by hand; scan again");
+  };
+  if (!j.is_object()) return bad("not a JSON object");
+  ScanRequest r;
+  for (const char* k : {"plugin", "method", "label"})
+    if (!j.contains(k) || !j[k].is_string()) return bad(std::string("'") + k + "' is not a string");
+  r.plugin = j["plugin"];
+  r.method = j["method"];
+  r.label = j["label"];
+  for (const char* k : {"params", "rig_options", "inputs"})
+    if (!j.contains(k) || !j[k].is_object()) return bad(std::string("'") + k + "' is not an object");
+  r.params = j["params"];
+  r.rig_options = j["rig_options"];
+  if (!j.contains("save_frames") || !j["save_frames"].is_boolean()) return bad("'save_frames' is not a boolean");
+  r.save_frames = j["save_frames"];
+  for (auto it = j["inputs"].begin(); it != j["inputs"].end(); ++it) {
+    const auto& v = *it;
+    if (!v.is_object() || !v.contains("scan") || !v["scan"].is_string() || !v.contains("output") ||
+        !v["output"].is_string())
+      return bad("input '" + it.key() + "' is not {\"scan\", \"output\"}");
+    r.inputs[it.key()] = {v["scan"], v["output"]};
+  }
+  return r;
+}
+
+Status persist_queued(const std::string& results_dir, const std::string& id, const ScanRequest& req,
+                      nlohmann::json manifest) {
+  const fs::path dir = fs::path(results_dir) / id;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec)
+    return Error(Code::io_error, "cannot create scan folder '" + dir.string() + "': " + ec.message(),
+                 "check that the results folder is writable and not full");
+  manifest["state"] = "queued";
+  Status st = write_file_atomic((dir / "request.json").string(), request_to_json(req).dump(2));
+  if (st) st = write_file_atomic((dir / "manifest.json").string(), manifest.dump(2));
+  if (!st) {
+    fs::remove_all(dir, ec);
+    return Error(st.code(), "cannot keep the queued scan on disk: " + st.message(),
+                 "check that the results folder is writable and not full");
+  }
+  fsync_dir(dir.string());
+  fsync_dir(results_dir);
+  return Status::Ok();
+}
+
+std::optional<double> seconds_since_utc(const std::string& utc) {
+  std::tm tm{};
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, sec = 0;
+  if (std::sscanf(utc.c_str(), "%4d-%2d-%2dT%2d:%2d:%2d", &y, &mo, &d, &h, &mi, &sec) != 6) return std::nullopt;
+  tm.tm_year = y - 1900;
+  tm.tm_mon = mo - 1;
+  tm.tm_mday = d;
+  tm.tm_hour = h;
+  tm.tm_min = mi;
+  tm.tm_sec = sec;
+  const std::time_t t = timegm(&tm);
+  if (t == static_cast<std::time_t>(-1)) return std::nullopt;
+  return std::difftime(std::time(nullptr), t);
 }
 
 // A string field of a manifest read from disk, "" when absent or not a string.
@@ -55,13 +133,16 @@ uint64_t files_bytes(const nlohmann::json& manifest) {
 using service_detail::files_bytes;
 using service_detail::fsync_dir;
 using service_detail::is_final;
+using service_detail::request_from_json;
 using service_detail::scan_files;
+using service_detail::seconds_since_utc;
 using service_detail::str_field;
 using service_detail::error_json;
 
 void ScanService::load_existing() {
   std::error_code ec;
   size_t interrupted = 0;
+  std::vector<std::pair<std::shared_ptr<Record>, Result<ScanRequest>>> queued;
   for (const auto& ent : fs::directory_iterator(cfg_.results_dir, ec)) try {
     std::error_code ec2;
     if (!ent.is_directory(ec2) || ent.is_symlink(ec2)) continue;
@@ -81,6 +162,12 @@ void ScanService::load_existing() {
       rec->req.label = str_field(*m, "label");
       rec->created_utc = str_field(*m, "created_utc");
       if (m->contains("params") && (*m)["params"].is_object()) rec->req.params = (*m)["params"];
+    }
+    if (m && m->is_object() && str_field(*m, "state") == "queued") {
+      // Accepted but never started when the daemon died: restart_queued() decides.
+      auto req = read_json_file((ent.path() / "request.json").string());
+      queued.emplace_back(rec, req ? request_from_json(*req) : Result<ScanRequest>(req.status()));
+      continue;
     }
     if (m && m->is_object() && is_final(str_field(*m, "state"))) {
       rec->manifest = *m;
@@ -125,6 +212,52 @@ void ScanService::load_existing() {
     PROCAM_LOG(engine, info) << "found " << scans_.size() << " earlier scans in " << cfg_.results_dir
                              << (interrupted ? " (" + std::to_string(interrupted) + " interrupted)" : "");
   }
+  restart_queued(std::move(queued));
+}
+
+void ScanService::restart_queued(std::vector<std::pair<std::shared_ptr<Record>, Result<ScanRequest>>> found) {
+  // Their old order: acceptance time, then id (ids start with that time too).
+  std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
+    return std::tie(a.first->created_utc, a.first->id) < std::tie(b.first->created_utc, b.first->id);
+  });
+  size_t requeued = 0, failed = 0;
+  for (auto& [rec, req] : found) {
+    Status why;
+    if (!req) {
+      why = req.status().with_context("queued before a restart, but its request cannot be read");
+    } else {
+      rec->req = *req;
+      const auto age = seconds_since_utc(rec->created_utc);
+      if (!cfg_.run_queued_on_restart) {
+        why = Error(Code::cancelled, "the daemon restarted before this scan started",
+                    "scan again (procamd is configured with queued_scans.on_restart \"fail\")");
+      } else if (!age || *age > static_cast<double>(cfg_.queued_max_age.count())) {
+        why = Error(Code::cancelled,
+                    "stale: queued at " + (rec->created_utc.empty() ? std::string("an unknown time") : rec->created_utc) +
+                        ", more than " + std::to_string(cfg_.queued_max_age.count()) +
+                        " s before the daemon restarted",
+                    "scan again if still wanted (queued_scans.max_age_s in the daemon config)");
+      } else if (auto session = make_session(rec->req); !session) {
+        why = session.status().with_context("queued before a restart, but can no longer run");
+      } else {
+        rec->session.emplace(std::move(*session));
+        std::lock_guard lock(mu_);
+        scans_[rec->id] = rec;
+        queue_.push_back(rec);
+        ++requeued;
+        continue;
+      }
+    }
+    ++failed;
+    {
+      std::lock_guard lock(mu_);
+      scans_[rec->id] = rec;
+    }
+    finish(*rec, why, {});
+  }
+  if (!found.empty())
+    PROCAM_LOG(engine, info) << found.size() << " scans were queued when the daemon stopped: " << requeued
+                             << " queued again, " << failed << " failed";
 }
 
 Result<nlohmann::json> ScanService::manifest(const std::string& id) const {
@@ -151,7 +284,11 @@ Result<nlohmann::json> ScanService::manifest(const std::string& id) const {
 }
 
 Result<std::string> ScanService::file_path(const std::string& id, const std::string& file) const {
-  if (!proto::is_safe_file_name(file) || !proto::is_safe_file_name(id))
+  // A scan id that cannot exist is an unknown scan (PROTOCOL.md 5.7:
+  // not_found), not a bad file name.
+  if (!proto::is_safe_file_name(id))
+    return Error(Code::not_found, "no scan with id '" + id + "'", "use a scan_id from a `scan` reply or `status`");
+  if (!proto::is_safe_file_name(file))
     return Error(Code::invalid_argument, "'" + file + "' is not a plain file name", "use a name from the manifest's \"files\"");
   auto m = manifest(id);
   if (!m) return m.status();

@@ -109,6 +109,10 @@ public:
                  "this hardware rig takes no rig_options");
   }
 
+  nlohmann::json scan_options() const override {
+    return sim_ ? sim_->scan_options() : nlohmann::json::object();  // config only, like check_scan_options
+  }
+
   Status apply_scan_options(const nlohmann::json& options) override {
     if (sim_) {
       std::lock_guard lock(mu_);

@@ -5,6 +5,7 @@
 #include <cassert>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "parallel.hpp"
 #include "procam/base/clock.hpp"
@@ -435,6 +436,30 @@ Status SimRig::check_scan_options(const nlohmann::json& options) const {
   } catch (const std::exception& e) {
     return Error(Code::internal, std::string("sim rig: check_scan_options: ") + e.what());
   }
+}
+
+nlohmann::json SimRig::scan_options() const {
+  nlohmann::json values = nlohmann::json::array();
+  try {
+    for (const auto& name : list_scenes(scene_dirs_)) {
+      nlohmann::json v = {{"name", name}};
+      // The scene file's own "description" (reading JSON only: no scene is built).
+      if (auto file = resolve_scene_name(name, scene_dirs_); file.ok()) {
+        std::ifstream in(*file);
+        auto j = nlohmann::json::parse(in, nullptr, false);
+        if (j.is_object() && j.contains("description") && j["description"].is_string())
+          v["description"] = j["description"];
+      }
+      values.push_back(std::move(v));
+    }
+  } catch (const std::exception& e) {
+    PROCAM_LOG(sim, warn) << "listing scenes: " << e.what();
+  }
+  return {{"scene",
+           {{"type", "string"},
+            {"description", "the simulated scene to scan: a name from the rig's scene folders"},
+            {"default", config_.scene},
+            {"values", std::move(values)}}}};
 }
 
 Status SimRig::apply_scan_options(const nlohmann::json& options) {

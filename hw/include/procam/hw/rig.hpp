@@ -75,6 +75,12 @@ public:
                  "send the scan without rig_options");
   }
 
+  // What check_scan_options accepts, for clients (request list_rig_options,
+  // PROTOCOL.md 5.11): {"<key>": {"type", "description", "default"?,
+  // "values"?: [{"name", "description"?}]}}. Thread-safe like
+  // check_scan_options. Default: {} (no options).
+  virtual nlohmann::json scan_options() const { return nlohmann::json::object(); }
+
   // Ground truth for camera `index` of the current scene; not_found/unavailable
   // on hardware rigs.
   virtual Result<GroundTruth> ground_truth(size_t index) = 0;

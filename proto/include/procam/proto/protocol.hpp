@@ -99,9 +99,21 @@ struct Cancel {
 struct Ping {
   bool operator==(const Ping&) const = default;
 };
+inline constexpr uint32_t kDefaultListScans = 100;
+inline constexpr uint32_t kMaxListScans = 1000;
+// The daemon's scans, newest first (PROTOCOL.md 5.10).
+struct ListScans {
+  std::optional<std::string> state;  // only scans in this state (a scan state name, or "active")
+  uint32_t limit = kDefaultListScans;  // 1..kMaxListScans
+  bool operator==(const ListScans&) const = default;
+};
+// The rig_options the rig accepts, with their values (scene names) (5.11).
+struct ListRigOptions {
+  bool operator==(const ListRigOptions&) const = default;
+};
 
 using RequestBody = std::variant<Hello, ListPlugins, DescribeRig, Scan, StatusQuery, ResultQuery,
-                                 Fetch, Cancel, Ping>;
+                                 Fetch, Cancel, Ping, ListScans, ListRigOptions>;
 
 struct Request {
   std::string id;

@@ -10,7 +10,10 @@
 // manifest.json written atomically (temp + rename + fsync of the folder) when
 // it ends; finished scans found there at start are served again, folders
 // without a final manifest are reported as failed ("interrupted") and get a
-// manifest saying so.
+// manifest saying so. Queued scans are persisted when accepted
+// (request.json + a "queued" manifest in their folder), so a crash or kill -9
+// loses none: the next start queues them again in their old order (or fails
+// them, ServiceConfig::run_queued_on_restart), with their old ids.
 // Retries: submit() remembers (request id, content) → scan id for
 // ServiceConfig::dedupe_window (at most dedupe_max entries), so a retried
 // scan request is answered with the scan it already queued.
@@ -30,6 +33,8 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -60,6 +65,14 @@ struct ServiceConfig {
   // The rig's calibration tables (name -> table, engine/calibration_tables.hpp),
   // copied into every session's rig description and into describe_rig.
   nlohmann::json calibration_tables = nlohmann::json::object();
+  // Scans still queued when the daemon died (crash, kill -9, power loss):
+  // true → the next start queues them again (plugin, method and inputs are
+  // checked again; one that no longer passes fails with the reason); false →
+  // they fail with "the daemon restarted before this scan started". Either
+  // way a scan accepted longer than queued_max_age ago fails as stale: a scan
+  // cell's part has moved on by then. A clean stop() still cancels the queue.
+  bool run_queued_on_restart = true;
+  std::chrono::seconds queued_max_age{3600};
 };
 
 // Where a scan input comes from: output `output` of the finished scan `scan_id`.
@@ -113,6 +126,12 @@ public:
   Result<nlohmann::json> cancel(const std::string& scan_id);
 
   nlohmann::json daemon_status() const;
+  // Scan summaries (as in status), newest first (created_utc, then id), at
+  // most `limit`; only those in `state` when given ("active": not final).
+  // → {"scans": [...], "total": <matching>, "truncated": <bool>}.
+  nlohmann::json list_scans(const std::optional<std::string>& state, uint32_t limit) const;
+  // The rig_options this rig accepts (hw::Rig::scan_options) and its name.
+  nlohmann::json rig_options() const;
   double uptime_s() const;
   Result<nlohmann::json> scan_summary(const std::string& scan_id) const;
   // The manifest of a finished (done or failed) scan.
@@ -138,6 +157,11 @@ private:
   nlohmann::json base_manifest(const Record& rec) const;
   nlohmann::json metrics_locked() const;  // daemon_status()["metrics"]; mu_ held
   void load_existing();
+  // Checks rig_options and inputs and creates the plugin session (submit and
+  // the restart of persisted queued scans).
+  Result<host::Session> make_session(const ScanRequest& req) const;
+  // Queues again (or fails) the persisted queued scans load_existing found.
+  void restart_queued(std::vector<std::pair<std::shared_ptr<Record>, Result<ScanRequest>>> found);
   Result<LoadedInputs> load_inputs(const ScanRequest& req) const;  // service_inputs.cpp
   Result<LoadedInputs> load_inputs_impl(const ScanRequest& req) const;
 

@@ -153,6 +153,9 @@ public:
   // The same checks without loading anything; thread-safe (reads the config
   // and the scene folders only).
   Status check_scan_options(const nlohmann::json& options) const override;
+  // {"scene": {"type": "string", "default": <the rig config's scene>,
+  // "values": every scene of the scene folders with its description}}.
+  nlohmann::json scan_options() const override;
   Result<hw::GroundTruth> ground_truth(size_t index) override;
 
   // Load and prepare a scene (no-op if the same file is already loaded).
