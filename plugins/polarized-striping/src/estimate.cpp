@@ -1,0 +1,195 @@
+// SPDX-License-Identifier: MIT
+// End-of-scan estimates of S, B, p, the stripe map and the quality measures
+// (see estimate.hpp; thesis Eq. 5.4–5.10).
+#include "estimate.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "media_model.hpp"
+
+namespace procam::polarized_striping {
+namespace {
+
+Maps blank(uint32_t w, uint32_t h) {
+  Maps m;
+  m.width = w;
+  m.height = h;
+  const size_t n = size_t{w} * h;
+  m.enhanced.assign(n, kNaN);
+  m.backscatter.assign(n, kNaN);
+  return m;
+}
+
+// p given (>= 0) or estimated; records how in m.dop.
+double choose_dop(const Config& cfg, std::span<const float> best, std::span<const float> worst, const Levels& lv,
+                  Maps& m) {
+  double p = cfg.p;
+  if (p >= 0) {
+    m.dop = {{"source", "param p"}, {"value", p}};
+  } else {
+    p = estimate_dop(best, worst, lv.dop_min_sum, cfg.dop_percentile);
+    m.dop = {{"source", "estimated"},
+             {"rule", "quantile dop_percentile of (E_w - E_b) / (E_w + E_b) over pixels with E_w + E_b > 40 noise "
+                      "sigma; equals p where a pixel sees only medium, less where it sees an object"},
+             {"min_sum_dn", lv.dop_min_sum},
+             {"percentile", cfg.dop_percentile}};
+    if (!std::isfinite(p)) {
+      m.notes.push_back("too few pixels above 40 noise sigma to estimate the DOP: backscatter not separated; pass "
+                        "param p (the DOP of the medium's backscatter) or raise the exposure");
+      p = 0;
+    }
+    m.dop["value"] = p;
+  }
+  if (p < cfg.p_min && p > 0)
+    m.notes.push_back("DOP " + std::to_string(p) + " is below p_min: Eq. 5.6 not applied (its 1/p would amplify "
+                      "noise); backscatter not separated");
+  return p;
+}
+
+}  // namespace
+
+Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, uint32_t w, uint32_t h) {
+  Maps m = blank(w, h);
+  std::vector<float> unclipped;
+  unclipped.reserve(e.size());
+  for (float v : e)
+    if (double(v) < lv.saturation) unclipped.push_back(v);
+  const double b = unclipped.empty() ? 0.0 : std::max(0.0, quantile(std::move(unclipped), cfg.backscatter_percentile));
+  for (size_t i = 0; i < e.size(); ++i) {
+    if (!(double(e[i]) < lv.saturation)) continue;
+    m.enhanced[i] = static_cast<float>(std::max(0.0, double(e[i]) - b));
+    m.backscatter[i] = static_cast<float>(b);
+    ++m.valid;
+  }
+  m.image = std::move(e);
+  fill_quality(m, {}, {}, lv);
+  return m;
+}
+
+Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& ew, const Config& cfg,
+                              const Levels& lv, uint32_t w, uint32_t h) {
+  Maps m = blank(w, h);
+  std::vector<float> b_ok(eb.size(), kNaN), w_ok(eb.size(), kNaN);  // unclipped pairs only
+  for (size_t i = 0; i < eb.size(); ++i)
+    if (double(eb[i]) < lv.saturation && double(ew[i]) < lv.saturation) b_ok[i] = eb[i], w_ok[i] = ew[i];
+  const double p = choose_dop(cfg, b_ok, w_ok, lv, m);
+  const bool separate = p >= cfg.p_min;
+  m.p = separate ? p : 0.0;
+  for (size_t i = 0; i < eb.size(); ++i) {
+    if (!std::isfinite(b_ok[i])) continue;  // clipped: invalid
+    if (separate) {
+      const SignalBackscatter sb = signal_from_polarized(eb[i], ew[i], p);  // Eq. 5.6
+      m.enhanced[i] = sb.signal;
+      m.backscatter[i] = sb.backscatter;
+    } else {
+      m.enhanced[i] = std::max(0.0f, eb[i] + ew[i]);  // no polarisation contrast: S + B
+    }
+    ++m.valid;
+  }
+  m.image = std::move(eb);
+  fill_quality(m, {}, {}, lv);
+  return m;
+}
+
+Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
+                       uint32_t proj_width) {
+  const uint32_t w = best.width(), h = best.height();
+  const size_t n = size_t{w} * h;
+  Maps m = blank(w, h);
+  m.image.assign(best.top1.begin(), best.top1.end());  // Eq. 5.7: CI = max_k SI_k
+  m.stripe.assign(n, kNaN);
+  m.col.assign(n, kNaN);
+  const StripeDecodeSettings ds{lv.sigma, cfg.margin_sigma, lv.saturation};
+  std::vector<float> d(n, kNaN), a, bg_b(n, kNaN), bg_w;
+  for (size_t i = 0; i < n; ++i) {
+    const StripePixel px = decode_stripe_pixel(best, i, ds);
+    bg_b[i] = px.background;
+    if (!px.valid) continue;
+    m.stripe[i] = px.stripe;
+    const auto k0 = static_cast<uint32_t>(std::floor(px.stripe));
+    const double c0 = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k0).centre;
+    const double frac = double(px.stripe) - double(k0);
+    const double c1 = frac > 0 ? stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k0 + 1).centre : c0;
+    m.col[i] = static_cast<float>(c0 + frac * (c1 - c0));
+    d[i] = px.rise;
+    ++m.valid;
+  }
+  if (worst == nullptr) {  // unpolarised: A is counted in B^
+    for (size_t i = 0; i < n; ++i) {
+      if (double(best.top2[i]) < lv.saturation) m.backscatter[i] = bg_b[i];  // every unclipped pixel
+      if (std::isfinite(m.stripe[i])) m.enhanced[i] = d[i];
+    }
+    fill_quality(m, {}, {}, lv);
+    return m;
+  }
+  bg_w.assign(n, kNaN);
+  for (size_t i = 0; i < n; ++i) {
+    const StripePixel px = decode_stripe_pixel(*worst, i, ds);
+    // Background of both analysers, only where neither is clipped.
+    if (double(worst->top2[i]) < lv.saturation && double(best.top2[i]) < lv.saturation) bg_w[i] = px.background;
+  }
+  std::vector<float> bb = bg_b;
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isfinite(bg_w[i])) bb[i] = kNaN;
+  const double p = choose_dop(cfg, bb, bg_w, lv, m);
+  const bool separate = p >= cfg.p_min;
+  m.p = separate ? p : 0.0;
+  a.assign(n, kNaN);
+  for (size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(bg_w[i])) {  // a clipped background: no estimate, no stripe
+      if (std::isfinite(m.stripe[i])) --m.valid, m.stripe[i] = m.col[i] = kNaN;
+      continue;
+    }
+    const SignalBackscatter sb =
+        separate ? signal_from_polarized(bg_b[i], bg_w[i], p) : SignalBackscatter{0.0f, bg_b[i] + bg_w[i]};
+    m.backscatter[i] = sb.backscatter;
+    if (!std::isfinite(m.stripe[i])) continue;
+    d[i] = 2.0f * d[i];  // the best analyser passes half of the depolarised direct light
+    a[i] = sb.signal;    // the other sheets' depolarised light on the surface: A
+    m.enhanced[i] = d[i] + a[i];
+  }
+  fill_quality(m, d, a, lv);
+  return m;
+}
+
+void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv) {
+  const size_t n = m.enhanced.size();
+  m.cqm.assign(n, kNaN);
+  m.weight.assign(n, kNaN);
+  if (!d.empty()) m.gqm.assign(n, kNaN);
+  for (size_t i = 0; i < n; ++i) {
+    const float s = m.enhanced[i], b = m.backscatter[i];
+    if (!std::isfinite(s)) continue;
+    m.weight[i] = static_cast<float>(snr_weight(s, lv.mu, lv.z));              // Eq. 5.10
+    if (!std::isfinite(b)) continue;                                           // B unknown
+    m.cqm[i] = static_cast<float>(cqm(s, b, m.p));                             // Eq. 5.8
+    if (!d.empty()) m.gqm[i] = static_cast<float>(gqm(d[i], a[i], b, m.p));    // Eq. 5.9
+  }
+}
+
+nlohmann::json quality_report(const Maps& m) {
+  auto product_mean = [&](const std::vector<float>& q) -> nlohmann::json {
+    if (q.empty()) return nullptr;
+    double sum = 0;
+    size_t k = 0;
+    for (size_t i = 0; i < q.size(); ++i)
+      if (std::isfinite(q[i]) && std::isfinite(m.weight[i])) sum += double(q[i]) * double(m.weight[i]), ++k;
+    return k ? nlohmann::json(sum / double(k)) : nlohmann::json(nullptr);
+  };
+  auto mean_of = [](const std::vector<float>& q) -> nlohmann::json {
+    if (q.empty()) return nullptr;
+    const Summary s = summarize(q);
+    return s.pixels ? nlohmann::json(s.mean) : nlohmann::json(nullptr);
+  };
+  return {{"cqm_mean", mean_of(m.cqm)},
+          {"gqm_mean", mean_of(m.gqm)},
+          {"snr_weight_mean", mean_of(m.weight)},
+          {"cqm_w_mean", product_mean(m.cqm)},
+          {"gqm_w_mean", product_mean(m.gqm)},
+          {"image", to_json(summarize(m.image))},
+          {"enhanced", to_json(summarize(m.enhanced))},
+          {"dop_used", m.p}};
+}
+
+}  // namespace procam::polarized_striping

@@ -1,0 +1,78 @@
+// SPDX-License-Identifier: MIT
+// Streaming state of a light-stripe scan (thesis §5.2, Eq. 5.7): per pixel
+// the largest and second-largest value over the stripe images SI_k with their
+// stripe indices, and the sum of all of them. That is enough for
+//   CI = max_k SI_k                                  (Eq. 5.7, the composite)
+//   stripe map = argmax_k SI_k                       (which sheet lit the pixel)
+//   background = (sum - top1 - top2) / (K - 2)        (what the other sheets give)
+// in O(pixels) memory whatever K, with each frame folded in as it arrives
+// (add_frame may come in any order: ties go to the lower stripe index, so the
+// state does not depend on the order).
+//
+// Why top-2 and not the median the thesis's argument suggests: a pixel is lit
+// directly by at most two sheets (its own and, when it straddles a stripe
+// edge, a neighbour), so the mean of the remaining K - 2 frames estimates the
+// light a pixel gets when its surface point is not lit: indirect light A and
+// backscatter B of the other sheets. A median would need every frame kept
+// (K x pixels); this needs 5 values per pixel.
+//
+// Units: frame units (DN; F32 frames as stored). Threads: add() splits rows
+// over `threads` workers (sdk::parallel_rows); one StripeStack is used by one
+// session thread at a time. Errors: none (the caller checks the frame first).
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "procam/plugin_sdk.hpp"
+
+namespace procam::polarized_striping {
+
+class StripeStack {
+ public:
+  StripeStack() = default;
+  StripeStack(uint32_t width, uint32_t height);
+
+  // Folds stripe image k (checked: width x height, 1 channel) into the state.
+  void add(const procam_image& frame, uint16_t k, uint32_t threads);
+
+  uint32_t width() const noexcept { return width_; }
+  uint32_t height() const noexcept { return height_; }
+  uint32_t frames() const noexcept { return frames_; }
+
+  // Per pixel, row-major. top1 >= top2; idx1/idx2 their stripe indices.
+  std::vector<float> top1, top2, sum;
+  std::vector<uint16_t> idx1, idx2;
+
+ private:
+  uint32_t width_ = 0, height_ = 0, frames_ = 0;
+};
+
+// What decode_stripes() makes of a StripeStack.
+struct StripeDecodeSettings {
+  double noise_dn = 1.0;      // Gaussian noise sigma of one frame, DN
+  double margin_sigma = 5.0;  // a stripe must rise this many sigma above the background
+  double saturation_dn = 250; // values at or above this are clipped
+};
+
+struct StripePixel {
+  bool valid = false;
+  float stripe = std::numeric_limits<float>::quiet_NaN();  // fractional stripe index (see below)
+  float rise = 0;             // top1 - background (>= 0), DN
+  float background = 0;       // (sum - top1 - top2) / (K - 2), DN
+};
+
+// The decision for pixel i (K = stack.frames() >= 3). Valid when
+//  - the two largest values and the background are below saturation (two
+//    clipped frames cannot be told apart: saturated backscatter is invalid,
+//    never a guessed stripe); a clipped top1 alone is still its stripe;
+//  - top1 rises above the background by margin = margin_sigma * noise *
+//    sqrt(1 + 1/(K-2)) (the noise of top1 minus that of the background mean);
+//  - top2 is the adjacent stripe and also rises by the margin (the pixel
+//    straddles a stripe edge): the index is the two stripe indices weighted
+//    by their rises above the background; otherwise top1 must beat top2 by
+//    the margin (a near-tie of far-apart stripes is ambiguous: invalid).
+StripePixel decode_stripe_pixel(const StripeStack& stack, size_t i, const StripeDecodeSettings& s) noexcept;
+
+}  // namespace procam::polarized_striping
