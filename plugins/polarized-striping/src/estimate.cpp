@@ -7,17 +7,25 @@
 #include <cmath>
 
 #include "media_model.hpp"
+#include "procam/sdk/map_cache.hpp"
 
 namespace procam::polarized_striping {
 namespace {
+
+// A map of n values, all `v`, in recycled storage where the map cache has
+// some (fresh pages fault one by one: on a VM that costs more than the math).
+void nan_map(std::vector<float>& m, size_t n, float v = kNaN) {
+  sdk::take_map(m, n);
+  std::fill(m.begin(), m.end(), v);
+}
 
 Maps blank(uint32_t w, uint32_t h) {
   Maps m;
   m.width = w;
   m.height = h;
   const size_t n = size_t{w} * h;
-  m.enhanced.assign(n, kNaN);
-  m.backscatter.assign(n, kNaN);
+  nan_map(m.enhanced, n);
+  nan_map(m.backscatter, n);
   return m;
 }
 
@@ -70,7 +78,9 @@ Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, u
 Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& ew, const Config& cfg,
                               const Levels& lv, uint32_t w, uint32_t h) {
   Maps m = blank(w, h);
-  std::vector<float> b_ok(eb.size(), kNaN), w_ok(eb.size(), kNaN);  // unclipped pairs only
+  std::vector<float> b_ok, w_ok;  // unclipped pairs only (scratch from the map cache)
+  nan_map(b_ok, eb.size());
+  nan_map(w_ok, eb.size());
   for (size_t i = 0; i < eb.size(); ++i)
     if (double(eb[i]) < lv.saturation && double(ew[i]) < lv.saturation) b_ok[i] = eb[i], w_ok[i] = ew[i];
   const double p = choose_dop(cfg, b_ok, w_ok, lv, m);
@@ -88,6 +98,8 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
     ++m.valid;
   }
   m.image = std::move(eb);
+  sdk::give_map(std::move(b_ok));
+  sdk::give_map(std::move(w_ok));
   fill_quality(m, {}, {}, lv);
   return m;
 }
@@ -97,11 +109,22 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   const uint32_t w = best.width(), h = best.height();
   const size_t n = size_t{w} * h;
   Maps m = blank(w, h);
-  m.image.assign(best.top1.begin(), best.top1.end());  // Eq. 5.7: CI = max_k SI_k
-  m.stripe.assign(n, kNaN);
-  m.col.assign(n, kNaN);
+  sdk::take_map(m.image, n);
+  for (size_t i = 0; i < n; ++i) m.image[i] = best.top1(i);  // Eq. 5.7: CI = max_k SI_k
+  nan_map(m.stripe, n);
+  nan_map(m.col, n);
   const StripeDecodeSettings ds{lv.sigma, cfg.margin_sigma, lv.saturation};
-  std::vector<float> d(n, kNaN), a, bg_b(n, kNaN), bg_w;
+  // Scratch maps from the map cache, given back on return.
+  std::vector<float> d, a, bg_b, bg_w;
+  nan_map(d, n);
+  nan_map(bg_b, n);
+  struct GiveBack {
+    std::vector<float>*v[4];
+    ~GiveBack() {
+      for (auto* x : v)
+        if (!x->empty()) sdk::give_map(std::move(*x));
+    }
+  } give_back{{&d, &a, &bg_b, &bg_w}};
   for (size_t i = 0; i < n; ++i) {
     const StripePixel px = decode_stripe_pixel(best, i, ds);
     bg_b[i] = px.background;
@@ -117,25 +140,25 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   }
   if (worst == nullptr) {  // unpolarised: A is counted in B^
     for (size_t i = 0; i < n; ++i) {
-      if (double(best.top2[i]) < lv.saturation) m.backscatter[i] = bg_b[i];  // every unclipped pixel
+      if (double(best.top2(i)) < lv.saturation) m.backscatter[i] = bg_b[i];  // every unclipped pixel
       if (std::isfinite(m.stripe[i])) m.enhanced[i] = d[i];
     }
     fill_quality(m, {}, {}, lv);
     return m;
   }
-  bg_w.assign(n, kNaN);
+  nan_map(bg_w, n);
   for (size_t i = 0; i < n; ++i) {
-    const StripePixel px = decode_stripe_pixel(*worst, i, ds);
-    // Background of both analysers, only where neither is clipped.
-    if (double(worst->top2[i]) < lv.saturation && double(best.top2[i]) < lv.saturation) bg_w[i] = px.background;
+    // Background of both analysers, only where neither is clipped (bg_b NaN
+    // there too, for the DOP estimate).
+    if (double(worst->top2(i)) < lv.saturation && double(best.top2(i)) < lv.saturation)
+      bg_w[i] = decode_stripe_pixel(*worst, i, ds).background;
+    else
+      bg_b[i] = kNaN;
   }
-  std::vector<float> bb = bg_b;
-  for (size_t i = 0; i < n; ++i)
-    if (!std::isfinite(bg_w[i])) bb[i] = kNaN;
-  const double p = choose_dop(cfg, bb, bg_w, lv, m);
+  const double p = choose_dop(cfg, bg_b, bg_w, lv, m);
   const bool separate = p >= cfg.p_min;
   m.p = separate ? p : 0.0;
-  a.assign(n, kNaN);
+  nan_map(a, n);
   for (size_t i = 0; i < n; ++i) {
     if (!std::isfinite(bg_w[i])) {  // a clipped background: no estimate, no stripe
       if (std::isfinite(m.stripe[i])) --m.valid, m.stripe[i] = m.col[i] = kNaN;
@@ -155,9 +178,9 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
 
 void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv) {
   const size_t n = m.enhanced.size();
-  m.cqm.assign(n, kNaN);
-  m.weight.assign(n, kNaN);
-  if (!d.empty()) m.gqm.assign(n, kNaN);
+  nan_map(m.cqm, n);
+  nan_map(m.weight, n);
+  if (!d.empty()) nan_map(m.gqm, n);
   for (size_t i = 0; i < n; ++i) {
     const float s = m.enhanced[i], b = m.backscatter[i];
     if (!std::isfinite(s)) continue;

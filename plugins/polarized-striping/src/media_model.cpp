@@ -29,9 +29,12 @@ double quantile(std::vector<float> values, double q) {
 
 double estimate_dop(std::span<const float> best, std::span<const float> worst, double min_sum, double percentile,
                     size_t min_pixels) {
+  // At most ~256k samples, evenly spread: a quantile of that many is within
+  // ~0.2 % (in rank) of the full image's and costs a fraction of it.
+  const size_t n = std::min(best.size(), worst.size()), stride = std::max<size_t>(1, n / 262144);
   std::vector<float> r;
-  r.reserve(best.size() / 4);
-  for (size_t i = 0; i < best.size() && i < worst.size(); ++i) {
+  r.reserve(n / stride + 1);
+  for (size_t i = 0; i < n; i += stride) {
     const double sum = double(worst[i]) + double(best[i]);
     if (!(sum > min_sum)) continue;  // also skips NaN
     r.push_back(static_cast<float>((double(worst[i]) - double(best[i])) / sum));

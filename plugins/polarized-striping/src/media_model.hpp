@@ -41,7 +41,8 @@ SignalBackscatter signal_from_polarized(float e_best, float e_worst, double p) n
 // (so r's noise, ~ sigma sqrt(2) / (E_w + E_b), is small). A high quantile
 // rather than the maximum: robust to noise outliers. With fewer than
 // `min_pixels` such pixels the result is NaN (the caller says why).
-// `best`/`worst` are equal-sized; NaN entries are skipped.
+// `best`/`worst` are equal-sized; NaN entries are skipped. Large maps are
+// sampled on an even stride (at most ~256k pixels).
 double estimate_dop(std::span<const float> best, std::span<const float> worst, double min_sum, double percentile,
                     size_t min_pixels = 16);
 

@@ -88,11 +88,12 @@ class PolarizedStripingSession final : public sdk::Session {
     const Role role = roles_.at(index);
     if (is_striping(cfg_.method)) {
       StripeStack& st = role.analyser == Analyser::worst ? worst_ : best_;
-      if (st.width() == 0) st = StripeStack(cam.width, cam.height);
+      if (st.width() == 0)  // U8 frames of <= 256 stripes: the 6-byte packed state
+        st = StripeStack(cam.width, cam.height, frame.pixel_type == PROCAM_PIXEL_U8 && cfg_.stripes <= 256);
       st.add(frame, role.stripe, rig_.threads);
     } else {
       std::vector<float>& m = role.analyser == Analyser::worst ? worst_map_ : best_map_;
-      m.resize(size_t{cam.width} * cam.height);
+      sdk::take_map(m, size_t{cam.width} * cam.height);  // every element written below
       for (uint32_t y = 0; y < cam.height; ++y) sdk::read_row(frame, y, m.data() + size_t{y} * cam.width);
     }
     return sdk::ok();
@@ -113,7 +114,7 @@ class PolarizedStripingSession final : public sdk::Session {
         break;
     }
     best_ = worst_ = StripeStack();
-    worst_map_ = {};
+    if (!worst_map_.empty()) sdk::give_map(std::move(worst_map_));
     quality_ = quality_report(maps_);
     if (is_striping(cfg_.method) && rig_.can_triangulate(0)) {
       std::vector<float> intensity(maps_.image.size());
@@ -132,6 +133,9 @@ class PolarizedStripingSession final : public sdk::Session {
     std_out.total_pixels = size_t{w} * h;
     std_out.valid_pixels = maps_.valid;
     std_out.report = report();
+    // The maps move into the outputs and go back to the map cache at
+    // session_destroy (the next scan of this size reuses their pages).
+    out.set_release(sdk::give_map, sdk::give_map);
     out.add_image("image_dn", "DN", image_description(), w, h, std::move(maps_.image));
     out.add_image("enhanced_dn", "DN", enhanced_description(), w, h, std::move(maps_.enhanced));
     out.add_image("backscatter_dn", "DN",

@@ -2,19 +2,33 @@
 // Streaming top-2 / sum state of a light-stripe scan (see stripe_stack.hpp).
 #include "stripe_stack.hpp"
 
+#include "procam/sdk/map_cache.hpp"
+#include "procam/sdk/simd.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 namespace procam::polarized_striping {
 
-StripeStack::StripeStack(uint32_t width, uint32_t height) : width_(width), height_(height) {
+StripeStack::StripeStack(uint32_t width, uint32_t height, bool packed)
+    : width_(width), height_(height), packed_(packed) {
   const size_t n = size_t{width} * height;
-  top1.assign(n, -std::numeric_limits<float>::infinity());
-  top2.assign(n, -std::numeric_limits<float>::infinity());
-  sum.assign(n, 0.0f);
-  idx1.assign(n, 0);
-  idx2.assign(n, 0);
+  // allocate_map: huge pages advised, so the first frame faults ~2 MiB pages,
+  // not 4 KiB ones.
+  if (packed) {
+    sdk::allocate_map(key1_, n);
+    sdk::allocate_map(key2_, n);
+    sdk::allocate_map(sum16_, n);
+    return;
+  }
+  sdk::allocate_map(top1_, n);
+  sdk::allocate_map(top2_, n);
+  std::fill(top1_.begin(), top1_.end(), -std::numeric_limits<float>::infinity());
+  std::fill(top2_.begin(), top2_.end(), -std::numeric_limits<float>::infinity());
+  sdk::allocate_map(sum_, n);
+  sdk::allocate_map(idx1_, n);
+  sdk::allocate_map(idx2_, n);
 }
 
 namespace {
@@ -35,18 +49,64 @@ void fold_row(const float* v, size_t n, uint16_t k, float* t1, float* t2, float*
   }
 }
 
+// Packed U8 row: key = (value << 8) | (255 - k) orders by value, then by
+// lower stripe index; top2 = max(top2, min(old top1, key)). Unsigned 16-bit
+// max/min only: with AVX2 (SSE2 has no unsigned 16-bit max) 16 pixels per
+// instruction; the baseline build is the same source for other CPUs.
+#define PROCAM_FOLD_ROW_U8_BODY                                                  \
+  for (size_t x = 0; x < n; ++x) {                                               \
+    const auto key = static_cast<uint16_t>((uint16_t(v[x]) << 8) | low);        \
+    const uint16_t o1 = k1[x], o2 = k2[x];                                       \
+    const uint16_t lo = o1 < key ? o1 : key; /* values, not std::min's refs */   \
+    k1[x] = o1 > key ? o1 : key;                                                 \
+    k2[x] = o2 > lo ? o2 : lo;                                                   \
+    sm[x] = static_cast<uint16_t>(sm[x] + v[x]);                                 \
+  }
+
+void fold_row_u8_base(const uint8_t* __restrict v, size_t n, uint16_t low, uint16_t* __restrict k1,
+                      uint16_t* __restrict k2, uint16_t* __restrict sm) {
+  PROCAM_FOLD_ROW_U8_BODY
+}
+
+#ifdef PROCAM_SDK_X86
+__attribute__((target("avx2"))) void fold_row_u8_avx2(const uint8_t* __restrict v, size_t n, uint16_t low,
+                                                      uint16_t* __restrict k1, uint16_t* __restrict k2,
+                                                      uint16_t* __restrict sm) {
+  PROCAM_FOLD_ROW_U8_BODY
+}
+#endif
+#undef PROCAM_FOLD_ROW_U8_BODY
+
+void fold_row_u8(const uint8_t* v, size_t n, uint16_t low, uint16_t* k1, uint16_t* k2, uint16_t* sm) {
+#ifdef PROCAM_SDK_X86
+  if (sdk::cpu_has_avx2()) return fold_row_u8_avx2(v, n, low, k1, k2, sm);
+#endif
+  fold_row_u8_base(v, n, low, k1, k2, sm);
+}
+
 }  // namespace
 
 void StripeStack::add(const procam_image& frame, uint16_t k, uint32_t threads) {
   const uint32_t w = width_;
-  sdk::parallel_rows(height_, threads, [&](uint32_t y0, uint32_t y1) {
-    std::vector<float> row(w);
-    for (uint32_t y = y0; y < y1; ++y) {
-      sdk::read_row(frame, y, row.data());
-      const size_t o = size_t{y} * w;
-      fold_row(row.data(), w, k, top1.data() + o, top2.data() + o, sum.data() + o, idx1.data() + o, idx2.data() + o);
-    }
-  });
+  if (packed_) {
+    const auto low = static_cast<uint16_t>(255u - k);
+    sdk::parallel_rows(height_, threads, [&](uint32_t y0, uint32_t y1) {
+      for (uint32_t y = y0; y < y1; ++y) {
+        const size_t o = size_t{y} * w;
+        fold_row_u8(sdk::row_bytes(frame, y), w, low, key1_.data() + o, key2_.data() + o, sum16_.data() + o);
+      }
+    });
+  } else {
+    sdk::parallel_rows(height_, threads, [&](uint32_t y0, uint32_t y1) {
+      std::vector<float> row(w);
+      for (uint32_t y = y0; y < y1; ++y) {
+        sdk::read_row(frame, y, row.data());
+        const size_t o = size_t{y} * w;
+        fold_row(row.data(), w, k, top1_.data() + o, top2_.data() + o, sum_.data() + o, idx1_.data() + o,
+                 idx2_.data() + o);
+      }
+    });
+  }
   ++frames_;
 }
 
@@ -54,20 +114,21 @@ StripePixel decode_stripe_pixel(const StripeStack& st, size_t i, const StripeDec
   StripePixel p;
   const double k = st.frames();
   if (k < 3) return p;
-  const double t1 = st.top1[i], t2 = st.top2[i];
-  const double bg = (double(st.sum[i]) - t1 - t2) / (k - 2.0);
+  const StripeEntry e = st.at(i);
+  const double t1 = e.top1, t2 = e.top2;
+  const double bg = (double(e.sum) - t1 - t2) / (k - 2.0);
   p.background = static_cast<float>(std::max(0.0, bg));
   p.rise = static_cast<float>(std::max(0.0, t1 - bg));
   if (t2 >= s.saturation_dn || bg >= s.saturation_dn) return p;  // saturated backscatter: no stripe
   const double margin = s.margin_sigma * s.noise_dn * std::sqrt(1.0 + 1.0 / (k - 2.0));
   if (!(t1 - bg > margin)) return p;  // nothing above the background (zero signal under the stripe)
-  const int d = int(st.idx1[i]) - int(st.idx2[i]);
+  const int d = int(e.idx1) - int(e.idx2);
   const bool adjacent = d == 1 || d == -1;
   if (adjacent && t2 - bg > margin) {  // straddles a stripe edge: weighted centre
     const double w1 = t1 - bg, w2 = t2 - bg;
-    p.stripe = static_cast<float>((w1 * st.idx1[i] + w2 * st.idx2[i]) / (w1 + w2));
+    p.stripe = static_cast<float>((w1 * e.idx1 + w2 * e.idx2) / (w1 + w2));
   } else if (t1 - t2 > margin) {
-    p.stripe = static_cast<float>(st.idx1[i]);
+    p.stripe = static_cast<float>(e.idx1);
   } else {
     return p;  // two far-apart stripes tie: ambiguous
   }

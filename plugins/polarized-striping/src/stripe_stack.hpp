@@ -29,24 +29,45 @@
 
 namespace procam::polarized_striping {
 
+// One pixel's state: the two largest values, their stripes, the sum.
+struct StripeEntry {
+  float top1 = 0, top2 = 0, sum = 0;
+  uint32_t idx1 = 0, idx2 = 0;
+};
+
 class StripeStack {
  public:
   StripeStack() = default;
-  StripeStack(uint32_t width, uint32_t height);
+  // packed: the frames will be U8 and stripes <= 256. Then a pixel's state is
+  // 6 bytes (keys (value << 8) | (255 - k) for the top two, a 16-bit sum),
+  // folded with unsigned max/min only; otherwise 20 bytes of floats/indices.
+  // The fold is memory-bound, so the bytes per pixel set its speed.
+  StripeStack(uint32_t width, uint32_t height, bool packed);
 
-  // Folds stripe image k (checked: width x height, 1 channel) into the state.
+  // Folds stripe image k (checked: width x height, 1 channel; U8 when packed)
+  // into the state.
   void add(const procam_image& frame, uint16_t k, uint32_t threads);
 
   uint32_t width() const noexcept { return width_; }
   uint32_t height() const noexcept { return height_; }
   uint32_t frames() const noexcept { return frames_; }
+  bool packed() const noexcept { return packed_; }
 
-  // Per pixel, row-major. top1 >= top2; idx1/idx2 their stripe indices.
-  std::vector<float> top1, top2, sum;
-  std::vector<uint16_t> idx1, idx2;
+  StripeEntry at(size_t i) const noexcept {
+    if (packed_)
+      return {float(key1_[i] >> 8), float(key2_[i] >> 8), float(sum16_[i]), 255u - (key1_[i] & 0xffu),
+              255u - (key2_[i] & 0xffu)};
+    return {top1_[i], top2_[i], sum_[i], idx1_[i], idx2_[i]};
+  }
+  float top1(size_t i) const noexcept { return packed_ ? float(key1_[i] >> 8) : top1_[i]; }
+  float top2(size_t i) const noexcept { return packed_ ? float(key2_[i] >> 8) : top2_[i]; }
 
  private:
   uint32_t width_ = 0, height_ = 0, frames_ = 0;
+  bool packed_ = false;
+  std::vector<uint16_t> key1_, key2_, sum16_;  // packed
+  std::vector<float> top1_, top2_, sum_;       // general
+  std::vector<uint16_t> idx1_, idx2_;
 };
 
 // What decode_stripes() makes of a StripeStack.
