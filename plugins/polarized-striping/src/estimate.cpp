@@ -4,6 +4,7 @@
 #include "estimate.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 #include "media_model.hpp"
@@ -71,7 +72,7 @@ Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, u
     ++m.valid;
   }
   m.image = std::move(e);
-  fill_quality(m, {}, {}, lv);
+  fill_quality(m, {}, {}, lv, cfg.threads);
   return m;
 }
 
@@ -100,7 +101,7 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
   m.image = std::move(eb);
   sdk::give_map(std::move(b_ok));
   sdk::give_map(std::move(w_ok));
-  fill_quality(m, {}, {}, lv);
+  fill_quality(m, {}, {}, lv, cfg.threads);
   return m;
 }
 
@@ -108,87 +109,118 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
                        uint32_t proj_width) {
   const uint32_t w = best.width(), h = best.height();
   const size_t n = size_t{w} * h;
-  Maps m = blank(w, h);
-  sdk::take_map(m.image, n);
-  for (size_t i = 0; i < n; ++i) m.image[i] = best.top1(i);  // Eq. 5.7: CI = max_k SI_k
-  nan_map(m.stripe, n);
-  nan_map(m.col, n);
-  const StripeDecodeSettings ds{lv.sigma, cfg.margin_sigma, lv.saturation};
-  // Scratch maps from the map cache, given back on return.
-  std::vector<float> d, a, bg_b, bg_w;
-  nan_map(d, n);
-  nan_map(bg_b, n);
+  Maps m;
+  m.width = w;
+  m.height = h;
+  // Every map below is written in full by the loops (no NaN pre-fill pass);
+  // storage from the map cache.
+  for (auto* v : {&m.image, &m.enhanced, &m.backscatter, &m.stripe, &m.col}) sdk::take_map(*v, n);
+  std::vector<float> d, a, bg_b, bg_w;  // scratch, given back on return
   struct GiveBack {
-    std::vector<float>*v[4];
+    std::vector<float>* v[4];
     ~GiveBack() {
       for (auto* x : v)
         if (!x->empty()) sdk::give_map(std::move(*x));
     }
   } give_back{{&d, &a, &bg_b, &bg_w}};
-  for (size_t i = 0; i < n; ++i) {
-    const StripePixel px = decode_stripe_pixel(best, i, ds);
-    bg_b[i] = px.background;
-    if (!px.valid) continue;
-    m.stripe[i] = px.stripe;
-    const auto k0 = static_cast<uint32_t>(std::floor(px.stripe));
-    const double c0 = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k0).centre;
-    const double frac = double(px.stripe) - double(k0);
-    const double c1 = frac > 0 ? stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k0 + 1).centre : c0;
-    m.col[i] = static_cast<float>(c0 + frac * (c1 - c0));
-    d[i] = px.rise;
-    ++m.valid;
-  }
-  if (worst == nullptr) {  // unpolarised: A is counted in B^
-    for (size_t i = 0; i < n; ++i) {
-      if (double(best.top2(i)) < lv.saturation) m.backscatter[i] = bg_b[i];  // every unclipped pixel
-      if (std::isfinite(m.stripe[i])) m.enhanced[i] = d[i];
+  for (auto* v : {&d, &bg_b}) sdk::take_map(*v, n);
+  const auto ds = StripeDecodeSettings::make(lv.sigma, cfg.margin_sigma, lv.saturation, best.frames());
+  // Stripe centres by index, once (index -> projector column).
+  std::vector<double> centre(cfg.stripes + 1);
+  for (uint32_t k = 0; k < cfg.stripes; ++k) centre[k] = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k).centre;
+  centre[cfg.stripes] = centre[cfg.stripes - 1];
+  const bool polarised = worst != nullptr;
+  std::atomic<size_t> valid{0};
+  // Pass 1, per pixel: composite (Eq. 5.7), stripe decision, column, D^;
+  // unpolarised: B^ = background (A counted in it), S^ = D^.
+  sdk::parallel_rows(h, cfg.threads, [&](uint32_t y0, uint32_t y1) {
+    size_t band_valid = 0;
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      const StripePixel px = decode_stripe_pixel(best, i, ds);
+      m.image[i] = best.top1(i);
+      bg_b[i] = px.background;
+      m.stripe[i] = px.stripe;  // NaN when invalid
+      m.col[i] = kNaN;
+      d[i] = kNaN;
+      if (px.valid) {
+        const auto k0 = static_cast<uint32_t>(px.stripe);
+        const double frac = double(px.stripe) - double(k0);
+        m.col[i] = static_cast<float>(centre[k0] + frac * (centre[k0 + 1] - centre[k0]));
+        d[i] = px.rise;
+        ++band_valid;
+      }
+      if (!polarised) {
+        m.backscatter[i] = double(best.top2(i)) < lv.saturation ? bg_b[i] : kNaN;  // every unclipped pixel
+        m.enhanced[i] = d[i];
+      }
     }
-    fill_quality(m, {}, {}, lv);
+    valid += band_valid;
+  });
+  m.valid = valid;
+  if (!polarised) {
+    fill_quality(m, {}, {}, lv, cfg.threads);
     return m;
   }
-  nan_map(bg_w, n);
-  for (size_t i = 0; i < n; ++i) {
-    // Background of both analysers, only where neither is clipped (bg_b NaN
-    // there too, for the DOP estimate).
-    if (double(worst->top2(i)) < lv.saturation && double(best.top2(i)) < lv.saturation)
-      bg_w[i] = decode_stripe_pixel(*worst, i, ds).background;
-    else
-      bg_b[i] = kNaN;
-  }
+  // Pass 2: the worst analyser's background where neither is clipped (bg_b
+  // NaN elsewhere too, for the DOP estimate).
+  sdk::take_map(bg_w, n);
+  sdk::parallel_rows(h, cfg.threads, [&](uint32_t y0, uint32_t y1) {
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      if (double(worst->top2(i)) < lv.saturation && double(best.top2(i)) < lv.saturation) {
+        bg_w[i] = decode_stripe_pixel(*worst, i, ds).background;
+      } else {
+        bg_w[i] = kNaN;
+        bg_b[i] = kNaN;
+      }
+    }
+  });
   const double p = choose_dop(cfg, bg_b, bg_w, lv, m);
   const bool separate = p >= cfg.p_min;
   m.p = separate ? p : 0.0;
-  nan_map(a, n);
-  for (size_t i = 0; i < n; ++i) {
-    if (!std::isfinite(bg_w[i])) {  // a clipped background: no estimate, no stripe
-      if (std::isfinite(m.stripe[i])) --m.valid, m.stripe[i] = m.col[i] = kNaN;
-      continue;
+  // Pass 3: B^, A^ by Eq. 5.6 on the backgrounds; D^ = 2 rise; S^ = D^ + A^.
+  sdk::take_map(a, n);
+  std::atomic<size_t> dropped{0};
+  sdk::parallel_rows(h, cfg.threads, [&](uint32_t y0, uint32_t y1) {
+    size_t band_dropped = 0;
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      a[i] = m.enhanced[i] = m.backscatter[i] = kNaN;
+      if (!std::isfinite(bg_w[i])) {  // a clipped background: no estimate, no stripe
+        if (std::isfinite(m.stripe[i])) ++band_dropped, m.stripe[i] = m.col[i] = d[i] = kNaN;
+        continue;
+      }
+      const SignalBackscatter sb =
+          separate ? signal_from_polarized(bg_b[i], bg_w[i], p) : SignalBackscatter{0.0f, bg_b[i] + bg_w[i]};
+      m.backscatter[i] = sb.backscatter;
+      if (!std::isfinite(m.stripe[i])) continue;
+      d[i] = 2.0f * d[i];  // the best analyser passes half of the depolarised direct light
+      a[i] = sb.signal;    // the other sheets' depolarised light on the surface: A
+      m.enhanced[i] = d[i] + a[i];
     }
-    const SignalBackscatter sb =
-        separate ? signal_from_polarized(bg_b[i], bg_w[i], p) : SignalBackscatter{0.0f, bg_b[i] + bg_w[i]};
-    m.backscatter[i] = sb.backscatter;
-    if (!std::isfinite(m.stripe[i])) continue;
-    d[i] = 2.0f * d[i];  // the best analyser passes half of the depolarised direct light
-    a[i] = sb.signal;    // the other sheets' depolarised light on the surface: A
-    m.enhanced[i] = d[i] + a[i];
-  }
-  fill_quality(m, d, a, lv);
+    dropped += band_dropped;
+  });
+  m.valid -= dropped;
+  fill_quality(m, d, a, lv, cfg.threads);
   return m;
 }
 
-void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv) {
+void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv,
+                  uint32_t threads) {
   const size_t n = m.enhanced.size();
-  nan_map(m.cqm, n);
-  nan_map(m.weight, n);
-  if (!d.empty()) nan_map(m.gqm, n);
-  for (size_t i = 0; i < n; ++i) {
-    const float s = m.enhanced[i], b = m.backscatter[i];
-    if (!std::isfinite(s)) continue;
-    m.weight[i] = static_cast<float>(snr_weight(s, lv.mu, lv.z));              // Eq. 5.10
-    if (!std::isfinite(b)) continue;                                           // B unknown
-    m.cqm[i] = static_cast<float>(cqm(s, b, m.p));                             // Eq. 5.8
-    if (!d.empty()) m.gqm[i] = static_cast<float>(gqm(d[i], a[i], b, m.p));    // Eq. 5.9
-  }
+  for (auto* v : {&m.cqm, &m.weight}) sdk::take_map(*v, n);
+  if (!d.empty()) sdk::take_map(m.gqm, n);
+  const uint32_t w = m.width;
+  sdk::parallel_rows(m.height, threads, [&](uint32_t y0, uint32_t y1) {
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      const float s = m.enhanced[i], b = m.backscatter[i];
+      m.cqm[i] = m.weight[i] = kNaN;
+      if (!d.empty()) m.gqm[i] = kNaN;
+      if (!std::isfinite(s)) continue;
+      m.weight[i] = static_cast<float>(snr_weight(s, lv.mu, lv.z));              // Eq. 5.10
+      if (!std::isfinite(b)) continue;                                           // B unknown
+      m.cqm[i] = static_cast<float>(cqm(s, b, m.p));                             // Eq. 5.8
+      if (!d.empty()) m.gqm[i] = static_cast<float>(gqm(d[i], a[i], b, m.p));    // Eq. 5.9
+    }
+  });
 }
 
 nlohmann::json quality_report(const Maps& m) {

@@ -53,9 +53,11 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
                        uint32_t proj_width);
 
-// Eq. 5.8–5.10 per valid pixel from S, B, (D, A), p; NaN elsewhere.
+// Eq. 5.8–5.10 per valid pixel from S, B, (D, A), p; NaN elsewhere. Rows
+// split over `threads` workers.
 // d/a empty: GQM not computed.
-void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv);
+void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv,
+                  uint32_t threads);
 
 // The report's "quality" object: image-level summaries of CQM, GQM, W,
 // CQM x W, GQM x W (means over valid pixels) and of the image and S^ (mean,

@@ -55,7 +55,9 @@ double gqm(double d, double a, double b, double p) noexcept {
 
 double snr_weight(double s, double mu, double z) noexcept {
   if (!(z > 0)) return s > mu ? 1.0 : (s < mu ? 0.0 : 0.5);
-  return 1.0 / (1.0 + std::exp(-(s - mu) / z));  // Eq. 5.10
+  const double t = (s - mu) / z;
+  if (t > 40) return 1.0;  // exp(-40) < 2^-57: W rounds to 1 anyway; skips exp() for bright pixels
+  return 1.0 / (1.0 + std::exp(-t));  // Eq. 5.10
 }
 
 Summary summarize(std::span<const float> map) {

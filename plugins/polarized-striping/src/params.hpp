@@ -35,6 +35,7 @@ struct Config {
   double p = -1, p_min = 0.05, dop_percentile = 0.9;
   double backscatter_percentile = 0.02; // flood
   uint32_t stripes = 64, stripe_px = 0; // striping; stripe_px 0 = pitch / 3
+  uint32_t threads = 1;                 // the rig's suggestion, for end-of-scan work
 };
 
 sdk::Error parse_config(const std::string& method, const nlohmann::json& params, uint32_t proj_width, Config& cfg);

@@ -276,6 +276,7 @@ sdk::Error create_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Sess
   if (sdk::Error e = sdk::parse_rig(args.rig, rig); !e.ok()) return e;
   Config cfg;
   if (sdk::Error e = parse_config(args.method, args.params, rig.projector_width, cfg); !e.ok()) return e;
+  cfg.threads = rig.threads;
   out = std::make_unique<PolarizedStripingSession>(std::move(cfg), rig);
   return sdk::ok();
 }

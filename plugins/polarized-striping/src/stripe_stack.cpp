@@ -110,30 +110,4 @@ void StripeStack::add(const procam_image& frame, uint16_t k, uint32_t threads) {
   ++frames_;
 }
 
-StripePixel decode_stripe_pixel(const StripeStack& st, size_t i, const StripeDecodeSettings& s) noexcept {
-  StripePixel p;
-  const double k = st.frames();
-  if (k < 3) return p;
-  const StripeEntry e = st.at(i);
-  const double t1 = e.top1, t2 = e.top2;
-  const double bg = (double(e.sum) - t1 - t2) / (k - 2.0);
-  p.background = static_cast<float>(std::max(0.0, bg));
-  p.rise = static_cast<float>(std::max(0.0, t1 - bg));
-  if (t2 >= s.saturation_dn || bg >= s.saturation_dn) return p;  // saturated backscatter: no stripe
-  const double margin = s.margin_sigma * s.noise_dn * std::sqrt(1.0 + 1.0 / (k - 2.0));
-  if (!(t1 - bg > margin)) return p;  // nothing above the background (zero signal under the stripe)
-  const int d = int(e.idx1) - int(e.idx2);
-  const bool adjacent = d == 1 || d == -1;
-  if (adjacent && t2 - bg > margin) {  // straddles a stripe edge: weighted centre
-    const double w1 = t1 - bg, w2 = t2 - bg;
-    p.stripe = static_cast<float>((w1 * e.idx1 + w2 * e.idx2) / (w1 + w2));
-  } else if (t1 - t2 > margin) {
-    p.stripe = static_cast<float>(e.idx1);
-  } else {
-    return p;  // two far-apart stripes tie: ambiguous
-  }
-  p.valid = true;
-  return p;
-}
-
 }  // namespace procam::polarized_striping

@@ -21,6 +21,8 @@
 // session thread at a time. Errors: none (the caller checks the frame first).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -72,9 +74,15 @@ class StripeStack {
 
 // What decode_stripes() makes of a StripeStack.
 struct StripeDecodeSettings {
-  double noise_dn = 1.0;      // Gaussian noise sigma of one frame, DN
-  double margin_sigma = 5.0;  // a stripe must rise this many sigma above the background
-  double saturation_dn = 250; // values at or above this are clipped
+  double margin_dn = 5.0;      // how far a stripe must rise (see decode_stripe_pixel)
+  double saturation_dn = 250;  // values at or above this are clipped
+
+  // margin = margin_sigma * noise * sqrt(1 + 1/(K-2)): the noise of top1
+  // minus that of the mean of K - 2 other frames.
+  static StripeDecodeSettings make(double noise_dn, double margin_sigma, double saturation_dn, uint32_t frames) {
+    const double k = frames > 2 ? double(frames) : 3.0;
+    return {margin_sigma * noise_dn * std::sqrt(1.0 + 1.0 / (k - 2.0)), saturation_dn};
+  }
 };
 
 struct StripePixel {
@@ -84,16 +92,41 @@ struct StripePixel {
   float background = 0;       // (sum - top1 - top2) / (K - 2), DN
 };
 
-// The decision for pixel i (K = stack.frames() >= 3). Valid when
+// The decision for pixel i (K = stack.frames() >= 3). Inline: called per
+// pixel in the end-of-scan passes. Valid when
 //  - the two largest values and the background are below saturation (two
 //    clipped frames cannot be told apart: saturated backscatter is invalid,
 //    never a guessed stripe); a clipped top1 alone is still its stripe;
-//  - top1 rises above the background by margin = margin_sigma * noise *
-//    sqrt(1 + 1/(K-2)) (the noise of top1 minus that of the background mean);
+//  - top1 rises above the background by the margin (StripeDecodeSettings::make);
 //  - top2 is the adjacent stripe and also rises by the margin (the pixel
 //    straddles a stripe edge): the index is the two stripe indices weighted
 //    by their rises above the background; otherwise top1 must beat top2 by
 //    the margin (a near-tie of far-apart stripes is ambiguous: invalid).
-StripePixel decode_stripe_pixel(const StripeStack& stack, size_t i, const StripeDecodeSettings& s) noexcept;
+inline StripePixel decode_stripe_pixel(const StripeStack& st, size_t i, const StripeDecodeSettings& s) noexcept {
+  StripePixel p;
+  const double k = st.frames();
+  if (k < 3) return p;
+  const StripeEntry e = st.at(i);
+  const double t1 = e.top1, t2 = e.top2;
+  const double bg = (double(e.sum) - t1 - t2) / (k - 2.0);
+  p.background = static_cast<float>(std::max(0.0, bg));
+  p.rise = static_cast<float>(std::max(0.0, t1 - bg));
+  if (t2 >= s.saturation_dn || bg >= s.saturation_dn) return p;  // saturated backscatter: no stripe
+  const double margin = s.margin_dn;
+  if (!(t1 - bg > margin)) return p;  // nothing above the background (zero signal under the stripe)
+  const int d = int(e.idx1) - int(e.idx2);
+  const bool adjacent = d == 1 || d == -1;
+  if (adjacent && t2 - bg > margin) {  // straddles a stripe edge: weighted centre
+    const double w1 = t1 - bg, w2 = t2 - bg;
+    p.stripe = static_cast<float>((w1 * e.idx1 + w2 * e.idx2) / (w1 + w2));
+  } else if (t1 - t2 > margin) {
+    p.stripe = static_cast<float>(e.idx1);
+  } else {
+    return p;  // two far-apart stripes tie: ambiguous
+  }
+  p.valid = true;
+  return p;
+}
+
 
 }  // namespace procam::polarized_striping
