@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <string>
@@ -234,6 +235,7 @@ TEST(PolarizedFlood, EstimatedDopAndSignal) {
     scan("polarized-flood", nlohmann::json::object(), t, r);
     const double p_est = r.find("dop")->scalar;
     EXPECT_NEAR(p_est, p, 0.03);
+    double max_s = 0;
     const Map s = r.map("enhanced_dn"), b = r.map("backscatter_dn"), cq = r.map("cqm");
     double err_sum = 0;
     size_t n = 0;
@@ -249,9 +251,12 @@ TEST(PolarizedFlood, EstimatedDopAndSignal) {
         // Eq. 5.8; dCQM <= dS / (S + B(1 - p)) for an error dS of S^.
         EXPECT_NEAR(cq[i], S / (S + B * (1 - p)), tol / (S + B * (1 - p))) << x << "," << y;
         err_sum += std::abs(s[i] / r.fs - S);
+        max_s = std::max(max_s, std::abs(s[i] / r.fs - S));
         ++n;
       }
     EXPECT_LT(err_sum / double(n), 3 * kNoise + 1.0 / r.fs);
+    std::printf("polarized-flood p = %.1f, 8-bit, noise 0.002 FS: p^ = %.4f; |S^ - S| mean %.4f max %.4f FS\n", p, p_est,
+                err_sum / double(n), max_s);
     const nlohmann::json q = r.report()["quality"];
     EXPECT_GT(q["enhanced"]["rms_contrast"].get<double>(), q["image"]["rms_contrast"].get<double>())
         << "Eq. 5.6 removes the backscatter the best image keeps: more contrast";
@@ -382,6 +387,7 @@ TEST(PolarizedStriping, SeparatesDirectIndirectAndBackscatter) {
   const nlohmann::json rep = r.report();
   const double mu = rep["snr_weight"]["mu_dn"], z = rep["snr_weight"]["z_dn"];
   size_t lit = 0;
+  double err_s = 0, err_b = 0, err_cqm = 0, err_gqm = 0;  // worst |estimate - truth| over stripe pixels
   for (uint32_t y = 0; y < kCH; ++y)
     for (uint32_t x = 0; x < kCW; ++x) {
       const size_t i = size_t{y} * kCW + x;
@@ -392,12 +398,19 @@ TEST(PolarizedStriping, SeparatesDirectIndirectAndBackscatter) {
       if (!expect) continue;
       ++lit;
       EXPECT_EQ(k[i], double(truth_k[x]));
+      err_s = std::max(err_s, std::abs(s[i] / r.fs - (D + A)));
+      err_b = std::max(err_b, std::abs(b[i] / r.fs - B));
+      err_cqm = std::max(err_cqm, std::abs(cq[i] - (D + A) / (D + A + B * (1 - p))));
+      err_gqm = std::max(err_gqm, std::abs(gq[i] - (D + B * (1 - p)) / (D + A + B * (1 - p))));
       EXPECT_NEAR(s[i] / r.fs, D + A, 0.03 * B / p + 12 * kNoise + 2.0 / r.fs);
       EXPECT_NEAR(cq[i], (D + A) / (D + A + B * (1 - p)), 0.03);                   // Eq. 5.8
       EXPECT_NEAR(gq[i], (D + B * (1 - p)) / (D + A + B * (1 - p)), 0.03);         // Eq. 5.9
       EXPECT_NEAR(w[i], 1 / (1 + std::exp(-((D + A) * r.fs - mu) / z)), 0.01);     // Eq. 5.10
     }
   EXPECT_GT(lit, 100u);
+  std::printf("polarized-striping 8-bit, noise 0.002 FS: |p^ - p| %.4f; max |S^ - S| %.4f FS, |B^ - B| %.4f FS, "
+              "|CQM^ - CQM| %.4f, |GQM^ - GQM| %.4f over %zu stripe pixels\n",
+              std::abs(r.find("dop")->scalar - t.p), err_s, err_b, err_cqm, err_gqm, lit);
   const nlohmann::json q = rep["quality"];
   EXPECT_GT(q["cqm_mean"].get<double>(), 0.5);
   EXPECT_FALSE(q["gqm_w_mean"].is_null());
