@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <map>
+#include <mutex>
 #include <cmath>
 
 #include "media_model.hpp"
@@ -223,27 +225,57 @@ void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>
   });
 }
 
-nlohmann::json quality_report(const Maps& m) {
-  auto product_mean = [&](const std::vector<float>& q) -> nlohmann::json {
-    if (q.empty()) return nullptr;
-    double sum = 0;
-    size_t k = 0;
-    for (size_t i = 0; i < q.size(); ++i)
-      if (std::isfinite(q[i]) && std::isfinite(m.weight[i])) sum += double(q[i]) * double(m.weight[i]), ++k;
-    return k ? nlohmann::json(sum / double(k)) : nlohmann::json(nullptr);
-  };
-  auto mean_of = [](const std::vector<float>& q) -> nlohmann::json {
-    if (q.empty()) return nullptr;
-    const Summary s = summarize(q);
-    return s.pixels ? nlohmann::json(s.mean) : nlohmann::json(nullptr);
-  };
-  return {{"cqm_mean", mean_of(m.cqm)},
-          {"gqm_mean", mean_of(m.gqm)},
-          {"snr_weight_mean", mean_of(m.weight)},
-          {"cqm_w_mean", product_mean(m.cqm)},
-          {"gqm_w_mean", product_mean(m.gqm)},
-          {"image", to_json(summarize(m.image))},
-          {"enhanced", to_json(summarize(m.enhanced))},
+namespace {
+
+// Sums for the report, over one band of rows; merged in band order so the
+// report is the same bit for bit from run to run.
+struct QualitySums {
+  double cqm = 0, gqm = 0, w = 0, cqm_w = 0, gqm_w = 0, img = 0, img2 = 0, enh = 0, enh2 = 0;
+  size_t n_cqm = 0, n_gqm = 0, n_w = 0, n_cqm_w = 0, n_gqm_w = 0, n_img = 0, n_enh = 0;
+  void add(const QualitySums& o) {
+    cqm += o.cqm, gqm += o.gqm, w += o.w, cqm_w += o.cqm_w, gqm_w += o.gqm_w;
+    img += o.img, img2 += o.img2, enh += o.enh, enh2 += o.enh2;
+    n_cqm += o.n_cqm, n_gqm += o.n_gqm, n_w += o.n_w, n_cqm_w += o.n_cqm_w, n_gqm_w += o.n_gqm_w;
+    n_img += o.n_img, n_enh += o.n_enh;
+  }
+};
+
+nlohmann::json mean_or_null(double sum, size_t n) { return n ? nlohmann::json(sum / double(n)) : nlohmann::json(nullptr); }
+
+
+}  // namespace
+
+nlohmann::json quality_report(const Maps& m, uint32_t threads) {
+  const bool has_gqm = !m.gqm.empty();
+  std::map<uint32_t, QualitySums> bands;  // by first row
+  std::mutex mu;
+  sdk::parallel_rows(m.height, threads, [&](uint32_t y0, uint32_t y1) {
+    QualitySums q;
+    for (size_t i = size_t{y0} * m.width; i < size_t{y1} * m.width; ++i) {
+      const double w = m.weight[i], c = m.cqm[i], im = m.image[i], e = m.enhanced[i];
+      if (std::isfinite(im)) q.img += im, q.img2 += im * im, ++q.n_img;
+      if (std::isfinite(e)) q.enh += e, q.enh2 += e * e, ++q.n_enh;
+      if (std::isfinite(w)) q.w += w, ++q.n_w;
+      if (std::isfinite(c)) q.cqm += c, ++q.n_cqm;
+      if (std::isfinite(c) && std::isfinite(w)) q.cqm_w += c * w, ++q.n_cqm_w;
+      if (has_gqm) {
+        const double g = m.gqm[i];
+        if (std::isfinite(g)) q.gqm += g, ++q.n_gqm;
+        if (std::isfinite(g) && std::isfinite(w)) q.gqm_w += g * w, ++q.n_gqm_w;
+      }
+    }
+    const std::lock_guard lock(mu);
+    bands[y0] = q;
+  });
+  QualitySums t;
+  for (const auto& [y0, q] : bands) t.add(q);
+  return {{"cqm_mean", mean_or_null(t.cqm, t.n_cqm)},
+          {"gqm_mean", has_gqm ? mean_or_null(t.gqm, t.n_gqm) : nlohmann::json(nullptr)},
+          {"snr_weight_mean", mean_or_null(t.w, t.n_w)},
+          {"cqm_w_mean", mean_or_null(t.cqm_w, t.n_cqm_w)},
+          {"gqm_w_mean", has_gqm ? mean_or_null(t.gqm_w, t.n_gqm_w) : nlohmann::json(nullptr)},
+          {"image", to_json(summary_from_sums(t.img, t.img2, t.n_img))},
+          {"enhanced", to_json(summary_from_sums(t.enh, t.enh2, t.n_enh))},
           {"dop_used", m.p}};
 }
 

@@ -61,7 +61,7 @@ void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>
 
 // The report's "quality" object: image-level summaries of CQM, GQM, W,
 // CQM x W, GQM x W (means over valid pixels) and of the image and S^ (mean,
-// RMS contrast).
-nlohmann::json quality_report(const Maps& m);
+// RMS contrast). One pass over the maps, rows split over `threads` workers.
+nlohmann::json quality_report(const Maps& m, uint32_t threads);
 
 }  // namespace procam::polarized_striping

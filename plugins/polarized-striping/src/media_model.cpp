@@ -60,20 +60,26 @@ double snr_weight(double s, double mu, double z) noexcept {
   return 1.0 / (1.0 + std::exp(-t));  // Eq. 5.10
 }
 
-Summary summarize(std::span<const float> map) {
+Summary summary_from_sums(double sum, double sum2, size_t n) {
   Summary s;
+  s.pixels = n;
+  if (n == 0) return s;
+  s.mean = sum / double(n);
+  const double var = std::max(0.0, sum2 / double(n) - s.mean * s.mean);
+  s.rms_contrast = s.mean > 0 ? std::sqrt(var) / s.mean : 0.0;
+  return s;
+}
+
+Summary summarize(std::span<const float> map) {
   double sum = 0, sum2 = 0;
+  size_t n = 0;
   for (float v : map) {
     if (!std::isfinite(v)) continue;
-    ++s.pixels;
+    ++n;
     sum += double(v);
     sum2 += double(v) * double(v);
   }
-  if (s.pixels == 0) return s;
-  s.mean = sum / double(s.pixels);
-  const double var = std::max(0.0, sum2 / double(s.pixels) - s.mean * s.mean);
-  s.rms_contrast = s.mean > 0 ? std::sqrt(var) / s.mean : 0.0;
-  return s;
+  return summary_from_sums(sum, sum2, n);
 }
 
 nlohmann::json to_json(const Summary& s) {

@@ -65,6 +65,8 @@ struct Summary {
   double mean = 0, rms_contrast = 0;
 };
 Summary summarize(std::span<const float> map);
+// The same from running sums of the finite values, their squares and count.
+Summary summary_from_sums(double sum, double sum2, size_t n);
 nlohmann::json to_json(const Summary& s);
 
 }  // namespace procam::polarized_striping

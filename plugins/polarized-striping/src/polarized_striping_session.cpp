@@ -115,7 +115,7 @@ class PolarizedStripingSession final : public sdk::Session {
     }
     best_ = worst_ = StripeStack();
     if (!worst_map_.empty()) sdk::give_map(std::move(worst_map_));
-    quality_ = quality_report(maps_);
+    quality_ = quality_report(maps_, rig_.threads);
     if (is_striping(cfg_.method) && rig_.can_triangulate(0)) {
       std::vector<float> intensity(maps_.image.size());
       for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = static_cast<float>(double(maps_.image[i]) / full_scale_);
