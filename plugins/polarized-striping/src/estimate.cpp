@@ -74,7 +74,7 @@ Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, u
     ++m.valid;
   }
   m.image = std::move(e);
-  fill_quality(m, {}, {}, lv, cfg.threads);
+  fill_quality(m, lv, cfg.threads);
   return m;
 }
 
@@ -103,132 +103,14 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
   m.image = std::move(eb);
   sdk::give_map(std::move(b_ok));
   sdk::give_map(std::move(w_ok));
-  fill_quality(m, {}, {}, lv, cfg.threads);
+  fill_quality(m, lv, cfg.threads);
   return m;
-}
-
-Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
-                       uint32_t proj_width) {
-  const uint32_t w = best.width(), h = best.height();
-  const size_t n = size_t{w} * h;
-  Maps m;
-  m.width = w;
-  m.height = h;
-  // Every map below is written in full by the loops (no NaN pre-fill pass);
-  // storage from the map cache.
-  for (auto* v : {&m.image, &m.enhanced, &m.backscatter, &m.stripe, &m.col}) sdk::take_map(*v, n);
-  std::vector<float> d, a, bg_b, bg_w;  // scratch, given back on return
-  struct GiveBack {
-    std::vector<float>* v[4];
-    ~GiveBack() {
-      for (auto* x : v)
-        if (!x->empty()) sdk::give_map(std::move(*x));
-    }
-  } give_back{{&d, &a, &bg_b, &bg_w}};
-  for (auto* v : {&d, &bg_b}) sdk::take_map(*v, n);
-  const auto ds = StripeDecodeSettings::make(lv.sigma, cfg.margin_sigma, lv.saturation, best.frames());
-  // Stripe centres by index, once (index -> projector column).
-  std::vector<double> centre(cfg.stripes + 1);
-  for (uint32_t k = 0; k < cfg.stripes; ++k) centre[k] = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k).centre;
-  centre[cfg.stripes] = centre[cfg.stripes - 1];
-  const bool polarised = worst != nullptr;
-  std::atomic<size_t> valid{0};
-  // Pass 1, per pixel: composite (Eq. 5.7), stripe decision, column, D^;
-  // unpolarised: B^ = background (A counted in it), S^ = D^.
-  sdk::parallel_rows(h, cfg.threads, [&](uint32_t y0, uint32_t y1) {
-    size_t band_valid = 0;
-    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
-      const StripePixel px = decode_stripe_pixel(best, i, ds);
-      m.image[i] = best.top1(i);
-      bg_b[i] = px.background;
-      m.stripe[i] = px.stripe;  // NaN when invalid
-      m.col[i] = kNaN;
-      d[i] = kNaN;
-      if (px.valid) {
-        const auto k0 = static_cast<uint32_t>(px.stripe);
-        const double frac = double(px.stripe) - double(k0);
-        m.col[i] = static_cast<float>(centre[k0] + frac * (centre[k0 + 1] - centre[k0]));
-        d[i] = px.rise;
-        ++band_valid;
-      }
-      if (!polarised) {
-        m.backscatter[i] = double(best.top2(i)) < lv.saturation ? bg_b[i] : kNaN;  // every unclipped pixel
-        m.enhanced[i] = d[i];
-      }
-    }
-    valid += band_valid;
-  });
-  m.valid = valid;
-  if (!polarised) {
-    fill_quality(m, {}, {}, lv, cfg.threads);
-    return m;
-  }
-  // Pass 2: the worst analyser's background where neither is clipped (bg_b
-  // NaN elsewhere too, for the DOP estimate).
-  sdk::take_map(bg_w, n);
-  sdk::parallel_rows(h, cfg.threads, [&](uint32_t y0, uint32_t y1) {
-    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
-      if (double(worst->top2(i)) < lv.saturation && double(best.top2(i)) < lv.saturation) {
-        bg_w[i] = decode_stripe_pixel(*worst, i, ds).background;
-      } else {
-        bg_w[i] = kNaN;
-        bg_b[i] = kNaN;
-      }
-    }
-  });
-  const double p = choose_dop(cfg, bg_b, bg_w, lv, m);
-  const bool separate = p >= cfg.p_min;
-  m.p = separate ? p : 0.0;
-  // Pass 3: B^, A^ by Eq. 5.6 on the backgrounds; D^ = 2 rise; S^ = D^ + A^.
-  sdk::take_map(a, n);
-  std::atomic<size_t> dropped{0};
-  sdk::parallel_rows(h, cfg.threads, [&](uint32_t y0, uint32_t y1) {
-    size_t band_dropped = 0;
-    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
-      a[i] = m.enhanced[i] = m.backscatter[i] = kNaN;
-      if (!std::isfinite(bg_w[i])) {  // a clipped background: no estimate, no stripe
-        if (std::isfinite(m.stripe[i])) ++band_dropped, m.stripe[i] = m.col[i] = d[i] = kNaN;
-        continue;
-      }
-      const SignalBackscatter sb =
-          separate ? signal_from_polarized(bg_b[i], bg_w[i], p) : SignalBackscatter{0.0f, bg_b[i] + bg_w[i]};
-      m.backscatter[i] = sb.backscatter;
-      if (!std::isfinite(m.stripe[i])) continue;
-      d[i] = 2.0f * d[i];  // the best analyser passes half of the depolarised direct light
-      a[i] = sb.signal;    // the other sheets' depolarised light on the surface: A
-      m.enhanced[i] = d[i] + a[i];
-    }
-    dropped += band_dropped;
-  });
-  m.valid -= dropped;
-  fill_quality(m, d, a, lv, cfg.threads);
-  return m;
-}
-
-void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv,
-                  uint32_t threads) {
-  const size_t n = m.enhanced.size();
-  for (auto* v : {&m.cqm, &m.weight}) sdk::take_map(*v, n);
-  if (!d.empty()) sdk::take_map(m.gqm, n);
-  const uint32_t w = m.width;
-  sdk::parallel_rows(m.height, threads, [&](uint32_t y0, uint32_t y1) {
-    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
-      const float s = m.enhanced[i], b = m.backscatter[i];
-      m.cqm[i] = m.weight[i] = kNaN;
-      if (!d.empty()) m.gqm[i] = kNaN;
-      if (!std::isfinite(s)) continue;
-      m.weight[i] = static_cast<float>(snr_weight(s, lv.mu, lv.z));              // Eq. 5.10
-      if (!std::isfinite(b)) continue;                                           // B unknown
-      m.cqm[i] = static_cast<float>(cqm(s, b, m.p));                             // Eq. 5.8
-      if (!d.empty()) m.gqm[i] = static_cast<float>(gqm(d[i], a[i], b, m.p));    // Eq. 5.9
-    }
-  });
 }
 
 namespace {
 
-// Sums for the report, over one band of rows; merged in band order so the
-// report is the same bit for bit from run to run.
+// Sums for the report over one band of rows; bands are merged in row order so
+// the report is the same bit for bit from run to run.
 struct QualitySums {
   double cqm = 0, gqm = 0, w = 0, cqm_w = 0, gqm_w = 0, img = 0, img2 = 0, enh = 0, enh2 = 0;
   size_t n_cqm = 0, n_gqm = 0, n_w = 0, n_cqm_w = 0, n_gqm_w = 0, n_img = 0, n_enh = 0;
@@ -242,33 +124,7 @@ struct QualitySums {
 
 nlohmann::json mean_or_null(double sum, size_t n) { return n ? nlohmann::json(sum / double(n)) : nlohmann::json(nullptr); }
 
-
-}  // namespace
-
-nlohmann::json quality_report(const Maps& m, uint32_t threads) {
-  const bool has_gqm = !m.gqm.empty();
-  std::map<uint32_t, QualitySums> bands;  // by first row
-  std::mutex mu;
-  sdk::parallel_rows(m.height, threads, [&](uint32_t y0, uint32_t y1) {
-    QualitySums q;
-    for (size_t i = size_t{y0} * m.width; i < size_t{y1} * m.width; ++i) {
-      const double w = m.weight[i], c = m.cqm[i], im = m.image[i], e = m.enhanced[i];
-      if (std::isfinite(im)) q.img += im, q.img2 += im * im, ++q.n_img;
-      if (std::isfinite(e)) q.enh += e, q.enh2 += e * e, ++q.n_enh;
-      if (std::isfinite(w)) q.w += w, ++q.n_w;
-      if (std::isfinite(c)) q.cqm += c, ++q.n_cqm;
-      if (std::isfinite(c) && std::isfinite(w)) q.cqm_w += c * w, ++q.n_cqm_w;
-      if (has_gqm) {
-        const double g = m.gqm[i];
-        if (std::isfinite(g)) q.gqm += g, ++q.n_gqm;
-        if (std::isfinite(g) && std::isfinite(w)) q.gqm_w += g * w, ++q.n_gqm_w;
-      }
-    }
-    const std::lock_guard lock(mu);
-    bands[y0] = q;
-  });
-  QualitySums t;
-  for (const auto& [y0, q] : bands) t.add(q);
+nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p) {
   return {{"cqm_mean", mean_or_null(t.cqm, t.n_cqm)},
           {"gqm_mean", has_gqm ? mean_or_null(t.gqm, t.n_gqm) : nlohmann::json(nullptr)},
           {"snr_weight_mean", mean_or_null(t.w, t.n_w)},
@@ -276,7 +132,148 @@ nlohmann::json quality_report(const Maps& m, uint32_t threads) {
           {"gqm_w_mean", has_gqm ? mean_or_null(t.gqm_w, t.n_gqm_w) : nlohmann::json(nullptr)},
           {"image", to_json(summary_from_sums(t.img, t.img2, t.n_img))},
           {"enhanced", to_json(summary_from_sums(t.enh, t.enh2, t.n_enh))},
-          {"dop_used", m.p}};
+          {"dop_used", p}};
+}
+
+// fn(y0, y1, sums) over row bands on `threads` workers; the bands' sums merged in row order.
+template <class F>
+QualitySums for_bands(uint32_t height, uint32_t threads, F&& fn) {
+  std::map<uint32_t, QualitySums> bands;
+  std::mutex mu;
+  sdk::parallel_rows(height, threads, [&](uint32_t y0, uint32_t y1) {
+    QualitySums q;
+    fn(y0, y1, q);
+    const std::lock_guard lock(mu);
+    bands[y0] = q;
+  });
+  QualitySums t;
+  for (const auto& [y0, q] : bands) t.add(q);
+  return t;
+}
+
+// Pixel i's outputs from its estimates: enhanced S, backscatter B, and
+// Eq. 5.8–5.10 (gqm only when has_gqm, from D and A); NaN where the inputs
+// are not finite. Adds the pixel to the report's sums.
+inline void finish_pixel(Maps& m, size_t i, float s, float b, float d, float a, bool has_gqm, const Levels& lv,
+                         QualitySums& q) {
+  m.enhanced[i] = s;
+  m.backscatter[i] = b;
+  const double im = m.image[i];
+  if (std::isfinite(im)) q.img += im, q.img2 += im * im, ++q.n_img;
+  float w = kNaN, c = kNaN, g = kNaN;
+  if (std::isfinite(s)) {
+    q.enh += double(s), q.enh2 += double(s) * double(s), ++q.n_enh;
+    w = static_cast<float>(snr_weight(s, lv.mu, lv.z));  // Eq. 5.10
+    q.w += double(w), ++q.n_w;
+    if (std::isfinite(b)) {
+      c = static_cast<float>(cqm(s, b, m.p));  // Eq. 5.8
+      q.cqm += double(c), q.cqm_w += double(c) * double(w), ++q.n_cqm, ++q.n_cqm_w;
+      if (has_gqm) {
+        g = static_cast<float>(gqm(d, a, b, m.p));  // Eq. 5.9
+        q.gqm += double(g), q.gqm_w += double(g) * double(w), ++q.n_gqm, ++q.n_gqm_w;
+      }
+    }
+  }
+  m.weight[i] = w;
+  m.cqm[i] = c;
+  if (has_gqm) m.gqm[i] = g;
+}
+
+void take_quality_maps(Maps& m, size_t n, bool has_gqm) {
+  for (auto* v : {&m.cqm, &m.weight}) sdk::take_map(*v, n);
+  if (has_gqm) sdk::take_map(m.gqm, n);
+}
+
+}  // namespace
+
+Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
+                       uint32_t proj_width) {
+  const uint32_t w = best.width(), h = best.height();
+  const size_t n = size_t{w} * h;
+  const bool polarised = worst != nullptr;
+  Maps m;
+  m.width = w;
+  m.height = h;
+  // Every map is written in full by the pass below (no NaN pre-fill);
+  // storage from the map cache.
+  for (auto* v : {&m.image, &m.enhanced, &m.backscatter, &m.stripe, &m.col}) sdk::take_map(*v, n);
+  take_quality_maps(m, n, polarised);
+  const auto ds = StripeDecodeSettings::make(lv.sigma, cfg.margin_sigma, lv.saturation, best.frames());
+  auto unclipped = [&](size_t i) {
+    return double(best.top2(i)) < lv.saturation && (!polarised || double(worst->top2(i)) < lv.saturation);
+  };
+  double p = 0;
+  bool separate = false;
+  if (polarised) {
+    // The DOP from both backgrounds (A = 0 where a pixel sees only medium),
+    // on the same <= 256k-pixel stride estimate_dop uses, before the pass.
+    const size_t stride = std::max<size_t>(1, n / 262144);
+    std::vector<float> sb, sw;
+    for (size_t i = 0; i < n; i += stride)
+      if (unclipped(i)) {
+        sb.push_back(decode_stripe_pixel(best, i, ds).background);
+        sw.push_back(decode_stripe_pixel(*worst, i, ds).background);
+      }
+    p = choose_dop(cfg, sb, sw, lv, m);
+    separate = p >= cfg.p_min;
+    m.p = separate ? p : 0.0;
+  }
+  // Stripe centres by index, once (index -> projector column).
+  std::vector<double> centre(cfg.stripes + 1);
+  for (uint32_t k = 0; k < cfg.stripes; ++k) centre[k] = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k).centre;
+  centre[cfg.stripes] = centre[cfg.stripes - 1];
+  std::atomic<size_t> valid{0};
+  // One pass per pixel: composite (Eq. 5.7), stripe decision and column,
+  //   unpolarised: D^ = rise, B^ = background (A counted in it), S^ = D^;
+  //   polarised:   D^ = 2 rise_b, B^/A^ by Eq. 5.6 on the backgrounds, S^ = D^ + A^;
+  // then Eq. 5.8–5.10 and the report's sums.
+  const QualitySums sums = for_bands(h, cfg.threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
+    size_t band_valid = 0;
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      const StripePixel px = decode_stripe_pixel(best, i, ds);
+      m.image[i] = best.top1(i);
+      const bool ok = unclipped(i);
+      const bool stripe = px.valid && ok;
+      m.stripe[i] = stripe ? px.stripe : kNaN;
+      m.col[i] = kNaN;
+      if (stripe) {
+        const auto k0 = static_cast<uint32_t>(px.stripe);
+        const double frac = double(px.stripe) - double(k0);
+        m.col[i] = static_cast<float>(centre[k0] + frac * (centre[k0 + 1] - centre[k0]));
+        ++band_valid;
+      }
+      float s = kNaN, b = kNaN, d = kNaN, a = kNaN;
+      if (!polarised) {
+        b = ok ? px.background : kNaN;
+        d = s = stripe ? px.rise : kNaN;
+      } else if (ok) {
+        const float bw = decode_stripe_pixel(*worst, i, ds).background;
+        const SignalBackscatter sb =
+            separate ? signal_from_polarized(px.background, bw, p) : SignalBackscatter{0.0f, px.background + bw};
+        b = sb.backscatter;
+        if (stripe) {
+          d = 2.0f * px.rise;  // the best analyser passes half of the depolarised direct light
+          a = sb.signal;       // the other sheets' depolarised light on the surface: A
+          s = d + a;
+        }
+      }
+      finish_pixel(m, i, s, b, d, a, polarised, lv, q);
+    }
+    valid += band_valid;
+  });
+  m.valid = valid;
+  m.quality = to_json(sums, polarised, m.p);
+  return m;
+}
+
+void fill_quality(Maps& m, const Levels& lv, uint32_t threads) {
+  take_quality_maps(m, m.enhanced.size(), false);
+  const uint32_t w = m.width;
+  const QualitySums sums = for_bands(m.height, threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i)
+      finish_pixel(m, i, m.enhanced[i], m.backscatter[i], kNaN, kNaN, false, lv, q);
+  });
+  m.quality = to_json(sums, false, m.p);
 }
 
 }  // namespace procam::polarized_striping

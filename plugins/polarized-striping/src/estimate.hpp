@@ -26,6 +26,10 @@ struct Maps {
   double p = 0;                    // DOP used in Eq. 5.6–5.9 (0: unpolarised or not separable)
   nlohmann::json dop;              // how p was found
   nlohmann::json notes = nlohmann::json::array();
+  // Image-level summaries for the report: means over valid pixels of CQM,
+  // GQM (null where not estimable), W, CQM x W, GQM x W; mean and RMS
+  // contrast (std / mean) of `image` and `enhanced`; the p used.
+  nlohmann::json quality;
 };
 
 // flood: B^ = the backscatter_percentile quantile of E over unclipped pixels,
@@ -53,15 +57,9 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
                        uint32_t proj_width);
 
-// Eq. 5.8–5.10 per valid pixel from S, B, (D, A), p; NaN elsewhere. Rows
-// split over `threads` workers.
-// d/a empty: GQM not computed.
-void fill_quality(Maps& m, const std::vector<float>& d, const std::vector<float>& a, const Levels& lv,
-                  uint32_t threads);
-
-// The report's "quality" object: image-level summaries of CQM, GQM, W,
-// CQM x W, GQM x W (means over valid pixels) and of the image and S^ (mean,
-// RMS contrast). One pass over the maps, rows split over `threads` workers.
-nlohmann::json quality_report(const Maps& m, uint32_t threads);
+// Eq. 5.8–5.10 per valid pixel of a flood method (S = enhanced, B =
+// backscatter; no GQM) into the maps, NaN elsewhere, and the report's
+// `quality` object (see Maps::quality). Rows split over `threads` workers.
+void fill_quality(Maps& m, const Levels& lv, uint32_t threads);
 
 }  // namespace procam::polarized_striping

@@ -115,7 +115,6 @@ class PolarizedStripingSession final : public sdk::Session {
     }
     best_ = worst_ = StripeStack();
     if (!worst_map_.empty()) sdk::give_map(std::move(worst_map_));
-    quality_ = quality_report(maps_, rig_.threads);
     if (is_striping(cfg_.method) && rig_.can_triangulate(0)) {
       std::vector<float> intensity(maps_.image.size());
       for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = static_cast<float>(double(maps_.image[i]) / full_scale_);
@@ -191,7 +190,7 @@ class PolarizedStripingSession final : public sdk::Session {
                         {"saturation_dn", levels_.saturation},
                         {"snr_weight", {{"mu_dn", levels_.mu}, {"z_dn", levels_.z}}},
                         {"valid_pixels", maps_.valid},
-                        {"quality", quality_}};
+                        {"quality", maps_.quality}};
     if (is_polarized(cfg_.method)) r["dop"] = maps_.dop;
     if (!maps_.notes.empty()) r["notes"] = maps_.notes;
     if (is_striping(cfg_.method)) {
@@ -231,7 +230,6 @@ class PolarizedStripingSession final : public sdk::Session {
   double decode_ms_ = 0;
   Levels levels_;
   Maps maps_;
-  nlohmann::json quality_;
   std::optional<sdk::DepthResult> depth_;
 };
 
