@@ -374,11 +374,15 @@ TEST(Striping, ZeroSignalSaturatedBackscatterAndBitDepths) {
 
 // Polarised striping with indirect light A: p^, D^, A^ (through S^ = D^ + A^),
 // B^ and the quality measures against Eq. 5.8–5.10 on the truth.
-TEST(PolarizedStriping, SeparatesDirectIndirectAndBackscatter) {
+// 8-bit frames take the packed state, 12-bit ones the general one.
+class PolarizedStriping : public ::testing::TestWithParam<std::pair<uint32_t, uint32_t>> {};
+
+TEST_P(PolarizedStriping, SeparatesDirectIndirectAndBackscatter) {
+  const auto [type, bits] = GetParam();
   Truth t;
   t.a_level = 0.05;
   ScanRun r;
-  scan("polarized-striping", {{"stripes", 16}}, t, r);
+  scan("polarized-striping", {{"stripes", 16}}, t, r, type, bits);
   EXPECT_NEAR(r.find("dop")->scalar, t.p, 0.03);
   const std::vector<int> truth_k = true_stripes(r.plan, 2);
   const Map k = r.map("stripe_index"), s = r.map("enhanced_dn"), b = r.map("backscatter_dn"),
@@ -408,14 +412,18 @@ TEST(PolarizedStriping, SeparatesDirectIndirectAndBackscatter) {
       EXPECT_NEAR(w[i], 1 / (1 + std::exp(-((D + A) * r.fs - mu) / z)), 0.01);     // Eq. 5.10
     }
   EXPECT_GT(lit, 100u);
-  std::printf("polarized-striping 8-bit, noise 0.002 FS: |p^ - p| %.4f; max |S^ - S| %.4f FS, |B^ - B| %.4f FS, "
+  std::printf("polarized-striping %u-bit, noise 0.002 FS: |p^ - p| %.4f; max |S^ - S| %.4f FS, |B^ - B| %.4f FS, "
               "|CQM^ - CQM| %.4f, |GQM^ - GQM| %.4f over %zu stripe pixels\n",
-              std::abs(r.find("dop")->scalar - t.p), err_s, err_b, err_cqm, err_gqm, lit);
+              bits, std::abs(r.find("dop")->scalar - t.p), err_s, err_b, err_cqm, err_gqm, lit);
   const nlohmann::json q = rep["quality"];
   EXPECT_GT(q["cqm_mean"].get<double>(), 0.5);
   EXPECT_FALSE(q["gqm_w_mean"].is_null());
   expect_no_inf(r);
 }
+
+INSTANTIATE_TEST_SUITE_P(Formats, PolarizedStriping,
+                         ::testing::Values(std::pair<uint32_t, uint32_t>{PROCAM_PIXEL_U8, 8},
+                                           std::pair<uint32_t, uint32_t>{PROCAM_PIXEL_U16, 12}));
 
 }  // namespace
 }  // namespace procam::polarized_striping
