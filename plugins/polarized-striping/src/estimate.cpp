@@ -1,0 +1,279 @@
+// SPDX-License-Identifier: MIT
+// End-of-scan estimates of S, B, p, the stripe map and the quality measures
+// (see estimate.hpp; thesis Eq. 5.4–5.10).
+#include "estimate.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <map>
+#include <mutex>
+#include <cmath>
+
+#include "media_model.hpp"
+#include "procam/sdk/map_cache.hpp"
+
+namespace procam::polarized_striping {
+namespace {
+
+// A map of n values, all `v`, in recycled storage where the map cache has
+// some (fresh pages fault one by one: on a VM that costs more than the math).
+void nan_map(std::vector<float>& m, size_t n, float v = kNaN) {
+  sdk::take_map(m, n);
+  std::fill(m.begin(), m.end(), v);
+}
+
+Maps blank(uint32_t w, uint32_t h) {
+  Maps m;
+  m.width = w;
+  m.height = h;
+  const size_t n = size_t{w} * h;
+  nan_map(m.enhanced, n);
+  nan_map(m.backscatter, n);
+  return m;
+}
+
+// p given (>= 0) or estimated; records how in m.dop.
+double choose_dop(const Config& cfg, std::span<const float> best, std::span<const float> worst, const Levels& lv,
+                  Maps& m) {
+  double p = cfg.p;
+  if (p >= 0) {
+    m.dop = {{"source", "param p"}, {"value", p}};
+  } else {
+    p = estimate_dop(best, worst, lv.dop_min_sum, cfg.dop_percentile);
+    m.dop = {{"source", "estimated"},
+             {"rule", "quantile dop_percentile of (E_w - E_b) / (E_w + E_b) over pixels with E_w + E_b > 40 noise "
+                      "sigma; equals p where a pixel sees only medium, less where it sees an object"},
+             {"min_sum_dn", lv.dop_min_sum},
+             {"percentile", cfg.dop_percentile}};
+    if (!std::isfinite(p)) {
+      m.notes.push_back("too few pixels above 40 noise sigma to estimate the DOP: backscatter not separated; pass "
+                        "param p (the DOP of the medium's backscatter) or raise the exposure");
+      p = 0;
+    }
+    m.dop["value"] = p;
+  }
+  if (p < cfg.p_min && p > 0)
+    m.notes.push_back("DOP " + std::to_string(p) + " is below p_min: Eq. 5.6 not applied (its 1/p would amplify "
+                      "noise); backscatter not separated");
+  return p;
+}
+
+}  // namespace
+
+Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, uint32_t w, uint32_t h) {
+  Maps m = blank(w, h);
+  std::vector<float> unclipped;
+  unclipped.reserve(e.size());
+  for (float v : e)
+    if (double(v) < lv.saturation) unclipped.push_back(v);
+  const double b = unclipped.empty() ? 0.0 : std::max(0.0, quantile(std::move(unclipped), cfg.backscatter_percentile));
+  for (size_t i = 0; i < e.size(); ++i) {
+    if (!(double(e[i]) < lv.saturation)) continue;
+    m.enhanced[i] = static_cast<float>(std::max(0.0, double(e[i]) - b));
+    m.backscatter[i] = static_cast<float>(b);
+    ++m.valid;
+  }
+  m.image = std::move(e);
+  fill_quality(m, lv, cfg.threads);
+  return m;
+}
+
+Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& ew, const Config& cfg,
+                              const Levels& lv, uint32_t w, uint32_t h) {
+  Maps m = blank(w, h);
+  std::vector<float> b_ok, w_ok;  // unclipped pairs only (scratch from the map cache)
+  nan_map(b_ok, eb.size());
+  nan_map(w_ok, eb.size());
+  for (size_t i = 0; i < eb.size(); ++i)
+    if (double(eb[i]) < lv.saturation && double(ew[i]) < lv.saturation) b_ok[i] = eb[i], w_ok[i] = ew[i];
+  const double p = choose_dop(cfg, b_ok, w_ok, lv, m);
+  const bool separate = p >= cfg.p_min;
+  m.p = separate ? p : 0.0;
+  for (size_t i = 0; i < eb.size(); ++i) {
+    if (!std::isfinite(b_ok[i])) continue;  // clipped: invalid
+    if (separate) {
+      const SignalBackscatter sb = signal_from_polarized(eb[i], ew[i], p);  // Eq. 5.6
+      m.enhanced[i] = sb.signal;
+      m.backscatter[i] = sb.backscatter;
+    } else {
+      m.enhanced[i] = std::max(0.0f, eb[i] + ew[i]);  // no polarisation contrast: S + B
+    }
+    ++m.valid;
+  }
+  m.image = std::move(eb);
+  sdk::give_map(std::move(b_ok));
+  sdk::give_map(std::move(w_ok));
+  fill_quality(m, lv, cfg.threads);
+  return m;
+}
+
+namespace {
+
+// Sums for the report over one band of rows; bands are merged in row order so
+// the report is the same bit for bit from run to run.
+struct QualitySums {
+  double cqm = 0, gqm = 0, w = 0, cqm_w = 0, gqm_w = 0, img = 0, img2 = 0, enh = 0, enh2 = 0;
+  size_t n_cqm = 0, n_gqm = 0, n_w = 0, n_cqm_w = 0, n_gqm_w = 0, n_img = 0, n_enh = 0;
+  void add(const QualitySums& o) {
+    cqm += o.cqm, gqm += o.gqm, w += o.w, cqm_w += o.cqm_w, gqm_w += o.gqm_w;
+    img += o.img, img2 += o.img2, enh += o.enh, enh2 += o.enh2;
+    n_cqm += o.n_cqm, n_gqm += o.n_gqm, n_w += o.n_w, n_cqm_w += o.n_cqm_w, n_gqm_w += o.n_gqm_w;
+    n_img += o.n_img, n_enh += o.n_enh;
+  }
+};
+
+nlohmann::json mean_or_null(double sum, size_t n) { return n ? nlohmann::json(sum / double(n)) : nlohmann::json(nullptr); }
+
+nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p) {
+  return {{"cqm_mean", mean_or_null(t.cqm, t.n_cqm)},
+          {"gqm_mean", has_gqm ? mean_or_null(t.gqm, t.n_gqm) : nlohmann::json(nullptr)},
+          {"snr_weight_mean", mean_or_null(t.w, t.n_w)},
+          {"cqm_w_mean", mean_or_null(t.cqm_w, t.n_cqm_w)},
+          {"gqm_w_mean", has_gqm ? mean_or_null(t.gqm_w, t.n_gqm_w) : nlohmann::json(nullptr)},
+          {"image", to_json(summary_from_sums(t.img, t.img2, t.n_img))},
+          {"enhanced", to_json(summary_from_sums(t.enh, t.enh2, t.n_enh))},
+          {"dop_used", p}};
+}
+
+// fn(y0, y1, sums) over row bands on `threads` workers; the bands' sums merged in row order.
+template <class F>
+QualitySums for_bands(uint32_t height, uint32_t threads, F&& fn) {
+  std::map<uint32_t, QualitySums> bands;
+  std::mutex mu;
+  sdk::parallel_rows(height, threads, [&](uint32_t y0, uint32_t y1) {
+    QualitySums q;
+    fn(y0, y1, q);
+    const std::lock_guard lock(mu);
+    bands[y0] = q;
+  });
+  QualitySums t;
+  for (const auto& [y0, q] : bands) t.add(q);
+  return t;
+}
+
+// Pixel i's outputs from its estimates: enhanced S, backscatter B, and
+// Eq. 5.8–5.10 (gqm only when has_gqm, from D and A); NaN where the inputs
+// are not finite. Adds the pixel to the report's sums.
+inline void finish_pixel(Maps& m, size_t i, float s, float b, float d, float a, bool has_gqm, const Levels& lv,
+                         QualitySums& q) {
+  m.enhanced[i] = s;
+  m.backscatter[i] = b;
+  const double im = m.image[i];
+  if (std::isfinite(im)) q.img += im, q.img2 += im * im, ++q.n_img;
+  float w = kNaN, c = kNaN, g = kNaN;
+  if (std::isfinite(s)) {
+    q.enh += double(s), q.enh2 += double(s) * double(s), ++q.n_enh;
+    w = static_cast<float>(snr_weight(s, lv.mu, lv.z));  // Eq. 5.10
+    q.w += double(w), ++q.n_w;
+    if (std::isfinite(b)) {
+      c = static_cast<float>(cqm(s, b, m.p));  // Eq. 5.8
+      q.cqm += double(c), q.cqm_w += double(c) * double(w), ++q.n_cqm, ++q.n_cqm_w;
+      if (has_gqm) {
+        g = static_cast<float>(gqm(d, a, b, m.p));  // Eq. 5.9
+        q.gqm += double(g), q.gqm_w += double(g) * double(w), ++q.n_gqm, ++q.n_gqm_w;
+      }
+    }
+  }
+  m.weight[i] = w;
+  m.cqm[i] = c;
+  if (has_gqm) m.gqm[i] = g;
+}
+
+void take_quality_maps(Maps& m, size_t n, bool has_gqm) {
+  for (auto* v : {&m.cqm, &m.weight}) sdk::take_map(*v, n);
+  if (has_gqm) sdk::take_map(m.gqm, n);
+}
+
+}  // namespace
+
+Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
+                       uint32_t proj_width) {
+  const uint32_t w = best.width(), h = best.height();
+  const size_t n = size_t{w} * h;
+  const bool polarised = worst != nullptr;
+  Maps m;
+  m.width = w;
+  m.height = h;
+  // Every map is written in full by the pass below (no NaN pre-fill);
+  // storage from the map cache.
+  for (auto* v : {&m.image, &m.enhanced, &m.backscatter, &m.stripe, &m.col}) sdk::take_map(*v, n);
+  take_quality_maps(m, n, polarised);
+  const auto ds = StripeDecodeSettings::make(lv.sigma, cfg.margin_sigma, lv.saturation, best.frames());
+  auto unclipped = [&](size_t i) {
+    return double(best.top2(i)) < lv.saturation && (!polarised || double(worst->top2(i)) < lv.saturation);
+  };
+  double p = 0;
+  bool separate = false;
+  if (polarised) {
+    // The DOP from both backgrounds (A = 0 where a pixel sees only medium),
+    // on the same <= 256k-pixel stride estimate_dop uses, before the pass.
+    const size_t stride = std::max<size_t>(1, n / 262144);
+    std::vector<float> sb, sw;
+    for (size_t i = 0; i < n; i += stride)
+      if (unclipped(i)) {
+        sb.push_back(decode_stripe_pixel(best, i, ds).background);
+        sw.push_back(decode_stripe_pixel(*worst, i, ds).background);
+      }
+    p = choose_dop(cfg, sb, sw, lv, m);
+    separate = p >= cfg.p_min;
+    m.p = separate ? p : 0.0;
+  }
+  // Stripe centres by index, once (index -> projector column).
+  std::vector<double> centre(cfg.stripes + 1);
+  for (uint32_t k = 0; k < cfg.stripes; ++k) centre[k] = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k).centre;
+  centre[cfg.stripes] = centre[cfg.stripes - 1];
+  std::atomic<size_t> valid{0};
+  // One pass per pixel: composite (Eq. 5.7), stripe decision and column,
+  //   unpolarised: D^ = rise, B^ = background (A counted in it), S^ = D^;
+  //   polarised:   D^ = 2 rise_b, B^/A^ by Eq. 5.6 on the backgrounds, S^ = D^ + A^;
+  // then Eq. 5.8–5.10 and the report's sums.
+  const QualitySums sums = for_bands(h, cfg.threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
+    size_t band_valid = 0;
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      const StripePixel px = decode_stripe_pixel(best, i, ds);
+      m.image[i] = best.top1(i);
+      const bool ok = unclipped(i);
+      const bool stripe = px.valid && ok;
+      m.stripe[i] = stripe ? px.stripe : kNaN;
+      m.col[i] = kNaN;
+      if (stripe) {
+        const auto k0 = static_cast<uint32_t>(px.stripe);
+        const double frac = double(px.stripe) - double(k0);
+        m.col[i] = static_cast<float>(centre[k0] + frac * (centre[k0 + 1] - centre[k0]));
+        ++band_valid;
+      }
+      float s = kNaN, b = kNaN, d = kNaN, a = kNaN;
+      if (!polarised) {
+        b = ok ? px.background : kNaN;
+        d = s = stripe ? px.rise : kNaN;
+      } else if (ok) {
+        const float bw = decode_stripe_pixel(*worst, i, ds).background;
+        const SignalBackscatter sb =
+            separate ? signal_from_polarized(px.background, bw, p) : SignalBackscatter{0.0f, px.background + bw};
+        b = sb.backscatter;
+        if (stripe) {
+          d = 2.0f * px.rise;  // the best analyser passes half of the depolarised direct light
+          a = sb.signal;       // the other sheets' depolarised light on the surface: A
+          s = d + a;
+        }
+      }
+      finish_pixel(m, i, s, b, d, a, polarised, lv, q);
+    }
+    valid += band_valid;
+  });
+  m.valid = valid;
+  m.quality = to_json(sums, polarised, m.p);
+  return m;
+}
+
+void fill_quality(Maps& m, const Levels& lv, uint32_t threads) {
+  take_quality_maps(m, m.enhanced.size(), false);
+  const uint32_t w = m.width;
+  const QualitySums sums = for_bands(m.height, threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
+    for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i)
+      finish_pixel(m, i, m.enhanced[i], m.backscatter[i], kNaN, kNaN, false, lv, q);
+  });
+  m.quality = to_json(sums, false, m.p);
+}
+
+}  // namespace procam::polarized_striping

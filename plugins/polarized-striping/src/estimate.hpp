@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: MIT
+// End-of-scan estimates of every method: from the captured frames (flood
+// maps or StripeStacks) to the signal S^, backscatter B^, DOP p, stripe map
+// and the per-pixel quality measures (Eq. 5.6–5.10). How each term comes
+// from the data is written beside each function and in the report's "model".
+// Units: DN (frame units). Pure functions of their inputs; O(pixels).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "params.hpp"
+#include "stripe_stack.hpp"
+
+namespace procam::polarized_striping {
+
+struct Maps {
+  uint32_t width = 0, height = 0;
+  // Outputs (NaN: invalid). image: what the method shows (flood image, E_b,
+  // composite CI); enhanced: S^; backscatter: B^.
+  std::vector<float> image, enhanced, backscatter, cqm, gqm, weight;
+  std::vector<float> stripe, col;  // striping: fractional stripe index, projector column
+  size_t valid = 0;                // pixels with a valid enhanced value (striping: a valid stripe)
+  double p = 0;                    // DOP used in Eq. 5.6–5.9 (0: unpolarised or not separable)
+  nlohmann::json dop;              // how p was found
+  nlohmann::json notes = nlohmann::json::array();
+  // Image-level summaries for the report: means over valid pixels of CQM,
+  // GQM (null where not estimable), W, CQM x W, GQM x W; mean and RMS
+  // contrast (std / mean) of `image` and `enhanced`; the p used.
+  nlohmann::json quality;
+};
+
+// flood: B^ = the backscatter_percentile quantile of E over unclipped pixels,
+// taken as uniform (flood backscatter varies slowly; the darkest pixels see
+// medium only); S^ = max(0, E - B^); p = 0. Clipped pixels are invalid.
+Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, uint32_t w, uint32_t h);
+
+// polarized-flood: p given or estimate_dop(E_b, E_w) clamped to [0, 1]; for
+// p >= p_min, Eq. 5.6 per pixel (S^, B^ = (E_w - E_b) / p); for p < p_min,
+// S^ = E_b + E_w and B^ unknown (NaN). Pixels with E_b or E_w clipped are invalid.
+Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& ew, const Config& cfg,
+                              const Levels& lv, uint32_t w, uint32_t h);
+
+// striping (worst == nullptr) and polarized-striping. From each pixel's stack:
+// rise = top1 - background, background = mean of the other K - 2 frames.
+//  striping:  D^ = rise, B^ = background (indirect light A of other sheets
+//             cannot be told from backscatter without polarisation: it is
+//             counted in B^), S^ = D^, p = 0; GQM not estimable (NaN).
+//  polarized: best frames E_b,k = (D + A)/2 + B(1 - p)/2 under its own sheet,
+//             (A + B(1 - p))/2 under the others; worst frames with (1 + p).
+//             D^ = 2 rise_b; p from estimate_dop(bg_b, bg_w) (A = 0 where the
+//             pixel sees only medium); B^ = (bg_w - bg_b) / p; A^ = bg_w +
+//             bg_b - B^; S^ = D^ + A^. p < p_min: B^ = bg_w + bg_b, A^ = 0.
+// Stripe index -> projector column through stripe_columns().
+Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
+                       uint32_t proj_width);
+
+// Eq. 5.8–5.10 per valid pixel of a flood method (S = enhanced, B =
+// backscatter; no GQM) into the maps, NaN elsewhere, and the report's
+// `quality` object (see Maps::quality). Rows split over `threads` workers.
+void fill_quality(Maps& m, const Levels& lv, uint32_t threads);
+
+}  // namespace procam::polarized_striping

@@ -1,0 +1,105 @@
+// SPDX-License-Identifier: MIT
+// Speed of method "polarized-striping" with K = 64 stripes x 2 analyser
+// angles (128 frames) at 1920x1200 8-bit: the work per added frame (one fold
+// into the top-2/sum state) and what happens after the last frame
+// (end_round: stripe map, DOP, S/A/B, quality maps; outputs: handing them
+// over), for 1 and 2 threads, without and with triangulation (a calibrated
+// rig adds depth_mm). Issue 13's goals at 2 threads: <= 0.5 ms per frame,
+// <= 5 ms after the last frame.
+// Run: build/plugins/polarized-striping/procam_polarized_striping_bench
+#include <benchmark/benchmark.h>
+
+#include <random>
+#include <vector>
+
+#include "polarized_striping_session.hpp"
+
+namespace procam::polarized_striping {
+namespace {
+
+constexpr uint32_t kW = 1920, kH = 1200, kPW = 1920, kPH = 1080, kK = 64;
+
+nlohmann::json rig(uint32_t threads, bool calibrated) {
+  nlohmann::json cam = {{"width", kW}, {"height", kH}, {"bit_depth", 8}};
+  nlohmann::json proj = {{"width", kPW}, {"height", kPH}};
+  if (calibrated) {
+    proj["intrinsics"] = {{"width", kPW}, {"height", kPH}, {"fx", 1800.0}, {"fy", 1800.0}, {"cx", 959.5}, {"cy", 539.5}};
+    cam["calibration"] = {
+        {"intrinsics", {{"width", kW}, {"height", kH}, {"fx", 1800.0}, {"fy", 1800.0}, {"cx", 959.5}, {"cy", 599.5}}},
+        {"cam_from_proj", {{"rotation", {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}}, {"translation_mm", {150.0, 0.0, 0.0}}}}};
+  }
+  return {{"projector", proj}, {"cameras", {cam}}, {"threads", threads}};
+}
+
+// 128 camera frames: stripe k (every 30 columns, 10 wide, shifted by 300 px
+// of disparity) over a backscatter haze of ~60 DN, best/worst analyser, noise.
+const std::vector<std::vector<uint8_t>>& frames() {
+  static const std::vector<std::vector<uint8_t>> f = [] {
+    std::vector<std::vector<uint8_t>> v(2 * kK, std::vector<uint8_t>(size_t{kW} * kH));
+    std::mt19937 rng(5);
+    for (uint32_t k = 0; k < kK; ++k)
+      for (uint32_t a = 0; a < 2; ++a)
+        for (uint32_t y = 0; y < kH; ++y)
+          for (uint32_t x = 0; x < kW; ++x) {
+            const uint32_t c = (x + kPW - 300) % kPW;
+            const bool lit = c / 30 == k && c % 30 >= 10 && c % 30 < 20;
+            const uint32_t haze = a == 0 ? 12 : 60;
+            v[2 * k + a][size_t{y} * kW + x] = static_cast<uint8_t>((lit ? 90 : 0) + haze + rng() % 6);
+          }
+    return v;
+  }();
+  return f;
+}
+
+std::unique_ptr<sdk::Session> session(uint32_t threads, bool calibrated = false) {
+  std::unique_ptr<sdk::Session> s;
+  if (!create_session({"polarized-striping", nlohmann::json::object(), rig(threads, calibrated)}, s).ok())
+    std::abort();
+  sdk::Plan plan;
+  bool has = false;
+  if (!s->next_plan(plan, has).ok()) std::abort();
+  return s;
+}
+
+void BM_PolarizedStripingAddFrame(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  auto s = session(threads);
+  const auto& f = frames();
+  uint32_t i = 0;
+  for (auto _ : state) {
+    // The session folds any frame into its state; indices cycle over the plan.
+    if (!s->add_frame(i % (2 * kK), sdk::gray_view(f[i % (2 * kK)].data(), kW, kH)).ok()) std::abort();
+    ++i;
+  }
+}
+BENCHMARK(BM_PolarizedStripingAddFrame)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// end_round + outputs after all 128 frames (the frames are added untimed).
+void BM_PolarizedStripingAfterLastFrame(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  const bool calibrated = state.range(1) != 0;
+  const auto& f = frames();
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto s = session(threads, calibrated);
+    for (uint32_t i = 0; i < 2 * kK; ++i)
+      if (!s->add_frame(i, sdk::gray_view(f[i].data(), kW, kH)).ok()) std::abort();
+    sdk::Outputs out;
+    state.ResumeTiming();
+    if (!s->end_round().ok() || !s->outputs(out).ok()) std::abort();
+    benchmark::DoNotOptimize(out.size());
+    state.PauseTiming();
+    s.reset();
+    state.ResumeTiming();
+  }
+}
+BENCHMARK(BM_PolarizedStripingAfterLastFrame)
+    ->Args({1, 0})->Args({2, 0})->Args({2, 1})
+    ->ArgNames({"threads", "depth"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace procam::polarized_striping
+
+BENCHMARK_MAIN();
