@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "procam/core/image_io.hpp"
+#include "medium.hpp"
 #include "procam/hw/sim/sensor.hpp"
 
 namespace procam::sim {
@@ -49,9 +50,16 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
                         {"proj_col.exr", &truth.proj_col, "px"},
                         {"proj_row.exr", &truth.proj_row, "px"},
                         {"lit.png", &truth.lit, ""},
-                        {"object.png", &truth.object, ""}};
+                        {"object.png", &truth.object, ""},
+                        {"medium_direct.exr", &truth.medium_direct, "DN"},
+                        {"medium_indirect.exr", &truth.medium_indirect, "DN"},
+                        {"medium_backscatter.exr", &truth.medium_backscatter, "DN"},
+                        {"medium_backscatter_dop.exr", &truth.medium_backscatter_dop, ""}};
   for (const Item& it : items) {
-    if (it.image->empty() && it.image == &truth.object) continue;  // optional map
+    const bool optional = it.image == &truth.object || it.image == &truth.medium_direct ||
+                          it.image == &truth.medium_indirect || it.image == &truth.medium_backscatter ||
+                          it.image == &truth.medium_backscatter_dop;
+    if (it.image->empty() && optional) continue;
     if (it.image->empty())
       return Error(Code::invalid_argument, std::string("ground truth map for '") + it.file + "' is empty");
     std::map<std::string, std::string> attrs = attributes;
@@ -102,6 +110,45 @@ Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, co
   }
   truth.direct = std::move(direct);
   truth.global = std::move(global);
+  return Status::Ok();
+}
+
+Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, const Medium* medium,
+                             const ProjectorModel& projector, const SensorModel& sensor, double exposure_us,
+                             double gain_db, double projector_polarizer_deg) {
+  const PreparedView& v = renderer.view();
+  if (medium == nullptr || v.camera_transmittance.empty()) return Status::Ok();
+  const uint32_t w = renderer.width(), h = renderer.height();
+  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
+  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
+  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  if (!pw.ok()) return pw.status();
+  Image d(w, h, PixelType::f32), a(w, h, PixelType::f32), b(w, h, PixelType::f32), dop(w, h, PixelType::f32);
+  Status st = renderer.render_radiance_parts(*pw, d.ptr<float>(), false, Renderer::Parts::direct_only);
+  if (st.ok()) st = renderer.render_radiance_parts(*pw, b.ptr<float>(), false, Renderer::Parts::volume_only);
+  if (!st.ok()) return st;
+  std::fill(a.ptr<float>(), a.ptr<float>() + a.pixel_count(), 0.f);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::fill(dop.ptr<float>(), dop.ptr<float>() + dop.pixel_count(), nan);
+  if (v.medium) {
+    const BackscatterStokes s = backscatter_stokes(*v.medium, *pw, projector_polarizer_deg, 1);
+    float* p = dop.ptr<float>();
+    for (size_t i = 0; i < s.i.size(); ++i)
+      if (s.i[i] > 0.f)
+        p[i] = std::min(1.f, std::sqrt(s.q[i] * s.q[i] + s.u[i] * s.u[i]) / s.i[i]);
+  }
+  const double dn_per_ru = expected_dn(sensor, 1.0, exposure_us, gain_db);
+  for (Image* im : {&d, &b}) {
+    float* p = im->ptr<float>();
+    for (size_t i = 0; i < im->pixel_count(); ++i) p[i] = static_cast<float>(double(p[i]) * dn_per_ru);
+  }
+  truth.medium_direct = std::move(d);
+  truth.medium_indirect = std::move(a);
+  truth.medium_backscatter = std::move(b);
+  truth.medium_backscatter_dop = std::move(dop);
+  truth.medium = {{"extinction_per_mm", medium->sigma_t_per_mm},
+                  {"scattering_per_mm", medium->sigma_s_per_mm},
+                  {"hg_g", medium->g}};
   return Status::Ok();
 }
 

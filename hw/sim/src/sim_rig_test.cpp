@@ -257,8 +257,8 @@ TEST(SimRig, ExposureGainAndFocusSettings) {
 }
 
 // The projector polariser angle (procam_frame_settings.projector_polarizer_deg)
-// is accepted and recorded, not dropped; it does not change the image yet
-// because polarisation is not modelled in the radiance (later issue).
+// is accepted and recorded, not dropped; without a medium it does not change
+// the image (surface reflection depolarizes; medium_test covers the medium).
 TEST(SimRig, ProjectorPolarizerIsRecordedNotYetModelled) {
   nlohmann::json j = rig_json();
   j["cameras"][0]["shot_noise"] = false;  // noise-free: two captures of one pattern are equal
