@@ -42,8 +42,8 @@ namespace procam::sim {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kOpticalStep = 0.5;        // κ: optical depth (both legs) per base piece
-constexpr double kGeometricStepMm = 100.0;  // λ: longest base piece in clear geometry
+constexpr double kOpticalStep = 1.0;        // κ: optical depth (both legs) per base piece
+constexpr double kGeometricStepMm = 150.0;  // λ: longest base piece in clear geometry
 constexpr double kMinDistSq = 1.0;          // mm²: d_LY² floor (projector centre inside the medium)
 
 // 8-point Gauss-Legendre on [−1, 1].
@@ -123,7 +123,7 @@ void clip(double c0, double c1, double& t0, double& t1) {
 }
 
 void build_pixel(const TapContext& c, uint32_t col, uint32_t row, double depth_mm, std::vector<MediumChunk>& out,
-                 float* pol_proj, float* pol_cam) {
+                 float* pol_proj, float* pol_cam, float& m12_out, float& m33_out) {
   const Vec3 d_cam = c.cam_k.ray(static_cast<double>(col), static_cast<double>(row));
   const Vec3 u = normalized(c.world_from_cam_rot * d_cam);
   const double s_hit = std::isfinite(depth_mm) ? depth_mm * norm(d_cam) : kInf;
@@ -200,6 +200,7 @@ void build_pixel(const TapContext& c, uint32_t col, uint32_t row, double depth_m
   }
   std::sort(br.begin(), br.end());
 
+  double sum0 = 0, sum12 = 0, sum33 = 0;
   for (size_t k = 0; k + 1 < br.size(); ++k) {
     const double sa = br[k], sb = br[k + 1];
     if (!(sb - sa > 1e-12 * len)) continue;
@@ -223,6 +224,9 @@ void build_pixel(const TapContext& c, uint32_t col, uint32_t row, double depth_m
       }
     }
     if (!(m0 > 0)) continue;
+    sum0 += m0;
+    sum12 += w12;
+    sum33 += w33;
     double h = x_hi - x_lo, a = 0, b = 0;
     if (h < 1e-3) {  // the ray runs (nearly) along a projector ray: one column
       x_lo = xc - 5e-4;
@@ -234,8 +238,11 @@ void build_pixel(const TapContext& c, uint32_t col, uint32_t row, double depth_m
     }
     const double row_p = std::clamp(std::floor(yp(sm) + 0.5), 0.0, static_cast<double>(K.height - 1));
     out.push_back({static_cast<int32_t>(row_p), static_cast<float>(std::max(x_lo, -0.5)),
-                   static_cast<float>(std::min(x_hi, K.width - 0.5)), static_cast<float>(a), static_cast<float>(b),
-                   static_cast<float>(w12 / m0), static_cast<float>(w33 / m0)});
+                   static_cast<float>(std::min(x_hi, K.width - 0.5)), static_cast<float>(a), static_cast<float>(b)});
+  }
+  if (sum0 > 0) {
+    m12_out = static_cast<float>(sum12 / sum0);
+    m33_out = static_cast<float>(sum33 / sum0);
   }
 }
 
@@ -319,6 +326,8 @@ Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const
   taps->m22 = taps->polarizing ? 1.0 : 0.0;
   taps->pol_proj.assign(4 * n, 0.f);
   taps->pol_cam.assign(4 * n, 0.f);
+  taps->m12.assign(n, 0.f);
+  taps->m33.assign(n, 0.f);
   const SceneTracer tracer(scene);
   const Rigid3 proj_from_world = world_from_proj.inverse();
   // Shadow map of the projector (first-hit distance through each pixel centre).
@@ -343,7 +352,7 @@ Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const
         const size_t i = size_t{r} * v.width + col;
         const size_t before = rows[r].size();
         build_pixel(ctx, col, r, static_cast<double>(v.depth_mm[i]), rows[r], &taps->pol_proj[4 * i],
-                    &taps->pol_cam[4 * i]);
+                    &taps->pol_cam[4 * i], taps->m12[i], taps->m33[i]);
         count[i] = static_cast<uint32_t>(rows[r].size() - before);
       }
   });

@@ -61,13 +61,12 @@ double medium_length(const Medium& medium, const Vec3& a, const Vec3& b);
 // Its share of B for emitted light e(x) along that row is
 //   ∫ (a + b·(x − x_c)) e(x) dx,   x_c = (x_lo + x_hi)/2,
 // the linear weight whose zeroth and first moments equal those of the true
-// weight G(x) = g(s(x))·|ds/dx| (moment matching). m12 and m33 are the
-// G-weighted means of the normalised Mueller entries over the piece.
+// weight G(x) = g(s(x))·|ds/dx| (moment matching). 20 bytes: a frame streams
+// every chunk once, so their size sets the frame time.
 struct MediumChunk {
   int32_t row;
   float x_lo, x_hi;
   float a, b;
-  float m12, m33;
 };
 
 // Backscatter taps of one prepared view.
@@ -83,6 +82,12 @@ struct MediumTaps {
   // the same for the analyser (ac) in the scattered light's frame.
   std::vector<float> pol_proj;  // 4 per pixel
   std::vector<float> pol_cam;   // 4 per pixel
+  // Per pixel: the normalised Mueller entries m12/m11 and m33/m11 averaged
+  // over the ray with the flood-lit backscatter as weight. The scattering
+  // angle changes little along a ray (e.g. 150°–170° in the chart scenes), so
+  // one value per pixel stands in for the whole ray: exact for flood light,
+  // and otherwise off by at most the spread of m12, m33 along the ray.
+  std::vector<float> m12, m33;
   size_t pixel_count() const { return size_t{width} * height; }
 };
 
@@ -117,8 +122,8 @@ struct RowPrefix {
   const float* level0 = nullptr;  // padded sharp level (PreparedPattern::level(0))
   size_t stride = 0;
   void build(const PreparedPattern& pattern, int threads);
-  // Chunk sums S0 = Σ v, S1 = Σ v·m12, S2 = Σ v·m33 of pixel i.
-  void sums(const MediumTaps& taps, size_t i, double& s0, double& s1, double& s2) const;
+  // Σ over pixel i's chunks of their share of B (ru) for this pattern.
+  double sum(const MediumTaps& taps, size_t i) const;
 };
 }  // namespace detail
 
