@@ -12,6 +12,16 @@
 #include "procam/hw/sim/sensor.hpp"
 
 namespace procam::sim {
+namespace {
+
+// The full-white pattern (value 1 everywhere) through the projector's emission curve.
+Result<PreparedPattern> white_pattern(const ProjectorModel& projector) {
+  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
+  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
+  return PreparedPattern::from_pattern(white.view(), projector);
+}
+
+}  // namespace
 
 hw::GroundTruth ground_truth_from_view(const PreparedView& v) {
   hw::GroundTruth gt;
@@ -78,9 +88,7 @@ Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern
   Status st = renderer.render_radiance_parts(pattern, t.direct.ptr<float>(), false, Renderer::Parts::direct_only);
   if (st.ok()) st = renderer.render_radiance_parts(pattern, t.global.ptr<float>(), false, Renderer::Parts::global_only);
   if (!st.ok()) return st;
-  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
-  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
-  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  auto pw = white_pattern(projector);
   if (!pw.ok()) return pw.status();
   std::vector<float> d(size_t{w} * h), g(d.size());
   st = renderer.render_radiance_parts(*pw, d.data(), false, Renderer::Parts::direct_only);
@@ -94,9 +102,7 @@ Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern
 Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, const ProjectorModel& projector,
                             const SensorModel& sensor, double exposure_us, double gain_db) {
   const uint32_t w = renderer.width(), h = renderer.height();
-  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
-  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
-  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  auto pw = white_pattern(projector);
   if (!pw.ok()) return pw.status();
   Image direct(w, h, PixelType::f32), global(w, h, PixelType::f32);
   Status st = renderer.render_radiance_parts(*pw, direct.ptr<float>(), false, Renderer::Parts::direct_only);
@@ -119,9 +125,7 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   const PreparedView& v = renderer.view();
   if (medium == nullptr || v.camera_transmittance.empty()) return Status::Ok();
   const uint32_t w = renderer.width(), h = renderer.height();
-  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
-  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
-  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  auto pw = white_pattern(projector);
   if (!pw.ok()) return pw.status();
   Image d(w, h, PixelType::f32), a(w, h, PixelType::f32), b(w, h, PixelType::f32), dop(w, h, PixelType::f32);
   Status st = renderer.render_radiance_parts(*pw, d.ptr<float>(), false, Renderer::Parts::direct_only);

@@ -73,20 +73,18 @@ double RowPrefix::sum(const MediumTaps& taps, size_t i) const {
     const MediumChunk& ch = taps.chunks[j];
     double c0 = 0, m0 = 0, c1 = 0, m1 = 0;
     const double xlo = static_cast<double>(ch.x_lo), xhi = static_cast<double>(ch.x_hi);
-    if (ch.row == last_row && ch.x_lo == last_x) {
-      c0 = last_c;
-      m0 = last_m;
-      at(ch.row, xhi, c1, m1);
-      last_x = ch.x_hi;
-      last_c = c1;
-      last_m = m1;
-    } else if (ch.row == last_row && ch.x_hi == last_x) {
-      c1 = last_c;
-      m1 = last_m;
-      at(ch.row, xlo, c0, m0);
-      last_x = ch.x_lo;
-      last_c = c0;
-      last_m = m0;
+    const bool from_lo = ch.row == last_row && ch.x_lo == last_x;
+    if (from_lo || (ch.row == last_row && ch.x_hi == last_x)) {
+      const float x_new = from_lo ? ch.x_hi : ch.x_lo;
+      double c_new = 0, m_new = 0;
+      at(ch.row, static_cast<double>(x_new), c_new, m_new);
+      (from_lo ? c0 : c1) = last_c;
+      (from_lo ? m0 : m1) = last_m;
+      (from_lo ? c1 : c0) = c_new;
+      (from_lo ? m1 : m0) = m_new;
+      last_x = x_new;
+      last_c = c_new;
+      last_m = m_new;
     } else {
       at(ch.row, xlo, c0, m0);
       at(ch.row, xhi, c1, m1);
