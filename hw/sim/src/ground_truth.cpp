@@ -131,7 +131,8 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   Status st = renderer.render_radiance_parts(*pw, d.ptr<float>(), false, Renderer::Parts::direct_only);
   if (st.ok()) st = renderer.render_radiance_parts(*pw, b.ptr<float>(), false, Renderer::Parts::volume_only);
   if (!st.ok()) return st;
-  std::fill(a.ptr<float>(), a.ptr<float>() + a.pixel_count(), 0.f);
+  if (st.ok()) st = renderer.render_component(*pw, a.ptr<float>(), "medium-indirect");  // zeros if not modelled
+  if (!st.ok()) return st;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::fill(dop.ptr<float>(), dop.ptr<float>() + dop.pixel_count(), nan);
   if (v.medium) {
@@ -142,7 +143,7 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
         p[i] = std::min(1.f, std::sqrt(s.q[i] * s.q[i] + s.u[i] * s.u[i]) / s.i[i]);
   }
   const double dn_per_ru = expected_dn(sensor, 1.0, exposure_us, gain_db);
-  for (Image* im : {&d, &b}) {
+  for (Image* im : {&d, &a, &b}) {
     float* p = im->ptr<float>();
     for (size_t i = 0; i < im->pixel_count(); ++i) p[i] = static_cast<float>(double(p[i]) * dn_per_ru);
   }

@@ -369,6 +369,7 @@ Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const
     taps->chunks.insert(taps->chunks.end(), r.begin(), r.end());
     std::vector<MediumChunk>().swap(r);
   }
+  prepare_indirect(m, world_from_proj, v, *taps);
   v.medium = std::move(taps);
   return Status::Ok();
 }

@@ -88,6 +88,11 @@ struct MediumTaps {
   // one value per pixel stands in for the whole ray: exact for flood light,
   // and otherwise off by at most the spread of m12, m33 along the ray.
   std::vector<float> m12, m33;
+  // Indirect signal A (medium_indirect.cpp): per pixel the gain
+  // direct_albedo/π · F_A(ℓ_L)/exp(−σℓ_L) on the blurred surface irradiance,
+  // and the blur's σ in camera pixels (one per view). Empty: no A.
+  std::vector<float> indirect_gain;
+  double indirect_sigma_px = 0;
   size_t pixel_count() const { return size_t{width} * height; }
 };
 
@@ -95,6 +100,23 @@ struct MediumTaps {
 // backscatter taps (when β > 0). invalid_argument if the scene has no medium.
 Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
                       const Rigid3& world_from_proj, PreparedView& view, int threads);
+
+// Forward single scattering onto a surface behind ℓ mm of medium, in the
+// plane-parallel (slab) approximation of Eq. 5.12: a collimated beam crosses
+// the slab; light scattered at depth t by angle α (cos α = μ > 0) reaches the
+// surface after (ℓ − t)/μ more. `ratio` = F_A/exp(−σℓ), the forward-scattered
+// flux per unit unscattered flux,
+//   F_A = ∫₀^ℓ β e^{−σt} ∫₀¹ 2π p(μ) e^{−σ(ℓ−t)/μ} dμ dt,
+// and `sigma_lat_mm` the per-axis RMS of its landing offset (ℓ − t)·tan α.
+struct ForwardScatter {
+  double ratio = 0;
+  double sigma_lat_mm = 0;
+};
+ForwardScatter forward_scatter(const Medium& medium, double length_mm);
+
+// Fills taps.indirect_* for a prepared view (medium_indirect.cpp).
+void prepare_indirect(const Medium& medium, const Rigid3& world_from_proj, const PreparedView& view,
+                      MediumTaps& taps);
 
 // Reference B for one camera pixel by brute force: midpoint rule with `steps`
 // samples along the ray, each sampling the sharp emitted pattern at its own
@@ -126,6 +148,23 @@ struct RowPrefix {
   double sum(const MediumTaps& taps, size_t i) const;
 };
 }  // namespace detail
+
+// The indirect signal A (Eq. 5.12), approximated: the surface irradiance
+// blurred by the forward-scatter spread (a Gaussian of taps.indirect_sigma_px
+// camera pixels, three box passes) times the per-pixel gain. Surface light:
+// attenuated on the camera leg and depolarized like D.
+class MediumIndirectComponent final : public TransportComponent {
+public:
+  explicit MediumIndirectComponent(std::shared_ptr<const MediumTaps> taps) : taps_(std::move(taps)) {}
+  std::string name() const override { return "medium-indirect"; }
+  bool needs_irradiance() const override { return true; }
+  void begin_frame(const FrameContext& frame, int threads) override;
+  void apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end, float* radiance) const override;
+
+private:
+  std::shared_ptr<const MediumTaps> taps_;
+  std::vector<float> blurred_, tmp_;  // this frame's blurred irradiance (begin_frame)
+};
 
 // The backscatter B as a volume transport component.
 class MediumComponent final : public TransportComponent {

@@ -397,7 +397,11 @@ Renderer::Renderer(PreparedView view, ProjectorModel projector, int threads)
     : view_(std::move(view)), projector_(std::move(projector)), threads_(threads < 1 ? 1 : threads) {
   defocus_ = compute_defocus(view_, projector_, projector_.focus_mm);
   components_.push_back(std::make_unique<DirectComponent>());
-  if (view_.medium) components_.push_back(std::make_unique<MediumComponent>(view_.medium));
+  if (view_.medium) {
+    components_.push_back(std::make_unique<MediumComponent>(view_.medium));
+    if (!view_.medium->indirect_gain.empty())
+      components_.push_back(std::make_unique<MediumIndirectComponent>(view_.medium));
+  }
   direct_per_irradiance_.assign(view_.pixel_count(), 0.f);
   for (size_t i = 0; i < view_.pixel_count(); ++i)
     if (view_.irradiance_gain[i] > 0.f) direct_per_irradiance_[i] = view_.direct_gain[i] / view_.irradiance_gain[i];
@@ -480,8 +484,21 @@ Status Renderer::render_radiance(PreparedPattern& pattern, float* radiance, bool
   return render_radiance_parts(pattern, radiance, include_ambient, Parts::all);
 }
 
+Status Renderer::render_component(PreparedPattern& pattern, float* radiance, const std::string& name) const {
+  return render_selected(pattern, radiance, false, [&name](const TransportComponent& c) { return c.name() == name; });
+}
+
 Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance, bool include_ambient,
                                        Parts parts) const {
+  if (parts == Parts::volume_only) include_ambient = false;
+  return render_selected(pattern, radiance, include_ambient, [parts](const TransportComponent& c) {
+    if (parts == Parts::volume_only) return c.is_volume();
+    return parts == Parts::all || (parts == Parts::global_only) == c.is_global();
+  });
+}
+
+Status Renderer::render_selected(PreparedPattern& pattern, float* radiance, bool include_ambient,
+                                 const std::function<bool(const TransportComponent&)>& wanted) const {
   if (pattern.empty() || pattern.width() != view_.proj_width || pattern.height() != view_.proj_height)
     return Error(Code::invalid_argument,
                  "prepared pattern is " + std::to_string(pattern.width()) + "x" + std::to_string(pattern.height()) +
@@ -490,11 +507,6 @@ Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance
   size_t levels = defocus_.levels_needed;
   for (const auto& c : components_) levels = std::max(levels, c->levels_needed(defocus_.focus_mm));
   pattern.build_levels(levels, threads_);
-  auto wanted = [parts](const TransportComponent& c) {
-    if (parts == Parts::volume_only) return c.is_volume();
-    return parts == Parts::all || (parts == Parts::global_only) == c.is_global();
-  };
-  if (parts == Parts::volume_only) include_ambient = false;
   bool need_irr = false;
   for (const auto& c : components_) need_irr = need_irr || (wanted(*c) && c->needs_irradiance());
   FrameContext frame{view_, defocus_, pattern, nullptr};

@@ -30,6 +30,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <string>
@@ -273,8 +274,14 @@ public:
   // As render_radiance, restricted to the direct component (is_global() false)
   // or to the global ones; the ground truth's direct-only / global-only images.
   Status render_radiance_parts(PreparedPattern& pattern, float* radiance, bool include_ambient, Parts parts) const;
+  // One component by name (TransportComponent::name()), no ambient, with the
+  // same camera-leg / analyser scaling as in a full render; all zeros if no
+  // component has that name. Ground truth of single paths (e.g. a medium's A).
+  Status render_component(PreparedPattern& pattern, float* radiance, const std::string& name) const;
 
 private:
+  Status render_selected(PreparedPattern& pattern, float* radiance, bool include_ambient,
+                         const std::function<bool(const TransportComponent&)>& wanted) const;
   PreparedView view_;
   ProjectorModel projector_;
   DefocusMap defocus_;
