@@ -12,6 +12,8 @@
 //    direct component's), e the SHARP emitted pattern (blur level 0, box
 //    pixels; projector defocus is not applied to B), Y skipped where the
 //    projector ray to it is occluded or outside the projector image.
+//  - Indirect signal A (Eq. 5.12), approximated: forward_scatter() and
+//    MediumIndirectComponent (medium_indirect.cpp).
 //  - Polarization: per-pixel Stokes-weighted sums and the Mueller matrix of
 //    Medium::DopModel; surface light is depolarized (renderer.cpp).
 //

@@ -472,6 +472,37 @@ TEST(MediumIndirect, FloodOnAPlaneGivesTheSlabRatio) {
   EXPECT_GT(want, 0.3);
 }
 
+// Thesis Fig. 5.5: the direct part of the signal, D/(D + A), falls with the
+// optical thickness, and backscatter grows relative to it: the heavy tank's
+// B/D exceeds the moderate tank's. Numbers (white patch, flood) are printed.
+TEST(MediumClaims, HeavierMilkLowersTheDirectShareAndRaisesBackscatter) {
+  const SimRigConfig rig = small_rig();
+  auto white = emitted_pattern(rig.projector, std::vector<float>(1280 * 800, 1.f));
+  double ratio_db[2] = {0, 0}, direct_share[2] = {0, 0};
+  const char* names[2] = {"media-chart-moderate", "media-chart-heavy"};
+  for (int k = 0; k < 2; ++k) {
+    auto r = renderer_for(shipped_scene(names[k]), rig);
+    ASSERT_TRUE(r);
+    std::vector<float> af(r->view().pixel_count());
+    ASSERT_TRUE(r->render_component(white, af.data(), "medium-indirect").ok());
+    const auto d = render(*r, white, Renderer::Parts::direct_only), b = render(*r, white, Renderer::Parts::volume_only);
+    double sd = 0, sa = 0, sb = 0;
+    for (size_t i = 0; i < d.size(); ++i)
+      if (r->view().object[i] == 1) {  // the white patch (albedo 0.8)
+        sd += d[i];
+        sa += static_cast<double>(af[i]);
+        sb += b[i];
+      }
+    ASSERT_GT(sd, 0);
+    ratio_db[k] = sb / sd;
+    direct_share[k] = sd / (sd + sa);
+    std::printf("%s white patch: D %.4g  A %.4g  B %.4g ru (sums), B/D %.3f, D/(D+A) %.3f\n", names[k], sd, sa, sb,
+                ratio_db[k], direct_share[k]);
+  }
+  EXPECT_GT(ratio_db[1], 4 * ratio_db[0]);
+  EXPECT_LT(direct_share[1], direct_share[0]);
+}
+
 // ---- ground truth ----------------------------------------------------------------
 
 TEST(MediumTruth, MapsHoldDAandBAndTheDopOfB) {

@@ -42,7 +42,7 @@ struct GroundTruth {
   // white pattern as direct/global, no analyser; empty when the scene has no
   // medium. medium_direct: D, surface light attenuated on both legs (=
   // `direct` then); medium_indirect: A, light forward-scattered in the medium
-  // and then reflected (0 where the rig does not model it); medium_backscatter:
+  // and then reflected (the sim approximates it, docs/media.md); medium_backscatter:
   // B, single-scattered light from the medium; medium_backscatter_dop: the
   // degree of polarization of B (0..1) for the projector polariser set at the
   // time of the call (unpolarized light without one), NaN where B = 0.

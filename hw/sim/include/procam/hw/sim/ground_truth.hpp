@@ -46,7 +46,7 @@ Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, co
                             const SensorModel& sensor, double exposure_us, double gain_db);
 
 // Fills the participating-medium maps of `truth` (hw::GroundTruth::medium_*:
-// D, A = 0 (not modelled, docs/media.md), B in DN like add_white_components,
+// D, A (approximate, docs/media.md), B in DN like add_white_components,
 // and the DOP of B for projector polariser `projector_polarizer_deg`, NaN =
 // unpolarized) and truth.medium = {"extinction_per_mm", "scattering_per_mm",
 // "hg_g"} from `medium`. Renders with the renderer's current polarization
