@@ -128,6 +128,15 @@ double backscatter_reference(const Scene& scene, const ProjectorModel& projector
                              const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
                              const std::vector<float>& emitted, size_t steps);
 
+// Slow Monte Carlo reference for B with multiple scattering (medium_mc.cpp):
+// `paths` backward paths from the camera pixel centre, up to `max_vertices`
+// scattering events each (1: single scattering only), each vertex connected
+// to the projector. Unbiased for the sharp pattern `emitted`; the standard
+// error falls as 1/sqrt(paths). Tests only.
+double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                               const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
+                               const std::vector<float>& emitted, size_t paths, uint64_t seed, int max_vertices);
+
 // The Stokes vector (I, Q, U) of B at each camera pixel for emitted light
 // from `pattern` level 0, polariser `projector_deg` (NaN: unpolarized), in the
 // pixel's scattering-plane frame; I in ru. DOP = sqrt(Q² + U²)/I.
