@@ -606,6 +606,9 @@ TEST(MediumRig, PolariserAndAnalyserTakeEffectAndTruthIsWritten) {
   // most of it, the other passes most; surface light (D and A) is halved by both.
   EXPECT_GT(std::max(a0, a90), 1.5 * std::min(a0, a90)) << a0 << " " << a90;
   EXPECT_NEAR(a0 + a90, open, 0.01 * open);
+  EXPECT_LT(a90, a0) << "near-backward scattering keeps the polarization direction: the crossed analyser is best";
+  ASSERT_TRUE(r.projector().set_polarizer_deg(45).ok());
+  EXPECT_LT(mean_dn(135), mean_dn(45)) << "the same at 45 degrees";
   auto gt = r.ground_truth(0);
   ASSERT_TRUE(gt.ok()) << gt.status().to_string();
   ASSERT_FALSE(gt->medium_backscatter.empty());
