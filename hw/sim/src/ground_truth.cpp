@@ -8,9 +8,20 @@
 #include <limits>
 
 #include "procam/core/image_io.hpp"
+#include "medium.hpp"
 #include "procam/hw/sim/sensor.hpp"
 
 namespace procam::sim {
+namespace {
+
+// The full-white pattern (value 1 everywhere) through the projector's emission curve.
+Result<PreparedPattern> white_pattern(const ProjectorModel& projector) {
+  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
+  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
+  return PreparedPattern::from_pattern(white.view(), projector);
+}
+
+}  // namespace
 
 hw::GroundTruth ground_truth_from_view(const PreparedView& v) {
   hw::GroundTruth gt;
@@ -49,9 +60,16 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
                         {"proj_col.exr", &truth.proj_col, "px"},
                         {"proj_row.exr", &truth.proj_row, "px"},
                         {"lit.png", &truth.lit, ""},
-                        {"object.png", &truth.object, ""}};
+                        {"object.png", &truth.object, ""},
+                        {"medium_direct.exr", &truth.medium_direct, "DN"},
+                        {"medium_indirect.exr", &truth.medium_indirect, "DN"},
+                        {"medium_backscatter.exr", &truth.medium_backscatter, "DN"},
+                        {"medium_backscatter_dop.exr", &truth.medium_backscatter_dop, ""}};
   for (const Item& it : items) {
-    if (it.image->empty() && it.image == &truth.object) continue;  // optional map
+    const bool optional = it.image == &truth.object || it.image == &truth.medium_direct ||
+                          it.image == &truth.medium_indirect || it.image == &truth.medium_backscatter ||
+                          it.image == &truth.medium_backscatter_dop;
+    if (it.image->empty() && optional) continue;
     if (it.image->empty())
       return Error(Code::invalid_argument, std::string("ground truth map for '") + it.file + "' is empty");
     std::map<std::string, std::string> attrs = attributes;
@@ -70,9 +88,7 @@ Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern
   Status st = renderer.render_radiance_parts(pattern, t.direct.ptr<float>(), false, Renderer::Parts::direct_only);
   if (st.ok()) st = renderer.render_radiance_parts(pattern, t.global.ptr<float>(), false, Renderer::Parts::global_only);
   if (!st.ok()) return st;
-  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
-  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
-  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  auto pw = white_pattern(projector);
   if (!pw.ok()) return pw.status();
   std::vector<float> d(size_t{w} * h), g(d.size());
   st = renderer.render_radiance_parts(*pw, d.data(), false, Renderer::Parts::direct_only);
@@ -86,9 +102,7 @@ Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern
 Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, const ProjectorModel& projector,
                             const SensorModel& sensor, double exposure_us, double gain_db) {
   const uint32_t w = renderer.width(), h = renderer.height();
-  Image white(projector.intrinsics.width, projector.intrinsics.height, PixelType::f32);
-  std::fill(white.ptr<float>(), white.ptr<float>() + white.pixel_count(), 1.f);
-  auto pw = PreparedPattern::from_pattern(white.view(), projector);
+  auto pw = white_pattern(projector);
   if (!pw.ok()) return pw.status();
   Image direct(w, h, PixelType::f32), global(w, h, PixelType::f32);
   Status st = renderer.render_radiance_parts(*pw, direct.ptr<float>(), false, Renderer::Parts::direct_only);
@@ -102,6 +116,44 @@ Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, co
   }
   truth.direct = std::move(direct);
   truth.global = std::move(global);
+  return Status::Ok();
+}
+
+Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, const Medium* medium,
+                             const ProjectorModel& projector, const SensorModel& sensor, double exposure_us,
+                             double gain_db, double projector_polarizer_deg) {
+  const PreparedView& v = renderer.view();
+  if (medium == nullptr || v.camera_transmittance.empty()) return Status::Ok();
+  const uint32_t w = renderer.width(), h = renderer.height();
+  auto pw = white_pattern(projector);
+  if (!pw.ok()) return pw.status();
+  Image d(w, h, PixelType::f32), a(w, h, PixelType::f32), b(w, h, PixelType::f32), dop(w, h, PixelType::f32);
+  Status st = renderer.render_radiance_parts(*pw, d.ptr<float>(), false, Renderer::Parts::direct_only);
+  if (st.ok()) st = renderer.render_radiance_parts(*pw, b.ptr<float>(), false, Renderer::Parts::volume_only);
+  if (!st.ok()) return st;
+  if (st.ok()) st = renderer.render_component(*pw, a.ptr<float>(), "medium-indirect");  // zeros if not modelled
+  if (!st.ok()) return st;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::fill(dop.ptr<float>(), dop.ptr<float>() + dop.pixel_count(), nan);
+  if (v.medium) {
+    const BackscatterStokes s = backscatter_stokes(*v.medium, *pw, projector_polarizer_deg, 1);
+    float* p = dop.ptr<float>();
+    for (size_t i = 0; i < s.i.size(); ++i)
+      if (s.i[i] > 0.f)
+        p[i] = std::min(1.f, std::sqrt(s.q[i] * s.q[i] + s.u[i] * s.u[i]) / s.i[i]);
+  }
+  const double dn_per_ru = expected_dn(sensor, 1.0, exposure_us, gain_db);
+  for (Image* im : {&d, &a, &b}) {
+    float* p = im->ptr<float>();
+    for (size_t i = 0; i < im->pixel_count(); ++i) p[i] = static_cast<float>(double(p[i]) * dn_per_ru);
+  }
+  truth.medium_direct = std::move(d);
+  truth.medium_indirect = std::move(a);
+  truth.medium_backscatter = std::move(b);
+  truth.medium_backscatter_dop = std::move(dop);
+  truth.medium = {{"extinction_per_mm", medium->sigma_t_per_mm},
+                  {"scattering_per_mm", medium->sigma_s_per_mm},
+                  {"hg_g", medium->g}};
   return Status::Ok();
 }
 

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "global_internal.hpp"
+#include "medium.hpp"
 #include "parallel.hpp"
 #include "procam/hw/sim/raycast.hpp"
 
@@ -149,6 +150,8 @@ Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& proj
   });
   for (size_t i = 0; i < n; ++i)
     v.ambient[i] = static_cast<float>(static_cast<double>(v.albedo[i]) / M_PI * scene.ambient);
+  if (scene.medium)
+    if (Status st = prepare_medium(scene, projector, world_from_cam, world_from_proj, v, threads); !st.ok()) return st;
   return v;
 }
 
@@ -394,6 +397,11 @@ Renderer::Renderer(PreparedView view, ProjectorModel projector, int threads)
     : view_(std::move(view)), projector_(std::move(projector)), threads_(threads < 1 ? 1 : threads) {
   defocus_ = compute_defocus(view_, projector_, projector_.focus_mm);
   components_.push_back(std::make_unique<DirectComponent>());
+  if (view_.medium) {
+    components_.push_back(std::make_unique<MediumComponent>(view_.medium));
+    if (!view_.medium->indirect_gain.empty())
+      components_.push_back(std::make_unique<MediumIndirectComponent>(view_.medium));
+  }
   direct_per_irradiance_.assign(view_.pixel_count(), 0.f);
   for (size_t i = 0; i < view_.pixel_count(); ++i)
     if (view_.irradiance_gain[i] > 0.f) direct_per_irradiance_[i] = view_.direct_gain[i] / view_.irradiance_gain[i];
@@ -476,8 +484,21 @@ Status Renderer::render_radiance(PreparedPattern& pattern, float* radiance, bool
   return render_radiance_parts(pattern, radiance, include_ambient, Parts::all);
 }
 
+Status Renderer::render_component(PreparedPattern& pattern, float* radiance, const std::string& name) const {
+  return render_selected(pattern, radiance, false, [&name](const TransportComponent& c) { return c.name() == name; });
+}
+
 Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance, bool include_ambient,
                                        Parts parts) const {
+  if (parts == Parts::volume_only) include_ambient = false;
+  return render_selected(pattern, radiance, include_ambient, [parts](const TransportComponent& c) {
+    if (parts == Parts::volume_only) return c.is_volume();
+    return parts == Parts::all || (parts == Parts::global_only) == c.is_global();
+  });
+}
+
+Status Renderer::render_selected(PreparedPattern& pattern, float* radiance, bool include_ambient,
+                                 const std::function<bool(const TransportComponent&)>& wanted) const {
   if (pattern.empty() || pattern.width() != view_.proj_width || pattern.height() != view_.proj_height)
     return Error(Code::invalid_argument,
                  "prepared pattern is " + std::to_string(pattern.width()) + "x" + std::to_string(pattern.height()) +
@@ -486,12 +507,15 @@ Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance
   size_t levels = defocus_.levels_needed;
   for (const auto& c : components_) levels = std::max(levels, c->levels_needed(defocus_.focus_mm));
   pattern.build_levels(levels, threads_);
-  auto wanted = [parts](const TransportComponent& c) {
-    return parts == Parts::all || (parts == Parts::global_only) == c.is_global();
-  };
   bool need_irr = false;
   for (const auto& c : components_) need_irr = need_irr || (wanted(*c) && c->needs_irradiance());
   FrameContext frame{view_, defocus_, pattern, nullptr};
+  frame.projector_polarizer_deg = projector_polarizer_deg_;
+  frame.analyser_deg = analyser_deg_;
+  // Surface light: depolarized by reflection, so an ideal analyser passes half
+  // of it; attenuated on the camera leg through a medium (Eq. 5.11).
+  const float surface_scale = std::isfinite(analyser_deg_) ? 0.5f : 1.f;
+  const float* cam_t = view_.camera_transmittance.empty() ? nullptr : view_.camera_transmittance.data();
   if (need_irr) {
     irradiance_.resize(view_.pixel_count());
     detail::parallel_rows(view_.height, threads_, [&](uint32_t b, uint32_t e) {
@@ -510,7 +534,13 @@ Status Renderer::render_radiance_parts(PreparedPattern& pattern, float* radiance
                                    view_.ambient.begin() + static_cast<ptrdiff_t>(i1), radiance + i0);
     else std::fill(radiance + i0, radiance + i1, 0.f);
     for (const auto& c : components_)
-      if (wanted(*c)) c->apply(frame, b, e, radiance);
+      if (wanted(*c) && !c->is_volume()) c->apply(frame, b, e, radiance);
+    if (cam_t != nullptr)
+      for (size_t i = i0; i < i1; ++i) radiance[i] *= surface_scale * cam_t[i];
+    else if (surface_scale != 1.f)
+      for (size_t i = i0; i < i1; ++i) radiance[i] *= surface_scale;
+    for (const auto& c : components_)
+      if (wanted(*c) && c->is_volume()) c->apply(frame, b, e, radiance);
   });
   if (cam_levels_ > 1) blur_camera(radiance);
   return Status::Ok();

@@ -134,16 +134,56 @@ std::string read_file(const std::string& path, Status& st) {
 
 }  // namespace
 
+// "medium" (SCENES.md): homogeneous, whole scene or an axis-aligned box.
+Medium parse_medium(FieldReader& root) {
+  Medium m;
+  const nlohmann::json* mj = root.object("medium", false);
+  if (mj == nullptr) return m;
+  FieldReader r(*mj, root.field("medium"), root.errors());
+  r.only({"sigma_t_per_mm", "sigma_s_per_mm", "g", "dop_model", "box_min_mm", "box_max_mm", "comment"});
+  m.sigma_t_per_mm = r.number("sigma_t_per_mm", std::nullopt, "extinction, 1/mm", 0.0, 10.0);
+  m.sigma_s_per_mm = r.number("sigma_s_per_mm", std::nullopt, "scattering, 1/mm", 0.0, 10.0);
+  m.g = r.number("g", 0.0, "Henyey-Greenstein asymmetry, |g| < 1", -0.999, 0.999);
+  const std::string dop = r.string("dop_model", std::string("rayleigh"));
+  if (!r.errors().ok()) return m;
+  if (dop == "rayleigh") m.dop_model = Medium::DopModel::rayleigh;
+  else if (dop == "none") m.dop_model = Medium::DopModel::none;
+  else r.fail("dop_model", "unknown model '" + dop + "'", "use \"rayleigh\" or \"none\"");
+  if (m.sigma_s_per_mm > m.sigma_t_per_mm)
+    r.fail("sigma_s_per_mm", "scattering must not exceed extinction (beta <= sigma), got beta " +
+                                 std::to_string(m.sigma_s_per_mm) + " > sigma " + std::to_string(m.sigma_t_per_mm),
+           "sigma_t_per_mm = scattering + absorption");
+  if (r.has("box_min_mm") != r.has("box_max_mm")) {
+    r.fail(r.has("box_min_mm") ? "box_max_mm" : "box_min_mm", "missing: a tank needs both box_min_mm and box_max_mm",
+           "give both corners, or neither for a medium filling the whole scene");
+    return m;
+  }
+  if (r.has("box_min_mm")) {
+    m.whole_scene = false;
+    m.box_min_mm = r.vec3("box_min_mm", std::nullopt, "mm, world frame");
+    m.box_max_mm = r.vec3("box_max_mm", std::nullopt, "mm, world frame");
+    if (r.errors().ok() && !(m.box_max_mm.x > m.box_min_mm.x && m.box_max_mm.y > m.box_min_mm.y &&
+                             m.box_max_mm.z > m.box_min_mm.z))
+      r.fail("box_max_mm", "empty box: box_max_mm must exceed box_min_mm on every axis");
+  }
+  return m;
+}
+
 Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
   try {
     ParseErrors errors{source.empty() ? std::string("scene") : source, {}};
     FieldReader root(j, "", errors);
-    root.only({"name", "description", "comment", "ambient", "objects"});
+    root.only({"name", "description", "comment", "ambient", "objects", "medium"});
     Scene scene;
     scene.source = source;
     scene.name = root.string("name", fs::path(source).stem().string());
     scene.description = root.string("description", std::string());
     scene.ambient = root.number("ambient", 0.0, "irradiance, iu", 0.0);
+    if (root.has("medium")) {
+      Medium m = parse_medium(root);
+      if (!errors.ok()) return errors.first;
+      scene.medium = m;
+    }
     const nlohmann::json* objs = root.get("objects");
     if (objs == nullptr) {
       root.fail("objects", "missing (required array of objects)");

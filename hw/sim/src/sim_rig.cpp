@@ -251,7 +251,7 @@ Status SimCamera::configure(const hw::CameraSettings& settings) {
                  "use 0 <= gain_db <= 48 (or < 0 for the default)");
   exposure_us_ = settings.exposure_us > 0 ? settings.exposure_us : s.exposure_us;
   gain_db_ = settings.gain_db >= 0 ? settings.gain_db : s.gain_db;
-  polarizer_deg_ = settings.polarizer_deg;  // recorded only: polarisation is not modelled yet
+  polarizer_deg_ = settings.polarizer_deg;  // analyser for the next captures (NaN: none)
   return Status::Ok();
 }
 
@@ -271,6 +271,7 @@ Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds timeout) {
   if (late) ++faults_.late;
   Renderer& ren = *rig_.renderers_[index_];
   ren.set_focus_mm(rig_.current_focus_mm());
+  ren.set_polarization(rig_.projector_.polarizer_deg(), polarizer_deg_);
   radiance_.resize(ren.view().pixel_count());
   Status st = ren.render_radiance(rig_.pattern_, radiance_.data(), true);
   if (!st.ok()) return st.with_context("sim camera " + info_.id + ": capture");
@@ -484,8 +485,13 @@ Result<hw::GroundTruth> SimRig::ground_truth(size_t index) {
   ren.set_focus_mm(current_focus_mm());  // the focus the next capture renders with
   hw::GroundTruth gt = ground_truth_from_view(ren.view());
   const SimCamera& cam = *cameras_[index];
+  ren.set_polarization(std::nan(""), std::nan(""));  // truth without polariser/analyser; capture sets its own
   Status st = add_white_components(gt, ren, config_.projector, config_.cameras[index].sensor, cam.exposure_us(),
                                    cam.gain_db());
+  if (st.ok())
+    st = add_medium_components(gt, ren, scene_.medium ? &*scene_.medium : nullptr, config_.projector,
+                               config_.cameras[index].sensor, cam.exposure_us(), cam.gain_db(),
+                               projector_.polarizer_deg());
   if (!st.ok()) return st.with_context("sim rig: ground truth of camera " + std::to_string(index));
   return gt;
 }

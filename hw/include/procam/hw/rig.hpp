@@ -38,6 +38,18 @@ struct GroundTruth {
   // white frame. Empty when the rig cannot separate them.
   Image direct;
   Image global;
+  // Participating medium (thesis Eq. 5.1: E = D + A + B), same units and
+  // white pattern as direct/global, no analyser; empty when the scene has no
+  // medium. medium_direct: D, surface light attenuated on both legs (=
+  // `direct` then); medium_indirect: A, light forward-scattered in the medium
+  // and then reflected (the sim approximates it, docs/media.md); medium_backscatter:
+  // B, single-scattered light from the medium; medium_backscatter_dop: the
+  // degree of polarization of B (0..1) for the projector polariser set at the
+  // time of the call (unpolarized light without one), NaN where B = 0.
+  Image medium_direct;
+  Image medium_indirect;
+  Image medium_backscatter;
+  Image medium_backscatter_dop;
   // Truth of a participating medium's parameters (e.g. {"extinction_per_mm":
   // 0.002}), keyed by the name a plugin's output carries after "medium_";
   // null when the scene has none or the rig does not know it.

@@ -45,6 +45,19 @@ Result<ComponentTruth> component_truth(const Renderer& renderer, PreparedPattern
 Status add_white_components(hw::GroundTruth& truth, const Renderer& renderer, const ProjectorModel& projector,
                             const SensorModel& sensor, double exposure_us, double gain_db);
 
+// Fills the participating-medium maps of `truth` (hw::GroundTruth::medium_*:
+// D, A (approximate, docs/media.md), B in DN like add_white_components,
+// and the DOP of B for projector polariser `projector_polarizer_deg`, NaN =
+// unpolarized) and truth.medium = {"extinction_per_mm", "scattering_per_mm",
+// "hg_g"} from `medium`. Renders with the renderer's current polarization
+// settings, so call it with none set (SimRig::ground_truth does). No-op when
+// the view has no medium. invalid_argument as Renderer::render_radiance.
+Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, const Medium* medium,
+                             const ProjectorModel& projector, const SensorModel& sensor, double exposure_us,
+                             double gain_db, double projector_polarizer_deg);
+
+// Also writes the medium maps (medium_direct.exr, medium_indirect.exr,
+// medium_backscatter.exr in DN, medium_backscatter_dop.exr) when present.
 Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folder,
                           const std::map<std::string, std::string>& attributes = {});
 

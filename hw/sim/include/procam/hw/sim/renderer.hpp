@@ -30,6 +30,8 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -42,6 +44,8 @@
 #include "procam/pixel.h"
 
 namespace procam::sim {
+
+struct MediumTaps;  // medium.hpp: per-pixel backscatter taps of a participating medium
 
 // σ of the blur-stack levels in projector pixels; level 0 is the sharp image.
 // σ above the last level is clamped to it.
@@ -75,6 +79,15 @@ struct PreparedView {
   std::vector<int32_t> bilinear;  // padded index of the top-left of its 2×2 bilinear cell; −1 if not lit
   std::vector<float> frac_x;      // bilinear weights of the right / lower neighbours
   std::vector<float> frac_y;
+
+  // Participating medium (Scene::medium; medium.hpp, docs/media.md). Without
+  // one both stay empty. With one, prepare_view() has already multiplied
+  // direct_gain and irradiance_gain by the projector leg's transmittance
+  // exp(−σ·ℓ_proj) (Eq. 5.11); the renderer multiplies the surface light
+  // (components that are not is_volume(), and ambient) by camera_transmittance
+  // exp(−σ·ℓ_cam) (1 where no surface); `medium` holds the backscatter taps.
+  std::vector<float> camera_transmittance;
+  std::shared_ptr<const MediumTaps> medium;
 
   size_t pixel_count() const { return size_t{width} * height; }
 };
@@ -152,6 +165,13 @@ struct FrameContext {
   // lit), set together with `irradiance`: the direct component then reads
   // the irradiance instead of sampling the pattern a second time.
   const float* direct_per_irradiance = nullptr;
+  // Polarisation of this frame (degrees; NaN = none): the projector's
+  // polariser and the camera's analyser, both measured in their own image
+  // plane from the +x (column) axis towards +y (row). Surface light is
+  // depolarized (an analyser passes half of it, applied by the renderer);
+  // volume components use them (medium.hpp).
+  double projector_polarizer_deg = std::numeric_limits<double>::quiet_NaN();
+  double analyser_deg = std::numeric_limits<double>::quiet_NaN();
 };
 
 // One light-transport path from projector to camera. Implementations must be
@@ -164,6 +184,10 @@ public:
   // Global components (everything but the direct path) form the global-only
   // image of the ground truth.
   virtual bool is_global() const { return true; }
+  // Light scattered inside a participating medium rather than leaving a
+  // surface: not multiplied by the camera leg's transmittance nor by the
+  // analyser's 1/2 for depolarized light (it handles both itself).
+  virtual bool is_volume() const { return false; }
   // Whether begin_frame/apply read FrameContext::irradiance.
   virtual bool needs_irradiance() const { return false; }
   // Blur-stack levels (kBlurLevelSigmaPx) this component samples at focus
@@ -235,13 +259,29 @@ public:
   // pattern is not projector-sized.
   Status render_radiance(PreparedPattern& pattern, float* radiance, bool include_ambient = true) const;
 
-  // Which components render_radiance_parts() sums.
-  enum class Parts { all, direct_only, global_only };
+  // Polariser (projector) and analyser (camera) angles in degrees for the
+  // following renders; NaN = none (the default). See FrameContext.
+  void set_polarization(double projector_polarizer_deg, double analyser_deg) {
+    projector_polarizer_deg_ = projector_polarizer_deg;
+    analyser_deg_ = analyser_deg;
+  }
+  double projector_polarizer_deg() const { return projector_polarizer_deg_; }
+  double analyser_deg() const { return analyser_deg_; }
+
+  // Which components render_radiance_parts() sums. volume_only: the
+  // components with is_volume() (a medium's backscatter B), no ambient.
+  enum class Parts { all, direct_only, global_only, volume_only };
   // As render_radiance, restricted to the direct component (is_global() false)
   // or to the global ones; the ground truth's direct-only / global-only images.
   Status render_radiance_parts(PreparedPattern& pattern, float* radiance, bool include_ambient, Parts parts) const;
+  // One component by name (TransportComponent::name()), no ambient, with the
+  // same camera-leg / analyser scaling as in a full render; all zeros if no
+  // component has that name. Ground truth of single paths (e.g. a medium's A).
+  Status render_component(PreparedPattern& pattern, float* radiance, const std::string& name) const;
 
 private:
+  Status render_selected(PreparedPattern& pattern, float* radiance, bool include_ambient,
+                         const std::function<bool(const TransportComponent&)>& wanted) const;
   PreparedView view_;
   ProjectorModel projector_;
   DefocusMap defocus_;
@@ -256,6 +296,8 @@ private:
   size_t cam_levels_ = 1;            // 1: no camera blur
   mutable std::vector<std::vector<float>> cam_stack_;
   mutable std::vector<float> cam_tmp_;
+  double projector_polarizer_deg_ = std::numeric_limits<double>::quiet_NaN();
+  double analyser_deg_ = std::numeric_limits<double>::quiet_NaN();
 };
 
 }  // namespace procam::sim

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -106,12 +107,32 @@ struct Object {
   Material material;
 };
 
+// Homogeneous participating medium (SCENES.md "medium", docs/media.md),
+// filling the whole scene or an axis-aligned box (a tank) in the world frame.
+// Mono: one σ, β, g for the sim's single channel. Invariants checked by the
+// parser: 0 <= β <= σ, |g| < 1, box_min < box_max on every axis.
+struct Medium {
+  // Polarization of single-scattered light (thesis appendix, Eq. 5.35-5.36):
+  // rayleigh: Mueller matrix of Rayleigh-type scattering normalised to the
+  //           Henyey-Greenstein intensity (m11 = p_HG(θ), m12/m11 = −sin²θ/(1+cos²θ),
+  //           m22/m11 = 1, m33/m11 = 2cosθ/(1+cos²θ));
+  // none:     the medium depolarizes (m12 = m22 = m33 = 0).
+  enum class DopModel { rayleigh, none };
+  double sigma_t_per_mm = 0;  // extinction σ, 1/mm
+  double sigma_s_per_mm = 0;  // scattering β, 1/mm (β <= σ; absorption σ − β)
+  double g = 0;               // Henyey-Greenstein asymmetry, |g| < 1 (> 0: forward)
+  DopModel dop_model = DopModel::rayleigh;
+  bool whole_scene = true;    // false: only inside [box_min_mm, box_max_mm]
+  Vec3 box_min_mm, box_max_mm;
+};
+
 struct Scene {
   std::string name;         // "name" field, else the file stem
   std::string description;  // free text
   std::string source;       // file it was loaded from ("" when parsed from JSON in memory)
   double ambient = 0;       // ambient irradiance on every surface, iu (unshadowed)
   std::vector<Object> objects;
+  std::optional<Medium> medium;  // "medium" field; none = clear air
 };
 
 // Parse a scene object. `source` prefixes error messages (normally the path).

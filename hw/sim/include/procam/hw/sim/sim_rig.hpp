@@ -84,9 +84,10 @@ public:
   Result<hw::Presentation> wait_presented(uint64_t pattern_id, std::chrono::milliseconds timeout) override;
   // <= 0 or NaN: the configured focus_mm. Takes effect for the next capture.
   Status set_focus_mm(double focus_mm) override;
-  // Accepts any finite angle or NaN (no polariser) and records it for the
-  // next patterns; invalid_argument for ±inf. Recorded only: polarisation is
-  // not modelled in the rendered radiance yet (a later issue adds the model).
+  // Accepts any finite angle or NaN (no polariser) for the next captures;
+  // invalid_argument for ±inf. Takes effect in scenes with a medium
+  // (backscatter keeps polarization, docs/media.md); surface light is
+  // depolarized, so without a medium it changes nothing.
   Status set_polarizer_deg(double deg) override;
   // The angle last set (NaN: none), as the scan runner delivered it.
   double polarizer_deg() const { return polarizer_deg_; }
@@ -103,8 +104,9 @@ public:
   SimCamera(SimRig& rig, uint32_t index) : rig_(rig), index_(index) {}
   const hw::CameraInfo& info() const override { return info_; }
   // exposure_us (0 < x ≤ 1e7) and gain_db (0 ≤ x ≤ 48) override the configured
-  // defaults; unset values restore them. polarizer_deg is accepted and
-  // recorded but has no effect until polarisation is modelled.
+  // defaults; unset values restore them. polarizer_deg is the analyser angle
+  // (NaN: none): depolarized surface light passes at 1/2, a medium's
+  // backscatter by its Stokes vector (docs/media.md).
   Status configure(const hw::CameraSettings& settings) override;
   // Renders the projector's current pattern; times out only through fault
   // injection (SimCameraConfig::faults).

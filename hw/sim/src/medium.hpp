@@ -1,0 +1,194 @@
+// SPDX-License-Identifier: MIT
+// Internal: a homogeneous participating medium in the sim (thesis ch. 5,
+// Eq. 5.11-5.13; ch. 4, Eq. 4.1-4.2; appendix Eq. 5.35-5.36). Model and limits:
+// docs/media.md.
+//
+//  - Attenuation (Eq. 5.11): surface light is multiplied by exp(−σ ℓ) on both
+//    legs, ℓ the path length inside the medium (prepare_medium()).
+//  - Backscatter B (Eq. 5.13 / 4.2), single scattering along the camera ray up
+//    to the first surface (or the tank's far wall):
+//      B = ∫ β p_HG(θ) · I·e(x_p(Y)) / d_LY² · exp(−σ(ℓ_L(Y) + ℓ_C(Y))) dY
+//    I the projector intensity (irradiance_at_1m · 10⁶ iu·mm², the same as the
+//    direct component's), e the SHARP emitted pattern (blur level 0, box
+//    pixels; projector defocus is not applied to B), Y skipped where the
+//    projector ray to it is occluded or outside the projector image.
+//  - Indirect signal A (Eq. 5.12), approximated: forward_scatter() and
+//    MediumIndirectComponent (medium_indirect.cpp).
+//  - Polarization: per-pixel Stokes-weighted sums and the Mueller matrix of
+//    Medium::DopModel; surface light is depolarized (renderer.cpp).
+//
+// Threads: MediumTaps is immutable plain data once built; MediumComponent is
+// a TransportComponent (thread-bound, apply() safe on disjoint rows).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "procam/base/geometry.hpp"
+#include "procam/core/status.hpp"
+#include "procam/hw/sim/models.hpp"
+#include "procam/hw/sim/renderer.hpp"
+#include "procam/hw/sim/scene.hpp"
+
+namespace procam::sim {
+
+// Henyey-Greenstein phase function, 1/sr (∫ over the sphere = 1):
+// p(θ) = (1 − g²) / (4π (1 + g² − 2g cosθ)^{3/2}), θ between the incident
+// and the scattered propagation directions (θ = π: straight back).
+double hg_phase(double g, double cos_theta);
+
+// Mueller matrix on (I, Q, U) of linearly polarized light (Eq. 5.35 extended
+// by U), in the scattering plane's frame: Q = I_par − I_perp, U at 45°, the
+// angle counted from the in-plane axis (n × k) towards the plane's normal n.
+// Normalised so m[0][0] = p_HG(θ); the off-diagonal ratios follow the model.
+struct Mueller3 {
+  double m[3][3] = {};
+};
+Mueller3 scattering_mueller(const Medium& medium, double cos_theta);
+
+// Eq. 5.36: DOP of the scattered light for incident light of DOP `dop_in`
+// polarized along the scattering plane's Q axis: (m21 + m22·dop)/(m11 + m12·dop).
+// NaN where no light is scattered (e.g. Rayleigh at θ = 90° for dop = 1).
+double scattered_dop(const Mueller3& m, double dop_in);
+
+// Ray / medium: [t0, t1] of origin + t·dir (t >= 0) inside the medium; false
+// if the ray misses it. Whole-scene media give [0, +inf).
+bool medium_interval(const Medium& medium, const Vec3& origin, const Vec3& dir, double& t0, double& t1);
+// Length (mm) of the segment a → b inside the medium.
+double medium_length(const Medium& medium, const Vec3& a, const Vec3& b);
+
+// One piece of a camera ray's backscatter integral: its Y lie in projector
+// row `row` over columns [x_lo, x_hi] (continuous, pixel centres at integers).
+// Its share of B for emitted light e(x) along that row is
+//   ∫ (a + b·(x − x_c)) e(x) dx,   x_c = (x_lo + x_hi)/2,
+// the linear weight whose zeroth and first moments equal those of the true
+// weight G(x) = g(s(x))·|ds/dx| (moment matching). 20 bytes: a frame streams
+// every chunk once, so their size sets the frame time.
+struct MediumChunk {
+  int32_t row;
+  float x_lo, x_hi;
+  float a, b;
+};
+
+// Backscatter taps of one prepared view.
+struct MediumTaps {
+  uint32_t width = 0, height = 0;            // camera pixels
+  uint32_t proj_width = 0, proj_height = 0;  // projector pixels
+  bool polarizing = false;                   // DopModel::rayleigh
+  double m22 = 0;                            // normalised m22 (1 rayleigh, 0 none)
+  std::vector<uint32_t> offset;              // pixel i's chunks: [offset[i], offset[i + 1])
+  std::vector<MediumChunk> chunks;
+  // Per pixel: incident Stokes angle χ = δ_L ± α of the projector polariser α
+  // as cos2χ = pc[0]·cos2α + pc[1]·sin2α, sin2χ = pc[2]·cos2α + pc[3]·sin2α;
+  // the same for the analyser (ac) in the scattered light's frame.
+  std::vector<float> pol_proj;  // 4 per pixel
+  std::vector<float> pol_cam;   // 4 per pixel
+  // Per pixel: the normalised Mueller entries m12/m11 and m33/m11 averaged
+  // over the ray with the flood-lit backscatter as weight. The scattering
+  // angle changes little along a ray (e.g. 150°–170° in the chart scenes), so
+  // one value per pixel stands in for the whole ray: exact for flood light,
+  // and otherwise off by at most the spread of m12, m33 along the ray.
+  std::vector<float> m12, m33;
+  // Indirect signal A (medium_indirect.cpp): per pixel the gain
+  // direct_albedo/π · F_A(ℓ_L)/exp(−σℓ_L) on the blurred surface irradiance,
+  // and the blur's σ in camera pixels (one per view). Empty: no A.
+  std::vector<float> indirect_gain;
+  double indirect_sigma_px = 0;
+  size_t pixel_count() const { return size_t{width} * height; }
+};
+
+// Medium pass of prepare_view(): camera/projector-leg transmittances and the
+// backscatter taps (when β > 0). invalid_argument if the scene has no medium.
+Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                      const Rigid3& world_from_proj, PreparedView& view, int threads);
+
+// Forward single scattering onto a surface behind ℓ mm of medium, in the
+// plane-parallel (slab) approximation of Eq. 5.12: a collimated beam crosses
+// the slab; light scattered at depth t by angle α (cos α = μ > 0) reaches the
+// surface after (ℓ − t)/μ more. `ratio` = F_A/exp(−σℓ), the forward-scattered
+// flux per unit unscattered flux,
+//   F_A = ∫₀^ℓ β e^{−σt} ∫₀¹ 2π p(μ) e^{−σ(ℓ−t)/μ} dμ dt,
+// and `sigma_lat_mm` the per-axis RMS of its landing offset (ℓ − t)·tan α.
+struct ForwardScatter {
+  double ratio = 0;
+  double sigma_lat_mm = 0;
+};
+ForwardScatter forward_scatter(const Medium& medium, double length_mm);
+
+// Fills taps.indirect_* for a prepared view (medium_indirect.cpp).
+void prepare_indirect(const Medium& medium, const Rigid3& world_from_proj, const PreparedView& view,
+                      MediumTaps& taps);
+
+// Reference B for one camera pixel by brute force: midpoint rule with `steps`
+// samples along the ray, each sampling the sharp emitted pattern at its own
+// projector pixel, shadow-tested one by one. Independent of the taps (tests).
+// `emitted` is projector-sized, row-major, linear emitted light.
+double backscatter_reference(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                             const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
+                             const std::vector<float>& emitted, size_t steps);
+
+// Slow Monte Carlo reference for B with multiple scattering (medium_mc.cpp):
+// `paths` backward paths from the camera pixel centre, up to `max_vertices`
+// scattering events each (1: single scattering only), each vertex connected
+// to the projector. Unbiased for the sharp pattern `emitted`; the standard
+// error falls as 1/sqrt(paths). Tests only.
+double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                               const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
+                               const std::vector<float>& emitted, size_t paths, uint64_t seed, int max_vertices);
+
+// The Stokes vector (I, Q, U) of B at each camera pixel for emitted light
+// from `pattern` level 0, polariser `projector_deg` (NaN: unpolarized), in the
+// pixel's scattering-plane frame; I in ru. DOP = sqrt(Q² + U²)/I.
+struct BackscatterStokes {
+  std::vector<float> i, q, u;
+};
+BackscatterStokes backscatter_stokes(const MediumTaps& taps, const PreparedPattern& pattern, double projector_deg,
+                                     int threads);
+
+namespace detail {
+// Row prefix sums of the emitted light for the chunk integrals (per frame).
+struct RowPrefix {
+  uint32_t width = 0, height = 0;
+  std::vector<double> c;  // (width + 1) per row: Σ_{k<j} e_k
+  std::vector<double> m;  // (width + 1) per row: Σ_{k<j} k·e_k
+  const float* level0 = nullptr;  // padded sharp level (PreparedPattern::level(0))
+  size_t stride = 0;
+  void build(const PreparedPattern& pattern, int threads);
+  // Σ over pixel i's chunks of their share of B (ru) for this pattern.
+  double sum(const MediumTaps& taps, size_t i) const;
+};
+}  // namespace detail
+
+// The indirect signal A (Eq. 5.12), approximated: the surface irradiance
+// blurred by the forward-scatter spread (a Gaussian of taps.indirect_sigma_px
+// camera pixels, three box passes) times the per-pixel gain. Surface light:
+// attenuated on the camera leg and depolarized like D.
+class MediumIndirectComponent final : public TransportComponent {
+public:
+  explicit MediumIndirectComponent(std::shared_ptr<const MediumTaps> taps) : taps_(std::move(taps)) {}
+  std::string name() const override { return "medium-indirect"; }
+  bool needs_irradiance() const override { return true; }
+  void begin_frame(const FrameContext& frame, int threads) override;
+  void apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end, float* radiance) const override;
+
+private:
+  std::shared_ptr<const MediumTaps> taps_;
+  std::vector<float> blurred_, tmp_;  // this frame's blurred irradiance (begin_frame)
+};
+
+// The backscatter B as a volume transport component.
+class MediumComponent final : public TransportComponent {
+public:
+  explicit MediumComponent(std::shared_ptr<const MediumTaps> taps) : taps_(std::move(taps)) {}
+  std::string name() const override { return "medium-backscatter"; }
+  bool is_volume() const override { return true; }
+  void begin_frame(const FrameContext& frame, int threads) override;
+  void apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end, float* radiance) const override;
+
+private:
+  std::shared_ptr<const MediumTaps> taps_;
+  detail::RowPrefix prefix_;  // this frame's row prefix sums (begin_frame)
+};
+
+}  // namespace procam::sim
