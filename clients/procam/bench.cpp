@@ -5,7 +5,15 @@
 // (plan -> sim capture -> streaming decode, all rounds) -> outputs ->
 // engine::evaluate_outputs against the sim ground truth. No procamd.
 // Writes bench.md (table), bench.json (all numbers) and bench.png (plot of
-// gross-error rate vs capture time) to --out.
+// gross-error rate vs capture time) to --out. Methods without a projector
+// column map (defocus, separation, ...) get a second table with what their
+// outputs are evaluated on: depth against the true depth, direct/global
+// against the sim's light-transport split. Calibration methods (calibrate-*)
+// make tables rather than decode a scene and are left out unless named with
+// --method (--keep then holds the table in outputs.json); a required input
+// "depth_mm" (e.g. separation/one-focal-depth) is fed the sim's true depth,
+// which the report says. The rig's calibration_tables are passed to plugins
+// as procamd does.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -51,6 +59,8 @@ struct Variant {
 struct Row {
   std::string scene, label;
   bool ok = false;
+  bool correspondence = false;  // has proj_col_px: first table and the plot
+  std::string inputs_note;      // inputs fed from ground truth
   std::string error;
   size_t patterns = 0, rounds = 0;
   double decode_ms = 0;
@@ -58,8 +68,12 @@ struct Row {
 };
 
 // Extra variants worth a row of their own (the same method, other settings).
+// Labels: structured-light methods by name (the report's columns since issue
+// 4), every other plugin's as plugin/method (defocus and separation both
+// have a multi-focal).
 std::vector<Variant> variants_for(const std::string& plugin, const std::string& method) {
-  std::vector<Variant> v{{plugin, method, method, nlohmann::json::object()}};
+  const std::string label = plugin == "structured-light" ? method : plugin + "/" + method;
+  std::vector<Variant> v{{plugin, method, label, nlohmann::json::object()}};
   if (plugin == "structured-light" && method == "ensemble")
     v.insert(v.begin(), Variant{plugin, method, "ensemble-nocorr", {{"correction_rounds", 0}}});
   return v;
@@ -84,7 +98,7 @@ void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, 
   cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   double xmin = 1e9, xmax = 0, ymax = 1.0;
   for (const Row& r : rows) {
-    if (!r.ok) continue;
+    if (!r.ok || !r.correspondence) continue;
     const double x = static_cast<double>(r.patterns) / 60.0;
     xmin = std::min(xmin, x);
     xmax = std::max(xmax, x);
@@ -118,7 +132,7 @@ void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, 
     std::vector<double> ys;
     double x = 0;
     for (const Row& r : rows) {
-      if (!r.ok || r.label != labels[m]) continue;
+      if (!r.ok || !r.correspondence || r.label != labels[m]) continue;
       x = static_cast<double>(r.patterns) / 60.0;
       const double y = 100.0 * num(r.eval, "gross_error_fraction");
       if (!std::isfinite(y)) continue;
@@ -156,6 +170,34 @@ nlohmann::json gross_by_class(const Image& col, const Image& cls, const hw::Grou
   return j;
 }
 
+// Required inputs of a method from the sim's truth: "depth_mm" only (the
+// depth a structured-light scan would give). `storage` owns the pixels.
+Result<std::vector<host::InputImage>> truth_inputs(const nlohmann::json& describe, const hw::GroundTruth& truth,
+                                                   std::vector<std::vector<float>>& storage, std::string& note) {
+  std::vector<host::InputImage> inputs;
+  if (!describe.contains("inputs") || !describe["inputs"].is_array()) return inputs;
+  const uint32_t w = truth.depth_mm.width(), h = truth.depth_mm.height();
+  storage.reserve(describe["inputs"].size());
+  for (const auto& in : describe["inputs"]) {
+    if (!in.value("required", false)) continue;
+    const std::string name = in.value("name", "");
+    if (name != "depth_mm" || truth.depth_mm.empty())
+      return Error(Code::failed_precondition, "needs input '" + name + "', which the bench cannot make");
+    const float* src = truth.depth_mm.ptr<float>();
+    storage.emplace_back(src, src + size_t{w} * h);
+    host::InputImage img;
+    img.name = name;
+    img.unit = in.value("unit", "mm");
+    img.description = "procam bench: the sim's true depth";
+    img.image = procam_image{.width = w, .height = h, .channels = 1, .pixel_type = PROCAM_PIXEL_F32,
+                             .bit_depth = 32, .reserved = 0, .stride_bytes = size_t{w} * sizeof(float),
+                             .data = storage.back().data()};
+    inputs.push_back(img);
+    note += (note.empty() ? "" : ", ") + name + " = true depth";
+  }
+  return inputs;
+}
+
 }  // namespace
 
 int cmd_bench(const Args& a) {
@@ -191,15 +233,26 @@ int cmd_bench(const Args& a) {
   hw::RigContext ctx{fs::path(rig_path).parent_path().string(), scene_dirs};
   auto rig = hw::create_rig(engine::without_calibration_tables(*rig_cfg), ctx);  // tables: not a device key
   if (!rig) return report(rig.status());
-  const nlohmann::json rig_json = engine::plugin_rig_json(**rig, threads);
+  nlohmann::json rig_json = engine::plugin_rig_json(**rig, threads);
+  {
+    // The rig config's calibration tables (defocus, separation), as procamd passes them.
+    auto tables = engine::load_calibration_tables(*rig_cfg, fs::path(rig_path).parent_path().string(), rig_path);
+    if (!tables) return report(tables.status().with_context("--rig"));
+    if (tables->is_object() && !tables->empty()) rig_json["calibration_tables"] = *tables;
+  }
 
   const std::vector<std::string> dirs = plugin_search_dirs(a);
   host::PluginHost host;
   host.load_directories(dirs);
-  const std::vector<std::string> only = a.list("method");
   std::vector<Variant> variants;
+  const std::vector<std::string> only = a.list("method");
+  std::map<std::string, nlohmann::json> describe;  // "plugin/method" -> describe()
   for (const auto& p : host.plugins())
-    for (const auto& m : p.methods)
+    for (const auto& m : p.methods) {
+      // Calibration methods make a table and decode no scene: only when named
+      // with --method (their table is then in --keep's outputs.json).
+      if (m.name.rfind("calibrate-", 0) == 0 && std::find(only.begin(), only.end(), m.name) == only.end()) continue;
+      describe[p.name + "/" + m.name] = m.describe;
       for (Variant v : variants_for(p.name, m.name)) {
         for (const auto& kv : a.list("param")) {  // --param method.key=value
           const auto dot = kv.find('.'), eq = kv.find('=');
@@ -214,6 +267,7 @@ int cmd_bench(const Args& a) {
           continue;
         variants.push_back(std::move(v));
       }
+    }
   if (variants.empty()) return usage_error("bench: no plugin methods found (or none match --method)");
 
   std::vector<Row> rows;
@@ -234,7 +288,11 @@ int cmd_bench(const Args& a) {
       r.scene = fs::path(scene).stem().string();
       r.label = v.label;
       std::fprintf(stderr, "  %-16s %-18s ", r.scene.c_str(), v.label.c_str());
-      auto session = host.create_session(v.plugin, v.method, v.params.dump(), rig_json.dump());
+      std::vector<std::vector<float>> storage;
+      Result<std::vector<host::InputImage>> inputs = std::vector<host::InputImage>{};
+      if (truth) inputs = truth_inputs(describe[v.plugin + "/" + v.method], *truth, storage, r.inputs_note);
+      auto session = inputs ? host.create_session(v.plugin, v.method, v.params.dump(), rig_json.dump(), *inputs)
+                            : Result<host::Session>(inputs.status());
       if (!session) {
         r.error = session.status().message();
       } else {
@@ -263,24 +321,26 @@ int cmd_bench(const Args& a) {
                 std::ofstream(keep / "outputs.json") << w->outputs.dump(2) << "\n";
               }
             }
-            if (!col) {
-              r.error = "no proj_col_px output";
-            } else if (!truth) {
+            if (!truth) {
               r.error = "no ground truth: " + truth.status().message();
             } else {
-              // correspondence (+ per-code maps, sub-pixel), depth, ...: the evaluators the outputs select
+              // correspondence (+ per-code maps, sub-pixel), depth, components: the evaluators the outputs select
               r.eval = engine::evaluate_outputs(*outs, *truth);
-              r.ok = true;
+              r.correspondence = col.has_value();
+              r.ok = true;  // a method without a map to evaluate (e.g. a report only) is a row of dashes
               for (const auto& o : *outs)  // this report's own breakdown by light-transport class
-                if (o.kind == PROCAM_OUTPUT_IMAGE && o.name == "transport_class")
+                if (col && o.kind == PROCAM_OUTPUT_IMAGE && o.name == "transport_class")
                   r.eval["gross_by_class"] = gross_by_class(*col, Image::copy_of(o.image), *truth);
             }
           }
         }
       }
-      if (r.ok)
+      if (r.ok && r.correspondence)
         std::fprintf(stderr, "%3zu patterns  %7.1f ms  decoded %5.1f%%  gross %6.2f%%\n", r.patterns, r.decode_ms,
                      100 * num(r.eval, "decoded_fraction"), 100 * num(r.eval, "gross_error_fraction"));
+      else if (r.ok)
+        std::fprintf(stderr, "%3zu patterns  %7.1f ms  evaluated: %s\n", r.patterns, r.decode_ms,
+                     r.eval["evaluators"].dump().c_str());
       else
         std::fprintf(stderr, "error: %s\n", r.error.c_str());
       rows.push_back(std::move(r));
@@ -292,25 +352,44 @@ int cmd_bench(const Args& a) {
   fs::create_directories(out, ec);
   std::vector<std::string> labels;
   for (const Variant& v : variants) labels.push_back(v.label);
-  std::ostringstream md;
+  std::ostringstream md, other;
   md << "| scene | method | patterns | capture @60 Hz (s) | rounds | decode (ms) | lit decoded (%) | gross errors (%) | within 1 col (%) | RMS col err (px) | RMS sub-px refined (px) | depth RMS (mm) |\n"
      << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  // Other families: depth relative to the true depth, direct/global median
+  // relative error against the sim's light-transport split.
+  other << "| scene | method | patterns | decode (ms) | depth: lit decoded (%) | depth median rel err (%) | depth rel RMS (%) "
+           "| direct median rel err (%) | global median rel err (%) | inputs from truth |\n"
+        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  size_t other_rows = 0;
   nlohmann::json all = nlohmann::json::array();
   for (const Row& r : rows) {
+    if (!r.ok && r.error.empty()) continue;
     if (!r.ok) {
       md << "| " << r.scene << " | " << r.label << " | error: " << r.error << " ||||||||||\n";
-    } else {
+    } else if (r.correspondence) {
       md << "| " << r.scene << " | " << r.label << " | " << r.patterns << " | "
          << fmt(static_cast<double>(r.patterns) / 60.0, 2) << " | " << r.rounds << " | " << fmt(r.decode_ms, 1) << " | "
          << fmt(100 * num(r.eval, "decoded_fraction"), 1) << " | " << fmt(100 * num(r.eval, "gross_error_fraction"), 2)
          << " | " << fmt(100 * num(r.eval, "within_1col_fraction"), 1) << " | " << fmt(num(r.eval, "col_rms_px"), 3)
          << " | " << (r.eval.contains("subpx") ? fmt(num(r.eval["subpx"], "col_rms_px"), 3) : std::string("–"))
          << " | " << fmt(num(r.eval, "depth_rms_mm"), 2) << " |\n";
+    } else {
+      ++other_rows;
+      const nlohmann::json d = r.eval.value("depth", nlohmann::json::object());
+      const nlohmann::json c = r.eval.value("components", nlohmann::json::object());
+      const nlohmann::json cd = c.value("direct", nlohmann::json::object()), cg = c.value("global", nlohmann::json::object());
+      other << "| " << r.scene << " | " << r.label << " | " << r.patterns << " | " << fmt(r.decode_ms, 1) << " | "
+            << (d.empty() ? "–" : fmt(100 * num(d, "decoded_fraction"), 1)) << " | "
+            << fmt(100 * num(d, "median_rel_error"), 2) << " | " << fmt(100 * num(d, "rel_rms"), 2) << " | " << fmt(100 * num(cd, "median_rel_error"), 1) << " | "
+            << fmt(100 * num(cg, "median_rel_error"), 1) << " | " << (r.inputs_note.empty() ? "–" : r.inputs_note)
+            << (r.eval["evaluators"].empty() ? " (no map to evaluate: see the method's report)" : "") << " |\n";
     }
     all.push_back({{"scene", r.scene}, {"method", r.label}, {"ok", r.ok}, {"error", r.error},
                    {"patterns", r.patterns}, {"capture_s_at_60hz", static_cast<double>(r.patterns) / 60.0},
-                   {"rounds", r.rounds}, {"decode_ms", r.decode_ms}, {"evaluation", r.eval}});
+                   {"rounds", r.rounds}, {"decode_ms", r.decode_ms}, {"evaluation", r.eval},
+                   {"inputs_from_truth", r.inputs_note}});
   }
+  if (other_rows > 0) md << "\n" << other.str();
   const nlohmann::json doc = {{"rig", rig_path}, {"threads", threads},
                               {"hardware_concurrency", std::thread::hardware_concurrency()},
                               {"runs", all}};

@@ -115,8 +115,8 @@ nlohmann::json evaluate_depth(const Image& depth, const hw::GroundTruth& truth) 
   const float* td = truth.depth_mm.ptr<float>();
   const uint8_t* lit = truth.lit.ptr<uint8_t>();
   size_t lit_n = 0;
-  double sum = 0, sq = 0;
-  std::vector<double> a;
+  double sum = 0, sq = 0, rel_sq = 0;
+  std::vector<double> a, rel;
   for (size_t i = 0; i < depth.pixel_count(); ++i) {
     if (!lit[i]) continue;
     ++lit_n;
@@ -125,6 +125,11 @@ nlohmann::json evaluate_depth(const Image& depth, const hw::GroundTruth& truth) 
     sum += e;
     sq += e * e;
     a.push_back(std::abs(e));
+    if (td[i] > 0) {  // relative to the true depth (thesis Fig. 2.7 reports depth error this way)
+      const double r = std::abs(e) / double(td[i]);
+      rel.push_back(r);
+      rel_sq += r * r;
+    }
   }
   nlohmann::json j = {{"pixels", a.size()}, {"decoded_fraction", lit_n ? double(a.size()) / double(lit_n) : 0.0}};
   if (a.empty()) return j;
@@ -133,6 +138,10 @@ nlohmann::json evaluate_depth(const Image& depth, const hw::GroundTruth& truth) 
   j["rms_mm"] = std::sqrt(sq / n);
   j["median_abs_mm"] = percentile(a, 0.5);
   j["p99_abs_mm"] = percentile(a, 0.99);
+  if (!rel.empty()) {
+    j["median_rel_error"] = percentile(rel, 0.5);
+    j["rel_rms"] = std::sqrt(rel_sq / double(rel.size()));
+  }
   return j;
 }
 

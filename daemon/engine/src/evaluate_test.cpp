@@ -85,6 +85,9 @@ TEST(EvaluateOutputs, CorrespondenceAtTheTopLevelAndDepthOnItsOwn) {
   EXPECT_NEAR(d["bias_mm"].get<double>(), (88 * 2.0 - 4.0) / 89.0, 1e-5);
   EXPECT_NEAR(d["rms_mm"].get<double>(), std::sqrt((88 * 4.0 + 16.0) / 89.0), 1e-5);
   EXPECT_NEAR(d["median_abs_mm"].get<double>(), 2.0, 1e-5);
+  // Relative to the true depth (800 mm): 88 pixels 2/800, one 4/800.
+  EXPECT_NEAR(d["median_rel_error"].get<double>(), 2.0 / 800.0, 1e-7);
+  EXPECT_NEAR(d["rel_rms"].get<double>(), std::sqrt((88 * 4.0 + 16.0) / 89.0) / 800.0, 1e-7);
 }
 
 TEST(EvaluateOutputs, PerCodeAndSubpixelMapsGoUnderCodesAndSubpx) {
