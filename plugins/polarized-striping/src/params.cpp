@@ -33,6 +33,10 @@ std::vector<ParamSpec> specs_for(Method m) {
       {"w_mu", ParamType::number, -1.0, -1.0, 1.0, {},
        "shift mu of the SNR weight W (Eq. 5.10) as a fraction of full scale; -1 = 3 x noise (a signal 3 sigma above "
        "the noise floor gets W = 0.5)"},
+      {"exposure_us", ParamType::number, 0.0, 0.0, 1e8, {},
+       "camera exposure of every frame, microseconds; 0 = the camera's own setting. Through a dense medium the "
+       "signal is a few DN at a normal exposure: the thesis lengthens the exposure for its dim light sheets (§5.2, "
+       "footnote 3). Raise it until the brightest backscatter nears full scale (clipped backscatter is invalid)"},
       {"w_z", ParamType::number, -1.0, -1.0, 1.0, {},
        "steepness z of the SNR weight W (Eq. 5.10) as a fraction of full scale; -1 = noise (the thesis: z = the "
        "Gaussian noise's standard deviation)"}};
@@ -88,6 +92,7 @@ sdk::Error parse_config(const std::string& method, const nlohmann::json& params,
   cfg.saturation = p.get_number("saturation");
   cfg.w_mu = p.get_number("w_mu");
   cfg.w_z = p.get_number("w_z");
+  cfg.exposure_us = p.get_number("exposure_us");
   if (is_polarized(cfg.method)) {
     cfg.polarizer_deg = p.get_number("polarizer_deg");
     cfg.p = p.get_number("p");

@@ -31,6 +31,7 @@ struct Config {
   sdk::Params params;
   double noise = 0.004, margin_sigma = 5, saturation = 0.98;
   double w_mu = -1, w_z = -1;           // SNR weight (Eq. 5.10); < 0: tied to noise
+  double exposure_us = 0;               // every frame's camera exposure; 0 = the camera's own
   double polarizer_deg = 0;             // projector polariser angle
   double p = -1, p_min = 0.05, dop_percentile = 0.9;
   double backscatter_percentile = 0.02; // flood

@@ -39,6 +39,7 @@ class PolarizedStripingSession final : public sdk::Session {
       else
         sdk::fill_pattern(plan, i, [](uint32_t, uint32_t) { return 1.0; });
       procam_frame_settings& s = plan.settings(i);
+      if (cfg_.exposure_us > 0) s.exposure_us = cfg_.exposure_us;
       if (role.analyser != Analyser::none) {
         // Backscatter keeps the source's polarisation, the surface depolarises:
         // crossed analyser = best image E_b (Eq. 5.4), parallel = worst E_w (Eq. 5.5).

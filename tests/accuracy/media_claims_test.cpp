@@ -1,0 +1,296 @@
+// SPDX-License-Identifier: MIT
+// Thesis ch. 5 claims on the sim's milk tank (issue 13), end to end: the
+// `polarized-striping` plugin's plans captured by the sim rig with a
+// participating medium (hw/sim medium*, docs/media.md), decoded, and the
+// results compared with the sim's ground truth.
+//
+//  - Contrast in heavy scattering (Fig. 5.6): the image each method shows
+//    (flood image, best-polarized image, stripe composite CI, polarized
+//    composite), each at its own exposure. Asserted: polarized flood and
+//    striping beat flood; the thesis's full order (polarized striping >
+//    striping > polarized flood) is printed but not reproduced by the
+//    single-scattering sim (see the test). Contrast is measured against truth: the
+//    Michelson contrast between the pixels whose true direct signal D is in
+//    the top quarter (white bars) and those in the bottom quarter (dark
+//    board), C = (m_hi - m_lo) / (m_hi + m_lo). Backscatter adds to both sets
+//    and lowers C; an image without backscatter has D's own contrast.
+//  - The plugin's own contrast quality measure (Eq. 5.8, report cqm_mean)
+//    ranks striping above flood.
+//  - Moderate scattering (Fig. 5.4): the high-frequency separation's direct
+//    image (separation/checker) and polarized striping's signal, each against
+//    its truth (the thesis's "separation is noisier" is printed, not
+//    reproduced: see the test). SNR against truth: an estimate e of a truth t (both over the chart's
+//    lit pixels) is fitted as a·t by least squares; SNR = mean(e) / RMS(e - a·t).
+//
+// Rig: configs/rigs/sim.json at a quarter of its resolution (320x200 camera
+// and projector, same fields of view) to keep the test short; 64 stripes are
+// then 5 projector pixels apart. Tolerances: the inequalities are strict;
+// numbers are printed for the report.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "procam/engine/rig_json.hpp"
+#include "procam/engine/scan_runner.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "procam/hw/rig.hpp"
+
+namespace procam {
+namespace {
+
+std::string source(const std::string& rel) { return std::string(PROCAM_SOURCE_DIR) + "/" + rel; }
+
+struct ScanRun {
+  std::unique_ptr<hw::Rig> rig;
+  std::optional<host::Session> session;
+  std::vector<host::Output> outputs;
+  hw::GroundTruth truth;
+};
+
+// The shipped sim rig at 1/4 resolution showing `scene`.
+std::unique_ptr<hw::Rig> quarter_rig(const std::string& scene, double exposure_us = 0) {
+  auto cfg = engine::read_json_file(source("configs/rigs/sim.json"));
+  EXPECT_TRUE(cfg.ok()) << cfg.status().message();
+  if (!cfg.ok()) return nullptr;
+  auto shrink = [](nlohmann::json& k) {
+    k["width"] = k["width"].get<int>() / 4;
+    k["height"] = k["height"].get<int>() / 4;
+    k["fx"] = k["fx"].get<double>() / 4.0;
+    k["fy"] = k["fy"].get<double>() / 4.0;
+    k["cx"] = (k["width"].get<double>() - 1.0) / 2.0;
+    k["cy"] = (k["height"].get<double>() - 1.0) / 2.0;
+  };
+  shrink((*cfg)["projector"]["intrinsics"]);
+  for (auto& c : (*cfg)["cameras"]) {
+    shrink(c["intrinsics"]);
+    if (exposure_us > 0) c["exposure_us"] = exposure_us;
+  }
+  auto rig = hw::create_rig(*cfg, {source("configs/rigs"), {source("configs/scenes")}});
+  EXPECT_TRUE(rig.ok()) << rig.status().message();
+  if (!rig.ok()) return nullptr;
+  const Status st = (*rig)->apply_scan_options({{"scene", scene}});
+  EXPECT_TRUE(st.ok()) << st.to_string();
+  return st.ok() ? std::move(*rig) : nullptr;
+}
+
+// One scan of plugin/method with `params` through the real path.
+bool run(const std::string& plugin, const std::string& method, const std::string& scene, ScanRun& r,
+         const nlohmann::json& params = nlohmann::json::object(), double rig_exposure_us = 0) {
+  r.rig = quarter_rig(scene, rig_exposure_us);
+  if (!r.rig) return false;
+  host::PluginHost host;
+  host.load_directories({PROCAM_PLUGIN_DIR});
+  auto session = host.create_session(plugin, method, params.dump(), engine::plugin_rig_json(*r.rig, 2).dump());
+  EXPECT_TRUE(session.ok()) << session.status().to_string();
+  if (!session.ok()) return false;
+  r.session.emplace(std::move(*session));
+  std::atomic<bool> cancel{false};
+  auto outcome = engine::run_scan(*r.rig, *r.session, engine::CaptureOptions{}, nullptr, cancel);
+  EXPECT_TRUE(outcome.ok()) << outcome.status().to_string();
+  if (!outcome.ok()) return false;
+  auto outs = r.session->outputs();
+  EXPECT_TRUE(outs.ok()) << outs.status().to_string();
+  if (!outs.ok()) return false;
+  r.outputs = std::move(*outs);
+  auto truth = r.rig->ground_truth(0);
+  EXPECT_TRUE(truth.ok()) << truth.status().to_string();
+  if (!truth.ok()) return false;
+  r.truth = std::move(*truth);
+  return true;
+}
+
+const float* image(const ScanRun& r, const std::string& name) {
+  for (const auto& o : r.outputs)
+    if (o.kind == PROCAM_OUTPUT_IMAGE && o.name == name && o.image.pixel_type == PROCAM_PIXEL_F32)
+      return static_cast<const float*>(o.image.data);
+  ADD_FAILURE() << "no F32 output " << name;
+  return nullptr;
+}
+
+double report_number(const ScanRun& r, const char* section, const char* key) {
+  for (const auto& o : r.outputs)
+    if (o.kind == PROCAM_OUTPUT_JSON && o.name == "report") {
+      auto j = nlohmann::json::parse(o.json, nullptr, false);
+      if (j.is_object() && j.contains(section) && j[section].contains(key) && j[section][key].is_number())
+        return j[section][key].get<double>();
+    }
+  return std::nan("");
+}
+
+// Pixels of the chart seen through the tank: lit, with a finite true D.
+// `lo`/`hi`: the bottom and top quarter by true D.
+struct ChartPixels {
+  std::vector<size_t> all, lo, hi;
+};
+ChartPixels chart_pixels(const hw::GroundTruth& t) {
+  ChartPixels p;
+  const float* d = t.medium_direct.ptr<float>();
+  const uint8_t* lit = t.lit.ptr<uint8_t>();
+  std::vector<std::pair<float, size_t>> v;
+  for (size_t i = 0; i < t.medium_direct.pixel_count(); ++i)
+    if (lit[i] && std::isfinite(d[i]) && d[i] > 0) v.emplace_back(d[i], i);
+  std::sort(v.begin(), v.end());
+  for (size_t k = 0; k < v.size(); ++k) {
+    p.all.push_back(v[k].second);
+    if (k < v.size() / 4) p.lo.push_back(v[k].second);
+    if (k >= v.size() - v.size() / 4) p.hi.push_back(v[k].second);
+  }
+  return p;
+}
+
+double percentile_of(const float* img, size_t n, double q) {
+  std::vector<float> v;
+  for (size_t i = 0; i < n; ++i)
+    if (std::isfinite(img[i])) v.push_back(img[i]);
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * double(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return static_cast<double>(v[k]);
+}
+
+double mean_at(const float* img, const std::vector<size_t>& idx) {
+  double s = 0;
+  size_t n = 0;
+  for (size_t i : idx)
+    if (std::isfinite(img[i])) {
+      s += static_cast<double>(img[i]);
+      ++n;
+    }
+  return n ? s / double(n) : std::nan("");
+}
+
+double michelson(const float* img, const ChartPixels& p) {
+  const double hi = mean_at(img, p.hi), lo = mean_at(img, p.lo);
+  return hi + lo > 0 ? (hi - lo) / (hi + lo) : std::nan("");
+}
+
+// SNR of estimate e against truth t over `idx`: e ≈ a·t (least squares), SNR = mean(e) / RMS(e − a·t).
+double snr_against(const float* e, const float* t, const std::vector<size_t>& idx) {
+  double et = 0, tt = 0, se = 0;
+  size_t n = 0;
+  for (size_t i : idx)
+    if (std::isfinite(e[i]) && std::isfinite(t[i])) {
+      const double ei = e[i], ti = t[i];
+      et += ei * ti;
+      tt += ti * ti;
+      se += ei;
+      ++n;
+    }
+  if (n == 0 || tt <= 0) return std::nan("");
+  const double a = et / tt;
+  double sq = 0;
+  for (size_t i : idx)
+    if (std::isfinite(e[i]) && std::isfinite(t[i])) {
+      const double r = static_cast<double>(e[i]) - a * static_cast<double>(t[i]);
+      sq += r * r;
+    }
+  const double rms = std::sqrt(sq / double(n));
+  return rms > 0 ? (se / double(n)) / rms : std::numeric_limits<double>::infinity();
+}
+
+TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
+  const std::vector<std::string> methods = {"flood", "polarized-flood", "striping", "polarized-striping"};
+  std::map<std::string, double> contrast, cqm;
+  double truth_contrast = 0;
+  for (const auto& m : methods) {
+    ScanRun r;
+    // Each method at its own exposure, as on a real rig (the thesis
+    // lengthens the exposure for its dim sheets): a first scan at the rig's
+    // 12 ms, then one scaled so the 99.5th percentile of the frames' maximum
+    // (image_dn) sits at 200 of 255 DN.
+    ASSERT_TRUE(run("polarized-striping", m, "media-chart-heavy", r)) << m;
+    const double p995 = percentile_of(image(r, "image_dn"), r.truth.lit.pixel_count(), 0.995);
+    ASSERT_GT(p995, 0.0) << m << ": black frames";
+    const double exposure_us = std::min(12000.0 * 200.0 / p995, 2e6);
+    r = ScanRun{};
+    ASSERT_TRUE(run("polarized-striping", m, "media-chart-heavy", r, {{"exposure_us", exposure_us}})) << m;
+    std::printf("heavy milk  %-19s exposure %.0f us\n", m.c_str(), exposure_us);
+    ASSERT_FALSE(r.truth.medium_direct.empty()) << "the sim gave no medium truth";
+    const ChartPixels px = chart_pixels(r.truth);
+    ASSERT_GT(px.lo.size(), 500u) << "too few chart pixels";
+    const float* img = image(r, "image_dn");
+    ASSERT_NE(img, nullptr);
+    // Stripe methods light a surface point only under its own sheet (gaps
+    // between sheets): compare them where the stripe map is valid.
+    ChartPixels use = px;
+    if (m.find("striping") != std::string::npos) {
+      const float* k = image(r, "stripe_index");
+      ASSERT_NE(k, nullptr);
+      auto keep = [&](std::vector<size_t>& v) {
+        v.erase(std::remove_if(v.begin(), v.end(), [&](size_t i) { return !std::isfinite(k[i]); }), v.end());
+      };
+      keep(use.lo);
+      keep(use.hi);
+      keep(use.all);
+      std::printf("heavy milk  %-19s stripe-valid chart pixels: %zu of %zu\n", m.c_str(), use.all.size(), px.all.size());
+    }
+    contrast[m] = michelson(img, use);
+    for (const auto& o : r.outputs)
+      if (o.kind == PROCAM_OUTPUT_JSON && o.name == "report") {
+        auto j = nlohmann::json::parse(o.json, nullptr, false);
+        std::printf("  report quality: %s\n", j.is_object() ? j.value("quality", nlohmann::json()).dump().c_str() : "?");
+      }
+    cqm[m] = report_number(r, "quality", "cqm_mean");
+    truth_contrast = michelson(r.truth.medium_direct.ptr<float>(), px);
+    std::printf("heavy milk  %-19s chart contrast %.3f  plugin cqm_mean %.3f\n", m.c_str(), contrast[m], cqm[m]);
+  }
+  std::printf("heavy milk  true direct D         chart contrast %.3f (no backscatter)\n", truth_contrast);
+  // What the sim's physics supports (each an inequality against truth):
+  // polarization and striping each beat plain flood light, and no method
+  // shows more contrast than the scene has.
+  EXPECT_GT(contrast["polarized-flood"], contrast["flood"] + 0.05);
+  EXPECT_GT(contrast["striping"], contrast["flood"] + 0.05);
+  EXPECT_GT(contrast["polarized-striping"], contrast["flood"]);
+  for (const auto& [m, c] : contrast) EXPECT_LE(c, truth_contrast + 0.02) << m << ": more contrast than the scene has";
+  EXPECT_GT(cqm["striping"], cqm["flood"]);
+  // NOT reproduced (issue 13 note, docs/media.md): the thesis's order
+  // polarized striping > striping > polarized flood. The sim scatters once,
+  // so its backscatter is almost fully polarized at backscatter angles and
+  // the crossed analyser removes it already under flood light (polarized
+  // flood reaches the true contrast); real milk scatters many times and
+  // depolarizes it (the thesis measured p ~ 0.8). Printed above for the report.
+}
+
+TEST(MediaClaims, ModerateMilkSeparationDirectAndPolarizedStripingSignalAgainstTruth) {
+  // One camera exposure for both: the flood image's 99.5th percentile at 200 DN.
+  ScanRun flood;
+  ASSERT_TRUE(run("polarized-striping", "flood", "media-chart-moderate", flood));
+  const double p995 = percentile_of(image(flood, "image_dn"), flood.truth.lit.pixel_count(), 0.995);
+  ASSERT_GT(p995, 0.0);
+  const double exposure_us = std::min(12000.0 * 200.0 / p995, 2e6);
+  ScanRun sep, ps;
+  ASSERT_TRUE(run("separation", "checker", "media-chart-moderate", sep, nlohmann::json::object(), exposure_us));
+  ASSERT_TRUE(run("polarized-striping", "polarized-striping", "media-chart-moderate", ps, nlohmann::json::object(), exposure_us));
+  const ChartPixels px = chart_pixels(ps.truth);
+  ASSERT_GT(px.all.size(), 2000u);
+  const float* direct = image(sep, "direct_dn");
+  const float* signal = image(ps, "enhanced_dn");
+  ASSERT_TRUE(direct && signal);
+  // Truth for each: D for the separation's direct image; S = D + A for polarized striping's signal.
+  std::vector<float> s_true(ps.truth.medium_direct.pixel_count());
+  const float* d = ps.truth.medium_direct.ptr<float>();
+  const float* a = ps.truth.medium_indirect.empty() ? nullptr : ps.truth.medium_indirect.ptr<float>();
+  for (size_t i = 0; i < s_true.size(); ++i) s_true[i] = d[i] + (a ? a[i] : 0.0f);
+  const double snr_sep = snr_against(direct, sep.truth.medium_direct.ptr<float>(), px.all);
+  const double snr_ps = snr_against(signal, s_true.data(), px.all);
+  std::printf("moderate milk  exposure %.0f us: separation/checker direct SNR %.2f  polarized-striping signal SNR %.2f\n",
+              exposure_us, snr_sep, snr_ps);
+  // Both recover their truth through the tank (a real check of the sim →
+  // plugin path). NOT reproduced: the thesis's "separation's direct image
+  // has lower SNR than polarized striping" (Fig. 5.4) — in the sim's
+  // moderate tank D is still 2/3 of the signal (single scattering), so the
+  // direct image is not starved; printed above for the report.
+  EXPECT_GT(snr_sep, 5.0);
+  EXPECT_GT(snr_ps, 5.0);
+}
+
+}  // namespace
+}  // namespace procam
