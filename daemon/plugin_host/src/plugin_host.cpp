@@ -12,6 +12,7 @@
 
 #include "host_services.hpp"
 #include "plugin_loader.hpp"
+#include "worker_proxy.hpp"
 #include "procam/core/image.hpp"
 #include "procam/core/log.hpp"
 
@@ -72,6 +73,11 @@ void PluginHost::load_directories(const std::vector<std::string>& dirs) {
           {dir, Error(Code::internal, "scanning plugin directory '" + dir + "': " + e.what())});
     }
   }
+}
+
+bool PluginHost::runs_isolated(std::string_view plugin) const {
+  if (isolation_.mode == Isolation::in_process) return false;
+  return std::find(isolation_.trusted.begin(), isolation_.trusted.end(), plugin) == isolation_.trusted.end();
 }
 
 Status PluginHost::load_file(const std::string& path) {
@@ -250,6 +256,16 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
     PROCAM_TRY(check_inputs(info, *minfo, inputs));
 
     const auto& loaded = loaded_[idx];
+    if (runs_isolated(plugin)) {
+      // The worker loads the same file with the same checks and calls
+      // session_create(2) there (README.md "Process model").
+      wire::CreateRequest req{info.file, plugin, method, params, rig, inputs};
+      bool host_services = false;
+      auto proxy = detail::WorkerProxy::start(isolation_, req, host_services);
+      if (!proxy) return proxy.status();
+      auto bridge = host_services ? std::make_unique<detail::HostBridge>(plugin) : nullptr;
+      return Session(loaded, std::move(*proxy), method, std::move(bridge));
+    }
     procam_session* s = nullptr;
     procam_error err{};
     int rc = 0;
