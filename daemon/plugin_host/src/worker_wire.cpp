@@ -210,30 +210,37 @@ Result<Message> recv_msg(int sock, int timeout_ms) {
     return Error(Code::corrupt_data, "oversized message (more than " + std::to_string(kMaxPayload) +
                                          " payload bytes or too many descriptors)");
   if (fds.size() > 1) return Error(Code::corrupt_data, std::to_string(fds.size()) + " descriptors in one message");
-  if (static_cast<size_t>(n) < kHeaderSize)
+  Message m;
+  PROCAM_TRY(parse_packet(buf.data(), static_cast<size_t>(n), m));
+  if (!fds.empty()) m.fd = std::move(fds.front());
+  return m;
+}
+
+Status parse_packet(const char* data, size_t n, Message& m) {
+  if (n > kHeaderSize + kMaxPayload)
+    return Error(Code::corrupt_data, "oversized message (more than " + std::to_string(kMaxPayload) + " payload bytes)");
+  if (n < kHeaderSize)
     return Error(Code::corrupt_data, "a " + std::to_string(n) + "-byte message, shorter than the header");
   uint32_t magic, seq, len;
   uint16_t version, type;
-  std::memcpy(&magic, buf.data(), 4);
-  std::memcpy(&version, buf.data() + 4, 2);
-  std::memcpy(&type, buf.data() + 6, 2);
-  std::memcpy(&seq, buf.data() + 8, 4);
-  std::memcpy(&len, buf.data() + 12, 4);
+  std::memcpy(&magic, data, 4);
+  std::memcpy(&version, data + 4, 2);
+  std::memcpy(&type, data + 6, 2);
+  std::memcpy(&seq, data + 8, 4);
+  std::memcpy(&len, data + 12, 4);
   char hex[16];
   std::snprintf(hex, sizeof hex, "0x%08x", magic);
   if (magic != kMagic) return Error(Code::corrupt_data, std::string("bad magic ") + hex);
   if (version != kVersion)
     return Error(Code::corrupt_data, "protocol version " + std::to_string(version) + ", expected " +
                                          std::to_string(kVersion));
-  if (len != static_cast<size_t>(n) - kHeaderSize)
+  if (len != n - kHeaderSize)
     return Error(Code::corrupt_data, "length field " + std::to_string(len) + " but " +
-                                         std::to_string(n - static_cast<ssize_t>(kHeaderSize)) + " payload bytes");
-  Message m;
+                                         std::to_string(n - kHeaderSize) + " payload bytes");
   m.type = type;
   m.seq = seq;
-  m.payload.assign(buf.data() + kHeaderSize, len);
-  if (!fds.empty()) m.fd = std::move(fds.front());
-  return m;
+  m.payload.assign(data + kHeaderSize, len);
+  return {};
 }
 
 // ---- memfd ----

@@ -144,6 +144,9 @@ Status send_msg(int sock, Msg type, uint32_t seq, std::string_view payload, int 
 // timeout: nothing arrived in time; unavailable: the peer closed its end;
 // corrupt_data: truncated, oversized, bad magic/version, more than one fd.
 Result<Message> recv_msg(int sock, int timeout_ms);
+// The header checks of recv_msg on one received packet (no descriptor);
+// fills `m` or says what is malformed (corrupt_data). Fuzzed (tests/fuzz).
+Status parse_packet(const char* data, size_t n, Message& m);
 
 // Bulk data: a memfd holding `bytes`, sealed against shrinking, growing and
 // writing, so the receiver can map it without fear of SIGBUS or changes.

@@ -2,7 +2,8 @@
  * Test fixture "faults": a plugin that misbehaves on request, one method per
  * fault, for the worker-isolation tests (isolation_test.cpp) and the daemon
  * test that a faulting scan leaves procamd serving. Every method plans one
- * round of 3 black 4x3 U8 frames; then:
+ * round of 3 black U8 frames of the rig's projector size (4x3 without a rig
+ * description); then:
  *   ok           behaves: logs one line, outputs frame_sum (scalar: sum of
  *                all pixels of all frames), sum_image (2x2 F32: 1, 2, 3, NaN),
  *                points (2 points x 4 floats) and report (JSON)
@@ -17,6 +18,8 @@
  *                WORKER_PROTOCOL.md) in end_round, then returns OK
  *   write_frame  writes into the frame it was handed (host memory: in a
  *                worker a read-only shared mapping) in add_frame
+ *   stream       plans 4096 frames and does nothing in add_frame: the
+ *                per-frame cost of the host itself (bench/worker_bench.cpp)
  * Never load this into a process you care about.
  */
 #include <math.h>
@@ -32,9 +35,7 @@
 
 FX_EXPORT const procam_plugin_info fx_info __asm__(PROCAM_PLUGIN_INFO_SYMBOL) = {
     PROCAM_PLUGIN_MAGIC, PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_info), 0, "faults", "0.0.1",
-    "ok,segv,abort,hang,oom,garbage,write_frame"};
-
-static const uint8_t black[4 * 3];
+    "ok,segv,abort,hang,oom,garbage,write_frame,stream"};
 
 struct procam_session {
   char method[32];
@@ -44,6 +45,9 @@ struct procam_session {
   float image[4];
   float points[8];
   procam_pattern_frame frames[3];
+  procam_pattern_frame* stream; /* "stream": 4096 frames */
+  uint32_t pw, ph;               /* pattern size: the projector's */
+  uint8_t* pattern;              /* pw x ph zeros */
   procam_plan plan;
   procam_output outputs[4];
 };
@@ -56,13 +60,14 @@ static int is(const procam_session* s, const char* m) { return strcmp(s->method,
 
 static const char* fx_describe(void) {
   return "[{\"name\": \"ok\"}, {\"name\": \"segv\"}, {\"name\": \"abort\"}, {\"name\": \"hang\"},"
-         " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"}]";
+         " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"},"
+         " {\"name\": \"stream\"}]";
 }
 
 static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
                              procam_session** out, procam_error* err) {
+  const char* proj;
   (void)params_json;
-  (void)rig_json;
   if (strlen(method) >= 32) {
     set_error(err, "unknown method");
     return PROCAM_ERR_INVALID_ARGUMENT;
@@ -70,10 +75,36 @@ static int fx_session_create(const char* method, const char* params_json, const 
   *out = calloc(1, sizeof(procam_session));
   if (*out == NULL) return PROCAM_ERR_NO_MEMORY;
   strcpy((*out)->method, method);
+  /* The rig JSON (nlohmann, compact): "projector":{"height":H,...,"width":W}. */
+  (*out)->pw = 4;
+  (*out)->ph = 3;
+  proj = rig_json ? strstr(rig_json, "\"projector\":") : NULL;
+  if (proj != NULL) {
+    const char* h = strstr(proj, "\"height\":");
+    const char* w = strstr(proj, "\"width\":");
+    if (h != NULL && w != NULL) {
+      (*out)->ph = (uint32_t)strtoul(h + 9, NULL, 10);
+      (*out)->pw = (uint32_t)strtoul(w + 8, NULL, 10);
+    }
+  }
+  if ((*out)->pw == 0 || (*out)->ph == 0 || (*out)->pw > 16384 || (*out)->ph > 16384) {
+    set_error(err, "projector size in the rig description out of range");
+    free(*out);
+    return PROCAM_ERR_INVALID_ARGUMENT;
+  }
+  (*out)->pattern = calloc((size_t)(*out)->pw * (*out)->ph, 1);
+  if ((*out)->pattern == NULL) {
+    free(*out);
+    return PROCAM_ERR_NO_MEMORY;
+  }
   return PROCAM_OK;
 }
 
-static void fx_session_destroy(procam_session* s) { free(s); }
+static void fx_session_destroy(procam_session* s) {
+  free(s->stream);
+  free(s->pattern);
+  free(s);
+}
 
 static int fx_set_host(procam_session* s, const procam_host_services* host, procam_error* err) {
   (void)err;
@@ -83,19 +114,18 @@ static int fx_set_host(procam_session* s, const procam_host_services* host, proc
 
 static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_error* err) {
   int i;
-  (void)err;
   if (s->planned) return 0;
   s->planned = 1;
   for (i = 0; i < 3; ++i) {
     procam_pattern_frame* f = &s->frames[i];
     f->label = i == 0 ? "a" : i == 1 ? "b" : "c";
-    f->pattern.width = 4;
-    f->pattern.height = 3;
+    f->pattern.width = s->pw;
+    f->pattern.height = s->ph;
     f->pattern.channels = 1;
     f->pattern.pixel_type = PROCAM_PIXEL_U8;
     f->pattern.bit_depth = 8;
-    f->pattern.stride_bytes = 4;
-    f->pattern.data = black;
+    f->pattern.stride_bytes = s->pw;
+    f->pattern.data = s->pattern;
     f->settings.struct_size = sizeof(procam_frame_settings);
     f->settings.gain_db = -1;
     f->settings.polarizer_deg = NAN;
@@ -103,6 +133,16 @@ static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_erro
   }
   s->plan.frame_count = 3;
   s->plan.frames = s->frames;
+  if (is(s, "stream")) {
+    s->stream = malloc(4096 * sizeof *s->stream);
+    if (s->stream == NULL) {
+      set_error(err, "no memory for the stream plan");
+      return PROCAM_ERR_NO_MEMORY;
+    }
+    for (i = 0; i < 4096; ++i) s->stream[i] = s->frames[0];
+    s->plan.frame_count = 4096;
+    s->plan.frames = s->stream;
+  }
   s->plan.note = "three black frames";
   *plan = &s->plan;
   return 1;
@@ -110,14 +150,18 @@ static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_erro
 
 static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f, procam_error* err) {
   uint32_t x, y;
-  if (f->pixel_type != PROCAM_PIXEL_U8 || f->channels != 1) {
-    set_error(err, "expected 1-channel U8 frames");
+  if ((f->pixel_type != PROCAM_PIXEL_U8 && f->pixel_type != PROCAM_PIXEL_U16) || f->channels != 1) {
+    set_error(err, "expected 1-channel U8 or U16 frames");
     return PROCAM_ERR_BAD_FRAME;
   }
+  if (is(s, "stream")) return PROCAM_OK;
   if (is(s, "segv") && index == 1) *(volatile int*)(uintptr_t)0 = 1;
   if (is(s, "write_frame")) ((volatile uint8_t*)(uintptr_t)f->data)[0] = 0xff;
-  for (y = 0; y < f->height; ++y)
-    for (x = 0; x < f->width; ++x) s->sum += ((const uint8_t*)f->data)[y * f->stride_bytes + x];
+  for (y = 0; y < f->height; ++y) {
+    const uint8_t* row = (const uint8_t*)f->data + y * f->stride_bytes;
+    for (x = 0; x < f->width; ++x)
+      s->sum += f->pixel_type == PROCAM_PIXEL_U8 ? row[x] : ((const uint16_t*)(const void*)row)[x];
+  }
   return PROCAM_OK;
 }
 
