@@ -28,6 +28,7 @@ struct PluginsConfig {
   uint64_t call_timeout_ms = 30000;     // per-call deadline of a worker
   uint64_t per_frame_timeout_ms = 1000; // + this per frame for end_round / get_outputs
   uint64_t memory_limit_mb = 8192;      // worker RLIMIT_AS; 0 = none
+  bool sandbox = true;                  // least privilege for workers (scratch folder, Landlock, seccomp)
 };
 
 struct Config {

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <thread>
+#include <atomic>
 
 #include "host_services.hpp"
 #include "procam/core/log.hpp"
@@ -79,6 +80,37 @@ WorkerProxy::WorkerProxy(const IsolationOptions& options, std::string plugin)
 WorkerProxy::~WorkerProxy() {
   sock_ = wire::UniqueFd();  // the worker sees EOF and exits without further plugin calls
   if (pid_ > 0) (void)reap(/*kill_now=*/false);
+  if (!scratch_.empty()) {
+    std::error_code ec;
+    fs::remove_all(scratch_, ec);  // does not follow symlinks the plugin left there
+    if (ec) PROCAM_LOG(plugins, warn) << "cannot remove the worker's scratch folder '" << scratch_ << "': " << ec.message();
+  }
+}
+
+Status WorkerProxy::read_hello(const wire::Message& hello) {
+  wire::Reader r(reinterpret_cast<const uint8_t*>(hello.payload.data()), hello.payload.size());
+  const uint32_t flags = r.u32("sandbox flags");
+  const std::string scratch(r.str("scratch folder", 4096));
+  const std::string problems(r.str("sandbox problems", 8192));
+  if (!r.ok()) return Error(Code::corrupt_data, r.error());
+  // Only a folder of the name the worker makes, where it makes them.
+  const fs::path sp(scratch);
+  const fs::path parent = options_.scratch_parent.empty()
+                              ? fs::path(std::getenv("TMPDIR") && *std::getenv("TMPDIR") ? std::getenv("TMPDIR") : "/tmp")
+                              : fs::path(options_.scratch_parent);
+  std::error_code ec1, ec2;
+  if (!scratch.empty() && fs::weakly_canonical(sp.parent_path(), ec1) == fs::weakly_canonical(parent, ec2) &&
+      !ec1 && !ec2 && sp.filename().string().rfind("procam-worker-", 0) == 0)
+    scratch_ = scratch;
+  static std::atomic<bool> logged{false};
+  if (options_.sandbox && !logged.exchange(true)) {
+    if (problems.empty())
+      PROCAM_LOG(plugins, info) << "plugin workers run sandboxed (flags 0x" << std::hex << flags << std::dec
+                                << "; README.md \"Least privilege\")";
+    else
+      PROCAM_LOG(plugins, warn) << "plugin workers run with a partial sandbox: " << problems;
+  }
+  return {};
 }
 
 std::string WorkerProxy::reap(bool kill_now) {
@@ -145,9 +177,15 @@ Status WorkerProxy::spawn(const std::string& worker_path) {
   posix_spawnattr_setsigmask(&attr, &none);
   posix_spawnattr_setsigdefault(&attr, &defaults);
   posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
-  const std::string limit = std::to_string(options_.memory_limit_mb);
-  std::vector<char*> argv = {const_cast<char*>(worker_path.c_str()), const_cast<char*>("--memory-limit-mb"),
-                             const_cast<char*>(limit.c_str()), nullptr};
+  std::vector<std::string> args = {worker_path, "--memory-limit-mb", std::to_string(options_.memory_limit_mb),
+                                   "--sandbox", options_.sandbox ? "1" : "0"};
+  if (!options_.scratch_parent.empty()) {
+    args.push_back("--scratch-parent");
+    args.push_back(options_.scratch_parent);
+  }
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
   pid_t pid = -1;
   const int rc = ::posix_spawn(&pid, worker_path.c_str(), &fa, &attr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
@@ -176,6 +214,8 @@ Result<std::unique_ptr<WorkerProxy>> WorkerProxy::start(const IsolationOptions& 
   if (hello->type != static_cast<uint16_t>(wire::Msg::hello))
     return p->fail("start", Code::plugin_error, std::string("worker sent '") + wire::msg_name(hello->type) +
                                                     "' instead of hello");
+  if (Status st = p->read_hello(*hello); !st)
+    return p->fail("start", Code::plugin_error, "worker sent a malformed hello (" + st.message() + ")");
   auto blob = wire::make_sealed_blob(wire::encode_create(request), "procam-create");
   if (!blob) return blob.status();
   auto ok = p->call(wire::Msg::create, "session_create", {}, blob->get(), options.start_timeout);

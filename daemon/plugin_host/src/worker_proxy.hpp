@@ -74,10 +74,12 @@ private:
   Status fail(const char* call_name, Code code, const std::string& cause);
   std::string reap(bool kill_now);  // "" if it exited 0, else how it ended
   std::chrono::milliseconds round_deadline(size_t frames) const;
+  Status read_hello(const wire::Message& hello);
 
   IsolationOptions options_;
   std::string plugin_;
   pid_t pid_ = -1;
+  std::string scratch_;  // the worker's scratch folder, removed after it ends
   wire::UniqueFd sock_;
   uint32_t seq_ = 0;
   bool broken_ = false;

@@ -18,6 +18,13 @@
  *                WORKER_PROTOCOL.md) in end_round, then returns OK
  *   write_frame  writes into the frame it was handed (host memory: in a
  *                worker a read-only shared mapping) in add_frame
+ *   try_network, try_write_outside, try_write_scratch, try_signal, try_caps
+ *                attempt, in end_round, what the worker sandbox forbids (or,
+ *                for the scratch folder, allows) and log "<rule>: blocked
+ *                (<error>)" or "<rule>: allowed": a UDP and a TCP socket;
+ *                creating $PROCAM_TEST_OUTSIDE; creating $TMPDIR/plugin-file;
+ *                SIGCONT to the parent process; CapEff of /proc/self/status
+ *                ("caps: <hex>")
  *   stream       plans 4096 frames and does nothing in add_frame: the
  *                per-frame cost of the host itself (bench/worker_bench.cpp)
  * Never load this into a process you care about.
@@ -28,6 +35,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/socket.h>
 
 #include "procam/plugin_abi.h"
 
@@ -35,7 +46,7 @@
 
 FX_EXPORT const procam_plugin_info fx_info __asm__(PROCAM_PLUGIN_INFO_SYMBOL) = {
     PROCAM_PLUGIN_MAGIC, PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_info), 0, "faults", "0.0.1",
-    "ok,segv,abort,hang,oom,garbage,write_frame,stream"};
+    "ok,segv,abort,hang,oom,garbage,write_frame,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps"};
 
 struct procam_session {
   char method[32];
@@ -61,7 +72,8 @@ static int is(const procam_session* s, const char* m) { return strcmp(s->method,
 static const char* fx_describe(void) {
   return "[{\"name\": \"ok\"}, {\"name\": \"segv\"}, {\"name\": \"abort\"}, {\"name\": \"hang\"},"
          " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"},"
-         " {\"name\": \"stream\"}]";
+         " {\"name\": \"stream\"}, {\"name\": \"try_network\"}, {\"name\": \"try_write_outside\"},"
+         " {\"name\": \"try_write_scratch\"}, {\"name\": \"try_signal\"}, {\"name\": \"try_caps\"}]";
 }
 
 static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
@@ -165,7 +177,52 @@ static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f
   return PROCAM_OK;
 }
 
+static void fx_log(procam_session* s, const char* line) {
+  if (s->host != NULL && s->host->log != NULL) s->host->log(s->host->ctx, PROCAM_LOG_INFO, line);
+}
+
+/* Logs "<rule>: allowed" (ok != 0) or "<rule>: blocked (<strerror(errno)>)". */
+static void fx_verdict(procam_session* s, const char* rule, int ok) {
+  char line[256];
+  if (ok) snprintf(line, sizeof line, "%s: allowed", rule);
+  else snprintf(line, sizeof line, "%s: blocked (%s)", rule, strerror(errno));
+  fx_log(s, line);
+}
+
+static void fx_try(procam_session* s) {
+  if (is(s, "try_network")) {
+    int udp = socket(AF_INET, SOCK_DGRAM, 0);
+    fx_verdict(s, "udp", udp >= 0);
+    if (udp >= 0) close(udp);
+    int tcp = socket(AF_INET6, SOCK_STREAM, 0);
+    fx_verdict(s, "tcp", tcp >= 0);
+    if (tcp >= 0) close(tcp);
+  } else if (is(s, "try_write_outside") || is(s, "try_write_scratch")) {
+    char path[1024];
+    const char* dir = getenv("TMPDIR");
+    int fd;
+    if (is(s, "try_write_outside")) snprintf(path, sizeof path, "%s", getenv("PROCAM_TEST_OUTSIDE") ? getenv("PROCAM_TEST_OUTSIDE") : "/tmp/procam-outside");
+    else snprintf(path, sizeof path, "%s/plugin-file", dir ? dir : "/tmp");
+    fd = open(path, O_CREAT | O_WRONLY | O_TRUNC, 0600);
+    fx_verdict(s, is(s, "try_write_outside") ? "write_outside" : "write_scratch", fd >= 0);
+    if (fd >= 0) close(fd);
+  } else if (is(s, "try_signal")) {
+    fx_verdict(s, "signal", kill(getppid(), SIGCONT) == 0);
+  } else if (is(s, "try_caps")) {
+    char line[256], out[300];
+    FILE* f = fopen("/proc/self/status", "r");
+    while (f != NULL && fgets(line, sizeof line, f) != NULL)
+      if (strncmp(line, "CapEff:", 7) == 0) {
+        line[strcspn(line, "\n")] = '\0';
+        snprintf(out, sizeof out, "caps: %s", line + 8);
+        fx_log(s, out);
+      }
+    if (f != NULL) fclose(f);
+  }
+}
+
 static int fx_end_round(procam_session* s, procam_error* err) {
+  fx_try(s);
   s->ended = 1;
   if (is(s, "abort")) abort();
   if (is(s, "hang"))

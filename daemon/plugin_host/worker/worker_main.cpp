@@ -23,6 +23,7 @@
 
 #include "procam/core/log.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "sandbox.hpp"
 #include "worker_wire.hpp"
 
 using namespace procam;
@@ -131,8 +132,12 @@ void serve_add_frame(Served& s, const wire::Message& m) {
   reply_ok();
 }
 
-int serve() {
-  if (!wire::send_msg(kSock, wire::Msg::hello, 0, {})) return 0;
+int serve(const worker::SandboxReport& sandbox) {
+  wire::Writer hello;
+  hello.u32(sandbox.flags);
+  hello.str(sandbox.scratch);
+  hello.str(sandbox.problems.substr(0, 4096));
+  if (!wire::send_msg(kSock, wire::Msg::hello, 0, hello.bytes())) return 0;
   Served s;
   for (;;) {
     auto m = wire::recv_msg(kSock, -1);
@@ -203,10 +208,16 @@ int serve() {
 
 int main(int argc, char** argv) {
   uint64_t memory_limit_mb = 0;
+  bool sandbox = true;
+  std::string scratch_parent;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--memory-limit-mb" && i + 1 < argc) {
       memory_limit_mb = std::strtoull(argv[++i], nullptr, 10);
+    } else if (a == "--sandbox" && i + 1 < argc) {
+      sandbox = std::string(argv[++i]) != "0";
+    } else if (a == "--scratch-parent" && i + 1 < argc) {
+      scratch_parent = argv[++i];
     } else {
       std::fprintf(stderr,
                    "procam-plugin-worker: unknown argument '%s'\n"
@@ -222,5 +233,7 @@ int main(int argc, char** argv) {
   // Plugin log lines reach the daemon through the protocol; only the
   // worker's own warnings go to stderr (the daemon's log).
   log::configure("warn,plugins=off");
-  return serve();
+  // Before any plugin code (its static constructors run in dlopen).
+  const worker::SandboxReport report = sandbox ? worker::enter_sandbox(scratch_parent) : worker::SandboxReport{};
+  return serve(report);
 }

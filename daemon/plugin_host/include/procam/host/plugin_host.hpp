@@ -119,6 +119,13 @@ struct IsolationOptions {
   uint64_t memory_limit_mb = 8192;
   // Slots of the shared frame ring (each one camera frame).
   uint32_t frame_slots = 2;
+  // Least privilege (README.md "Least privilege"): a private scratch folder,
+  // no capabilities, Landlock (writes only in the scratch folder, no TCP, no
+  // signals out), seccomp (no non-Unix sockets).
+  bool sandbox = true;
+  // Where scratch folders are made ("" = $TMPDIR or /tmp); each is removed
+  // when its session ends.
+  std::string scratch_parent;
 };
 
 // One frame of a round: show `pattern` on the projector, capture with `settings`.
