@@ -18,7 +18,7 @@ std::string resolve(const std::string& base, const std::string& p) {
 }
 
 // "plugins": {"isolation": "process" | "in_process", "trusted": [names],
-// "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox"}.
+// "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox", "prestart"}.
 Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, PluginsConfig& out) {
   const char* example =
       "{\"isolation\": \"process\", \"trusted\": [\"structured-light\"], \"memory_limit_mb\": 8192}";
@@ -38,9 +38,9 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
           return Error(Code::invalid_argument, "daemon config: '" + key + "' must hold plugin names (strings)");
         out.trusted.push_back(n.get<std::string>());
       }
-    } else if (it.key() == "sandbox") {
+    } else if (it.key() == "sandbox" || it.key() == "prestart") {
       if (!v.is_boolean()) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be true or false");
-      out.sandbox = v.get<bool>();
+      (it.key() == "sandbox" ? out.sandbox : out.prestart) = v.get<bool>();
     } else if (it.key() == "worker") {
       if (!v.is_string() || v.get<std::string>().empty())
         return Error(Code::invalid_argument, "daemon config: '" + key + "' must be a path to procam-plugin-worker");
@@ -61,7 +61,7 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
     } else if (it.key() != "comment") {
       return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
                    "known keys: isolation, trusted, worker, call_timeout_ms, per_frame_timeout_ms, memory_limit_mb, "
-                   "sandbox");
+                   "sandbox, prestart");
     }
   }
   return {};

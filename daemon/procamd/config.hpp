@@ -29,6 +29,7 @@ struct PluginsConfig {
   uint64_t per_frame_timeout_ms = 1000; // + this per frame for end_round / get_outputs
   uint64_t memory_limit_mb = 8192;      // worker RLIMIT_AS; 0 = none
   bool sandbox = true;                  // least privilege for workers (scratch folder, Landlock, seccomp)
+  bool prestart = true;                 // keep one worker started ahead
 };
 
 struct Config {

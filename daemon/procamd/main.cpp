@@ -115,6 +115,7 @@ int main(int argc, char** argv) {
     iso.per_frame_timeout = std::chrono::milliseconds(cfg->plugins.per_frame_timeout_ms);
     iso.memory_limit_mb = cfg->plugins.memory_limit_mb;
     iso.sandbox = cfg->plugins.sandbox;
+    iso.prestart = cfg->plugins.prestart;
     plugins.set_isolation(std::move(iso));
     PROCAM_LOG(daemon, info) << "plugin sessions run "
                              << (cfg->plugins.isolated ? "in worker processes" : "in-process")

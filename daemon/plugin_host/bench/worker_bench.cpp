@@ -4,14 +4,20 @@
 //    "faults" fixture's "stream" method, whose add_frame does nothing; the
 //    isolated minus the in-process time is the per-frame overhead (the copy
 //    into the shared ring + one request/reply). Goal: <= 0.3 ms.
-//  - BM_WorkerStart: create_session + destroy of an isolated session (spawn,
-//    exec, load + check the plugin, session_create, hello/create, teardown).
-//    Goal: <= 20 ms. BM_InProcessSessionStart for comparison.
+//  - BM_WorkerStart/0: create_session + destroy of an isolated session (spawn,
+//    exec, sandbox, load + check the plugin, session_create, teardown);
+//    /1 the same with IsolationOptions::prestart (procamd's default: the
+//    next worker starts while the current session runs; here, while the
+//    loop destroys and recreates, so this is the worst case of back-to-back
+//    sessions); /2 prestart with 60 ms (a short scan, not timed) between
+//    sessions, as in procamd. Goal: <= 20 ms. BM_InProcessSessionStart for comparison.
 // Run: <build>/bin/procam_worker_bench --benchmark_repetitions=5
 //      --benchmark_report_aggregates_only=true   (report the medians)
 #include <benchmark/benchmark.h>
 
+#include <chrono>
 #include <cstdlib>
+#include <thread>
 #include <string>
 
 #include "procam/core/image.hpp"
@@ -68,15 +74,25 @@ BENCHMARK(BM_AddFrame)->Arg(0)->Arg(1)->Iterations(1000)->Unit(benchmark::kMicro
 
 void BM_WorkerStart(benchmark::State& state) {
   PluginHost& h = host_with(Isolation::process);
+  IsolationOptions iso;
+  iso.prestart = state.range(0) != 0;
+  h.set_isolation(iso);
   for (auto _ : state) {
+    if (state.range(0) == 2) {  // a scan's worth of time between sessions (not timed)
+      state.PauseTiming();
+      std::this_thread::sleep_for(std::chrono::milliseconds(60));
+      state.ResumeTiming();
+    }
     auto s = h.create_session("faults", "ok", "{}", "{}");
     if (!s) {
       state.SkipWithError(s.status().to_string().c_str());
       break;
     }
   }
+  state.SetLabel(!iso.prestart ? "cold" : state.range(0) == 2 ? "prestart, 60 ms between" : "prestart, back to back");
+  h.set_isolation(IsolationOptions{});
 }
-BENCHMARK(BM_WorkerStart)->Iterations(50)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_WorkerStart)->Arg(0)->Arg(1)->Arg(2)->Iterations(50)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_InProcessSessionStart(benchmark::State& state) {
   PluginHost& h = host_with(Isolation::in_process);

@@ -247,3 +247,33 @@ TEST_F(IsolationTest, DestroyingASessionEndsItsWorker) {
 
 }  // namespace
 }  // namespace procam::host
+
+namespace procam::host {
+namespace {
+
+TEST(IsolationPrestart, SessionsUseTheSpareWorkerAndNothingLeaksWhenItGoes) {
+  {
+    PluginHost host;
+    ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
+    IsolationOptions iso;
+    iso.prestart = true;
+    host.set_isolation(iso);  // starts the first spare
+    std::vector<int> pids;
+    for (int i = 0; i < 3; ++i) {
+      auto s = host.create_session("faults", "ok", "{}", "{}");
+      ASSERT_TRUE(s.ok()) << s.status().to_string();
+      pids.push_back(s->worker_pid());
+      Image frame(4, 3, PixelType::u8);
+      ASSERT_TRUE(s->next_plan().ok());
+      for (uint32_t f = 0; f < 3; ++f) ASSERT_TRUE(s->add_frame(f, frame.view()).ok());
+      ASSERT_TRUE(s->end_round().ok());
+    }
+    EXPECT_NE(pids[0], pids[1]);  // a fresh process per session, spare or not
+    EXPECT_NE(pids[1], pids[2]);
+    EXPECT_FALSE(no_children());  // the next spare waits
+  }
+  EXPECT_TRUE(no_children());  // ...and goes with its PluginHost
+}
+
+}  // namespace
+}  // namespace procam::host

@@ -78,8 +78,10 @@ WorkerProxy::WorkerProxy(const IsolationOptions& options, std::string plugin)
     : options_(options), plugin_(std::move(plugin)) {}
 
 WorkerProxy::~WorkerProxy() {
-  sock_ = wire::UniqueFd();  // the worker sees EOF and exits without further plugin calls
-  if (pid_ > 0) (void)reap(/*kill_now=*/false);
+  sock_ = wire::UniqueFd();
+  // Nothing of the worker's is worth keeping: kill it rather than wait for
+  // its exit (static destructors, unmapping) on the caller's time.
+  if (pid_ > 0) (void)reap(/*kill_now=*/true);
   if (!scratch_.empty()) {
     std::error_code ec;
     fs::remove_all(scratch_, ec);  // does not follow symlinks the plugin left there
@@ -196,14 +198,34 @@ Status WorkerProxy::spawn(const std::string& worker_path) {
   return {};
 }
 
-Result<std::unique_ptr<WorkerProxy>> WorkerProxy::start(const IsolationOptions& options,
-                                                        const wire::CreateRequest& request, bool& host_services) {
+SparePool::~SparePool() = default;
+
+Result<std::unique_ptr<WorkerProxy>> WorkerProxy::spawn_spare(const IsolationOptions& options) {
   auto path = find_worker(options.worker_path);
   if (!path) return path.status();
-  std::unique_ptr<WorkerProxy> p(new WorkerProxy(options, request.plugin_name));
+  std::unique_ptr<WorkerProxy> p(new WorkerProxy(options, ""));
   PROCAM_TRY(p->spawn(*path));
-  // hello: the worker runs and speaks our protocol version.
-  auto hello = wire::recv_msg(p->sock_.get(), static_cast<int>(options.start_timeout.count()));
+  return p;
+}
+
+Result<std::unique_ptr<WorkerProxy>> WorkerProxy::start(const IsolationOptions& options,
+                                                        const wire::CreateRequest& request, bool& host_services,
+                                                        std::unique_ptr<WorkerProxy> spare) {
+  std::unique_ptr<WorkerProxy> p = std::move(spare);
+  Result<wire::Message> hello = Error(Code::unavailable, "no spare worker");
+  if (p) {
+    p->plugin_ = request.plugin_name;
+    hello = wire::recv_msg(p->sock_.get(), static_cast<int>(options.start_timeout.count()));
+    if (!hello) p.reset();  // died or stuck while waiting: start afresh below
+  }
+  if (!p) {
+    auto path = find_worker(options.worker_path);
+    if (!path) return path.status();
+    p.reset(new WorkerProxy(options, request.plugin_name));
+    PROCAM_TRY(p->spawn(*path));
+    // hello: the worker runs and speaks our protocol version.
+    hello = wire::recv_msg(p->sock_.get(), static_cast<int>(options.start_timeout.count()));
+  }
   if (!hello) {
     const Code c = hello.status().code();
     return p->fail("start", c == Code::timeout ? Code::timeout : Code::plugin_error,

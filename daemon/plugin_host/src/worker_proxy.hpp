@@ -21,6 +21,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -32,6 +33,15 @@
 namespace procam::host::detail {
 
 class HostBridge;
+class WorkerProxy;
+
+// At most one pre-started worker, not yet bound to a plugin (PluginHost
+// keeps it; guarded by `mu`).
+struct SparePool {
+  std::mutex mu;
+  std::unique_ptr<WorkerProxy> spare;
+  ~SparePool();
+};
 
 // Where the worker executable is: `configured` if not empty, else
 // $PROCAM_PLUGIN_WORKER, else beside the running executable, else
@@ -43,9 +53,15 @@ public:
   // Spawns the worker, waits for its hello, sends the create request and
   // waits for the session (or its refusal, returned as the worker's Status).
   // `host_services` tells whether the plugin took the host services.
+  // `spare`: a worker from spawn_spare() to use instead of a new one (if it
+  // turns out dead, a new one is started).
   static Result<std::unique_ptr<WorkerProxy>> start(const IsolationOptions& options,
                                                     const wire::CreateRequest& request,
-                                                    bool& host_services);
+                                                    bool& host_services,
+                                                    std::unique_ptr<WorkerProxy> spare = nullptr);
+  // Spawns a worker and returns without waiting for it: its exec, dynamic
+  // loading and sandbox run while the caller goes on (IsolationOptions::prestart).
+  static Result<std::unique_ptr<WorkerProxy>> spawn_spare(const IsolationOptions& options);
   ~WorkerProxy();
   WorkerProxy(const WorkerProxy&) = delete;
   WorkerProxy& operator=(const WorkerProxy&) = delete;

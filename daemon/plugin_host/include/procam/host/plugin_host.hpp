@@ -40,6 +40,7 @@ namespace detail {
 struct LoadedPlugin;  // dlopen handle + vtable; defined in src/plugin_loader.hpp
 class HostBridge;     // the session's procam_host_services; src/host_services.hpp
 class WorkerProxy;    // an isolated session's worker process; src/worker_proxy.hpp
+struct SparePool;     // a pre-started worker; src/worker_proxy.hpp
 }
 
 // One input a method declares in describe()'s "inputs" (plugin_abi.h "Scan
@@ -126,6 +127,10 @@ struct IsolationOptions {
   // Where scratch folders are made ("" = $TMPDIR or /tmp); each is removed
   // when its session ends.
   std::string scratch_parent;
+  // Keep one worker started ahead (exec'd, sandboxed, waiting for its
+  // plugin), so a session does not wait for process start-up. It is a
+  // child process for as long as the PluginHost lives (procamd: on).
+  bool prestart = false;
 };
 
 // One frame of a round: show `pattern` on the projector, capture with `settings`.
@@ -251,7 +256,7 @@ public:
 
   // Where create_session runs sessions (default: isolated, see
   // IsolationOptions). Set before sessions are created.
-  void set_isolation(IsolationOptions options) { isolation_ = std::move(options); }
+  void set_isolation(IsolationOptions options);
   const IsolationOptions& isolation() const { return isolation_; }
   // True when sessions of `plugin` run in a worker process.
   bool runs_isolated(std::string_view plugin) const;
@@ -273,6 +278,7 @@ private:
 
   LoadOptions options_;
   IsolationOptions isolation_;
+  std::unique_ptr<detail::SparePool> spare_;  // IsolationOptions::prestart
   std::vector<PluginInfo> plugins_;
   std::vector<std::shared_ptr<const detail::LoadedPlugin>> loaded_;  // parallel to plugins_
   std::vector<Rejected> rejected_;
