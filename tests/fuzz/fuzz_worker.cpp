@@ -82,8 +82,11 @@ extern "C" int PROCAM_FUZZ_ENTRY(const uint8_t* data, size_t size) {
         g_sink = std::strlen(o.name) + std::strlen(o.unit) + std::strlen(o.description);
         if (o.kind == PROCAM_OUTPUT_IMAGE) touch_image(o.image);
         if (o.kind == PROCAM_OUTPUT_JSON) g_sink = std::strlen(o.json);
-        if (o.kind == PROCAM_OUTPUT_POINTS && o.point_count > 0)
-          g_sink = static_cast<uint64_t>(o.points[o.point_count * o.point_stride - 1]);
+        if (o.kind == PROCAM_OUTPUT_POINTS && o.point_count > 0 && o.point_stride > 0) {
+          uint32_t bits;  // the last float's bytes (any bit pattern: no float conversion)
+          std::memcpy(&bits, o.points + (o.point_count * o.point_stride - 1), sizeof bits);
+          g_sink = bits;
+        }
       }
       break;
     }
