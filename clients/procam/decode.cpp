@@ -43,6 +43,14 @@ int cmd_decode(const Args& a) {
   const std::vector<std::string> dirs = plugin_search_dirs(a);
   host::PluginHost host;
   host.load_directories(dirs);
+  const std::string isolation = a.get("isolation", "process");
+  if (isolation != "process" && isolation != "in_process")
+    return usage_error("--isolation must be process or in_process, not '" + isolation + "'");
+  if (isolation == "in_process") {
+    host::IsolationOptions iso;
+    iso.mode = host::Isolation::in_process;
+    host.set_isolation(iso);
+  }
   const auto [cam_w, cam_h] = engine::camera0_size(*rig_json);
   auto inputs = engine::load_input_files(a.list("input"), cam_w, cam_h);  // --input NAME=FILE
   if (!inputs) return report(inputs.status());

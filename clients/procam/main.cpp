@@ -43,7 +43,8 @@ const std::vector<Command> kCommands = {
      "rig-options                     the rig_options a scan may carry (the sim rig: its scenes)"},
     {"result", cmd_result, {"endpoint", "timeout", "scan", "out"},
      "result --scan ID --out DIR      download a finished scan's results"},
-    {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins", "layout", "input"},
+    {"decode", cmd_decode, {"plugin", "method", "param", "frames", "out", "rig", "plugins", "layout", "input",
+                            "isolation"},
      "decode --plugin P --method M --frames DIR --out DIR [--param k=v]... [--rig RIG.json] [--plugins DIR]...\n"
      "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json] [--input NAME=FILE]...\n"
      "                                offline: decode a scan's saved frames (frame-r<round>-<i>.png), or\n"
@@ -51,7 +52,9 @@ const std::vector<Command> kCommands = {
      "                                or in another layout (--layout; missing white/black synthesized);\n"
      "                                --input gives the method's input NAME a float map FILE the way scans\n"
      "                                store them: 1-channel float OpenEXR (e.g. a scan's depth_mm.exr; float\n"
-     "                                TIFF/PFM also read), camera-sized, NaN = invalid"},
+     "                                TIFF/PFM also read), camera-sized, NaN = invalid;\n"
+     "                                --isolation process (default: the plugin runs in a worker process, as\n"
+     "                                in procamd) or in_process (no worker: a little faster, a crash ends procam)"},
     {"bench", cmd_bench, {"rig", "scenes", "scene", "method", "param", "out", "keep", "plugins", "threads", "only-listed"},
      "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
      "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs + outputs.json)\n"

@@ -16,18 +16,69 @@ std::string resolve(const std::string& base, const std::string& p) {
   if (p.empty() || fs::path(p).is_absolute()) return p;
   return (fs::path(base) / p).lexically_normal().string();
 }
+
+// "plugins": {"isolation": "process" | "in_process", "trusted": [names],
+// "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox", "prestart"}.
+Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, PluginsConfig& out) {
+  const char* example =
+      "{\"isolation\": \"process\", \"trusted\": [\"structured-light\"], \"memory_limit_mb\": 8192}";
+  if (!pv.is_object()) return Error(Code::invalid_argument, "daemon config: 'plugins' must be an object", example);
+  for (auto it = pv.begin(); it != pv.end(); ++it) {
+    const std::string key = "plugins." + it.key();
+    const nlohmann::json& v = *it;
+    if (it.key() == "isolation") {
+      if (!v.is_string() || (v != "process" && v != "in_process"))
+        return Error(Code::invalid_argument, "daemon config: '" + key + "' must be \"process\" or \"in_process\"",
+                     "\"process\" (the default) runs each scan's plugin in its own worker process");
+      out.isolated = v == "process";
+    } else if (it.key() == "trusted") {
+      if (!v.is_array()) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be an array of plugin names");
+      for (const auto& n : v) {
+        if (!n.is_string() || n.get<std::string>().empty())
+          return Error(Code::invalid_argument, "daemon config: '" + key + "' must hold plugin names (strings)");
+        out.trusted.push_back(n.get<std::string>());
+      }
+    } else if (it.key() == "sandbox" || it.key() == "prestart") {
+      if (!v.is_boolean()) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be true or false");
+      (it.key() == "sandbox" ? out.sandbox : out.prestart) = v.get<bool>();
+    } else if (it.key() == "worker") {
+      if (!v.is_string() || v.get<std::string>().empty())
+        return Error(Code::invalid_argument, "daemon config: '" + key + "' must be a path to procam-plugin-worker");
+      out.worker = resolve(base_dir, v.get<std::string>());
+    } else if (it.key() == "call_timeout_ms" || it.key() == "per_frame_timeout_ms" ||
+               it.key() == "memory_limit_mb") {
+      if (!v.is_number_unsigned() || v.get<uint64_t>() > (uint64_t{1} << 32))
+        return Error(Code::invalid_argument, "daemon config: '" + key + "' must be an integer 0..4294967296");
+      const uint64_t n = v.get<uint64_t>();
+      if (it.key() == "call_timeout_ms") {
+        if (n == 0) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be > 0");
+        out.call_timeout_ms = n;
+      } else if (it.key() == "per_frame_timeout_ms") {
+        out.per_frame_timeout_ms = n;
+      } else {
+        out.memory_limit_mb = n;
+      }
+    } else if (it.key() != "comment") {
+      return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
+                   "known keys: isolation, trusted, worker, call_timeout_ms, per_frame_timeout_ms, memory_limit_mb, "
+                   "sandbox, prestart");
+    }
+  }
+  return {};
+}
+
 }  // namespace
 
 Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir) {
   if (!j.is_object()) return Error(Code::invalid_argument, "daemon config must be a JSON object");
   static const std::set<std::string> known = {"rig", "plugin_paths", "scene_dirs", "endpoint", "results_dir",
-                                              "log", "threads", "max_queue", "probe_plugins", "curve",
-                                              "retention", "queued_scans", "comment"};
+                                              "log", "threads", "max_queue", "probe_plugins", "plugins",
+                                              "curve", "retention", "queued_scans", "comment"};
   for (auto it = j.begin(); it != j.end(); ++it)
     if (!known.count(it.key()))
       return Error(Code::invalid_argument, "daemon config: unknown key '" + it.key() + "'",
                    "known keys: rig, plugin_paths, scene_dirs, endpoint, results_dir, log, threads, max_queue, "
-                   "probe_plugins, curve, retention, queued_scans");
+                   "probe_plugins, plugins, curve, retention, queued_scans");
   Config c;
   std::string key, rig_file;
   try {
@@ -68,6 +119,11 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
     c.max_queue = j.value("max_queue", c.max_queue);
     key = "probe_plugins";
     c.probe_plugins = j.value("probe_plugins", c.probe_plugins);
+    key = "plugins";
+    if (j.contains("plugins") && !j["plugins"].is_null()) {
+      Status st = parse_plugins(j["plugins"], base_dir, c.plugins);
+      if (!st) return st;
+    }
     key = "curve";
     if (j.contains("curve") && !j["curve"].is_null()) {
       const auto& cv = j["curve"];

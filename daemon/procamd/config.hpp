@@ -18,6 +18,20 @@ struct CurveConfig {
   std::string authorized_keys;   // file: one client public key (Z85) per line, '#' comments
 };
 
+// Where plugin sessions run (daemon/plugin_host/README.md "Process model");
+// main.cpp turns this into host::IsolationOptions. Plain fields so the
+// config parser builds without the plugin host (the fuzzer links it alone).
+struct PluginsConfig {
+  bool isolated = true;                 // "isolation": "process" (default) | "in_process"
+  std::vector<std::string> trusted;     // plugin names that run in-process anyway
+  std::string worker;                   // procam-plugin-worker path; "" = beside procamd
+  uint64_t call_timeout_ms = 30000;     // per-call deadline of a worker
+  uint64_t per_frame_timeout_ms = 1000; // + this per frame for end_round / get_outputs
+  uint64_t memory_limit_mb = 8192;      // worker RLIMIT_AS; 0 = none
+  bool sandbox = true;                  // least privilege for workers (scratch folder, Landlock, seccomp)
+  bool prestart = true;                 // keep one worker started ahead
+};
+
 struct Config {
   nlohmann::json rig;                     // the rig config object (loaded if given as a path)
   std::string rig_dir;                    // folder relative rig paths resolve against
@@ -33,6 +47,7 @@ struct Config {
   unsigned threads = 2;
   size_t max_queue = 16;
   bool probe_plugins = true;
+  PluginsConfig plugins;
   CurveConfig curve;
   // Retention of finished scans (0 = no limit); see engine::RetentionPolicy.
   double retention_max_age_days = 0;

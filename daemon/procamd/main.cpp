@@ -106,6 +106,23 @@ int main(int argc, char** argv) {
   lo.probe_in_child = cfg->probe_plugins;
   host::PluginHost plugins(lo);
   plugins.load_directories(cfg->plugin_paths);
+  {
+    host::IsolationOptions iso;  // config "plugins" (daemon/plugin_host/README.md "Process model")
+    iso.mode = cfg->plugins.isolated ? host::Isolation::process : host::Isolation::in_process;
+    iso.trusted = cfg->plugins.trusted;
+    iso.worker_path = cfg->plugins.worker;
+    iso.call_timeout = std::chrono::milliseconds(cfg->plugins.call_timeout_ms);
+    iso.per_frame_timeout = std::chrono::milliseconds(cfg->plugins.per_frame_timeout_ms);
+    iso.memory_limit_mb = cfg->plugins.memory_limit_mb;
+    iso.sandbox = cfg->plugins.sandbox;
+    iso.prestart = cfg->plugins.prestart;
+    plugins.set_isolation(std::move(iso));
+    PROCAM_LOG(daemon, info) << "plugin sessions run "
+                             << (cfg->plugins.isolated ? "in worker processes" : "in-process")
+                             << (cfg->plugins.isolated && !cfg->plugins.trusted.empty()
+                                     ? " (" + std::to_string(cfg->plugins.trusted.size()) + " trusted in-process)"
+                                     : std::string());
+  }
   for (const auto& p : plugins.plugins())
     PROCAM_LOG(daemon, info) << "plugin " << p.name << " " << p.version << " (" << p.methods.size()
                              << " methods) from " << p.file;

@@ -264,7 +264,15 @@ Server::Sent Server::try_send(const Envelope& env, const std::string& body, cons
   try {
     // env[0] is the routing id: it picks the client's queue and fails if full.
     if (env.empty()) return Sent::client_gone;
-    if (!router_.send(zmq::buffer(env[0]), more).has_value()) return Sent::queue_full;
+    if (!router_.send(zmq::buffer(env[0]), more).has_value()) {
+      // The queue may only look full: the socket learns what the I/O thread
+      // has already written to the client from commands it processes at
+      // most every ~1 ms during sends (libzmq throttles them), so a fast
+      // synchronous client can see its reply "dropped" with nothing queued.
+      // ZMQ_EVENTS processes pending commands unthrottled; then try again.
+      (void)router_.get(zmq::sockopt::events);
+      if (!router_.send(zmq::buffer(env[0]), more).has_value()) return Sent::queue_full;
+    }
     for (size_t k = 1; k < env.size(); ++k) router_.send(zmq::buffer(env[k]), more);
     router_.send(zmq::buffer(body), extra ? more : zmq::send_flags::dontwait);
     if (extra) router_.send(zmq::buffer(*extra), zmq::send_flags::dontwait);

@@ -13,6 +13,7 @@
 
 extern "C" int FuzzRequest(const uint8_t* data, size_t size);
 extern "C" int FuzzConfig(const uint8_t* data, size_t size);
+extern "C" int FuzzWorker(const uint8_t* data, size_t size);
 
 namespace {
 namespace fs = std::filesystem;
@@ -52,6 +53,16 @@ TEST(FuzzRegression, ConfigCorpusAndCrashInputs) {
     const std::string s = slurp(f);
     SCOPED_TRACE(f.string());
     EXPECT_EQ(FuzzConfig(reinterpret_cast<const uint8_t*>(s.data()), s.size()), 0);
+  }
+}
+
+TEST(FuzzRegression, WorkerProtocolCorpusAndCrashInputs) {
+  auto files = inputs("worker");
+  EXPECT_GE(files.size(), 5u);
+  for (const auto& f : files) {
+    const std::string s = slurp(f);
+    SCOPED_TRACE(f.string());
+    EXPECT_EQ(FuzzWorker(reinterpret_cast<const uint8_t*>(s.data()), s.size()), 0);
   }
 }
 

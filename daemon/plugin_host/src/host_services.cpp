@@ -81,36 +81,48 @@ void HostBridge::log_cb(void* ctx, int level, const char* message) {
   auto* self = static_cast<HostBridge*>(ctx);
   if (self == nullptr || message == nullptr || !self->on_call_thread()) return;
   try {
-    if (self->log_lines_ >= kMaxLogLines) return;
-    if (++self->log_lines_ == kMaxLogLines) {
-      PROCAM_LOG(plugins, warn) << "plugin '" << self->plugin_ << "': " << kMaxLogLines
-                                << " log lines in one scan; further lines are dropped";
-      return;
-    }
-    const std::string line = sanitize_log_message(message);
-    const log::Level lv = log_level_of(level);
-    if (log::enabled("plugins", lv)) log::write("plugins", lv, "plugin '" + self->plugin_ + "': " + line);
-    if (self->on_log_) self->on_log_(lv, line);
+    self->deliver_log(level, sanitize_log_message(message));
   } catch (...) {
     // Nothing may cross into the plugin; a lost log line is acceptable.
   }
 }
 
+void HostBridge::deliver_log(int level, const std::string& line) {
+  try {
+    if (log_lines_ >= kMaxLogLines) return;
+    if (++log_lines_ == kMaxLogLines) {
+      PROCAM_LOG(plugins, warn) << "plugin '" << plugin_ << "': " << kMaxLogLines
+                                << " log lines in one scan; further lines are dropped";
+      return;
+    }
+    const log::Level lv = log_level_of(level);
+    if (log::enabled("plugins", lv)) log::write("plugins", lv, "plugin '" + plugin_ + "': " + line);
+    if (on_log_) on_log_(lv, line);
+  } catch (...) {
+    // A handler that throws is ignored (see the file comment).
+  }
+}
+
 void HostBridge::progress_cb(void* ctx, double fraction, const char* stage) {
   auto* self = static_cast<HostBridge*>(ctx);
-  if (self == nullptr || !self->on_call_thread() || std::isnan(fraction)) return;
+  if (self == nullptr || !self->on_call_thread()) return;
+  self->deliver_progress(fraction, stage);
+}
+
+void HostBridge::deliver_progress(double fraction, const char* stage) {
+  if (std::isnan(fraction)) return;
   try {
     fraction = std::min(1.0, std::max(0.0, fraction));
     std::string st = sanitize_log_message(stage);
     if (st.size() > 64) st.resize(64);
     const auto now = std::chrono::steady_clock::now();
-    const bool due = !self->progress_sent_ || st != self->last_stage_ || fraction >= 1.0 ||
-                     now - self->last_progress_ >= kProgressInterval;
+    const bool due = !progress_sent_ || st != last_stage_ || fraction >= 1.0 ||
+                     now - last_progress_ >= kProgressInterval;
     if (!due) return;
-    self->progress_sent_ = true;
-    self->last_progress_ = now;
-    self->last_stage_ = st;
-    if (self->on_progress_) self->on_progress_(fraction, st);
+    progress_sent_ = true;
+    last_progress_ = now;
+    last_stage_ = st;
+    if (on_progress_) on_progress_(fraction, st);
   } catch (...) {
     // As above: never throw into the plugin.
   }

@@ -67,6 +67,13 @@ public:
     HostBridge* bridge_;
   };
 
+  // The same paths without the thread check, for lines and reports a worker
+  // process already checked with its own HostBridge (worker_proxy.cpp calls
+  // them on the thread inside the Session's call). `line` must already be
+  // sanitised (sanitize_log_message); the line limit and progress rules apply.
+  void deliver_log(int level, const std::string& line);
+  void deliver_progress(double fraction, const char* stage);
+
   // Callbacks dropped because they came from another thread or outside a call.
   size_t dropped() const { return dropped_.load(); }
 

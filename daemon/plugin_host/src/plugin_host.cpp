@@ -12,6 +12,7 @@
 
 #include "host_services.hpp"
 #include "plugin_loader.hpp"
+#include "worker_proxy.hpp"
 #include "procam/core/image.hpp"
 #include "procam/core/log.hpp"
 
@@ -72,6 +73,21 @@ void PluginHost::load_directories(const std::vector<std::string>& dirs) {
           {dir, Error(Code::internal, "scanning plugin directory '" + dir + "': " + e.what())});
     }
   }
+}
+
+void PluginHost::set_isolation(IsolationOptions options) {
+  isolation_ = std::move(options);
+  spare_.reset();  // a spare started with the old options goes
+  if (isolation_.mode == Isolation::process && isolation_.prestart) {
+    spare_ = std::make_unique<detail::SparePool>();
+    auto first = detail::WorkerProxy::spawn_spare(isolation_);  // the first scan need not wait either
+    if (first) spare_->spare = std::move(*first);
+  }
+}
+
+bool PluginHost::runs_isolated(std::string_view plugin) const {
+  if (isolation_.mode == Isolation::in_process) return false;
+  return std::find(isolation_.trusted.begin(), isolation_.trusted.end(), plugin) == isolation_.trusted.end();
 }
 
 Status PluginHost::load_file(const std::string& path) {
@@ -250,6 +266,26 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
     PROCAM_TRY(check_inputs(info, *minfo, inputs));
 
     const auto& loaded = loaded_[idx];
+    if (runs_isolated(plugin)) {
+      // The worker loads the same file with the same checks and calls
+      // session_create(2) there (README.md "Process model").
+      wire::CreateRequest req{info.file, plugin, method, params, rig, inputs};
+      bool host_services = false;
+      std::unique_ptr<detail::WorkerProxy> spare;
+      if (spare_) {
+        std::lock_guard lock(spare_->mu);
+        spare = std::move(spare_->spare);
+      }
+      auto proxy = detail::WorkerProxy::start(isolation_, req, host_services, std::move(spare));
+      if (spare_) {  // the next session's worker starts while this one works
+        auto next = detail::WorkerProxy::spawn_spare(isolation_);
+        std::lock_guard lock(spare_->mu);
+        if (next && !spare_->spare) spare_->spare = std::move(*next);
+      }
+      if (!proxy) return proxy.status();
+      auto bridge = host_services ? std::make_unique<detail::HostBridge>(plugin) : nullptr;
+      return Session(loaded, std::move(*proxy), method, std::move(bridge));
+    }
     procam_session* s = nullptr;
     procam_error err{};
     int rc = 0;

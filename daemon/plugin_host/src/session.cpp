@@ -9,38 +9,10 @@
 #include "plugin_loader.hpp"
 #include "procam/core/image.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "session_checks.hpp"
+#include "worker_proxy.hpp"
 
 namespace procam::host {
-namespace {
-
-constexpr uint32_t kMaxFrames = 100000;
-constexpr uint32_t kMaxOutputs = 10000;
-constexpr size_t kMaxLabel = 255;
-constexpr size_t kMaxText = 64 * 1024;        // unit, description, note, point_fields
-constexpr size_t kMaxJson = size_t{1} << 30;  // JSON outputs
-
-// Copies a plugin string of at most `max` bytes; error text if it is longer
-// (or, as far as we can tell, not NUL-terminated).
-bool copy_string(const char* s, size_t max, std::string& out) {
-  const size_t n = ::strnlen(s, max + 1);
-  if (n > max) return false;
-  out.assign(s, n);
-  return true;
-}
-
-// Labels become parts of file names: no path separators or control chars.
-const char* label_problem(const std::string& l) {
-  if (l.empty()) return "is empty";
-  if (l == "." || l == "..") return "is \".\" or \"..\"";
-  for (char c : l) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '/' || c == '\\') return "contains a path separator ('/' or '\\')";
-    if (u < 0x20 || u == 0x7f) return "contains a control character";
-  }
-  return nullptr;
-}
-
-}  // namespace
 
 Session::Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_session* session,
                  std::string method, std::unique_ptr<detail::HostBridge> bridge)
@@ -48,6 +20,17 @@ Session::Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_sess
       session_(session),
       method_(std::move(method)),
       bridge_(std::move(bridge)) {}
+
+Session::Session(std::shared_ptr<const detail::LoadedPlugin> plugin, std::unique_ptr<detail::WorkerProxy> proxy,
+                 std::string method, std::unique_ptr<detail::HostBridge> bridge)
+    : plugin_(std::move(plugin)),
+      method_(std::move(method)),
+      bridge_(std::move(bridge)),
+      proxy_(std::move(proxy)) {
+  proxy_->set_bridge(bridge_.get());
+}
+
+int Session::worker_pid() const { return proxy_ ? proxy_->pid() : -1; }
 
 Session::Session(Session&& o) noexcept
     : plugin_(std::move(o.plugin_)),
@@ -57,7 +40,8 @@ Session::Session(Session&& o) noexcept
       finished_(o.finished_),
       rounds_(o.rounds_),
       added_(std::move(o.added_)),
-      bridge_(std::move(o.bridge_)) {}
+      bridge_(std::move(o.bridge_)),
+      proxy_(std::move(o.proxy_)) {}
 
 Session& Session::operator=(Session&& o) noexcept {
   if (this != &o) {
@@ -69,6 +53,7 @@ Session& Session::operator=(Session&& o) noexcept {
     finished_ = o.finished_;
     rounds_ = o.rounds_;
     added_ = std::move(o.added_);
+    proxy_ = std::move(o.proxy_);    // ends the old worker
     bridge_ = std::move(o.bridge_);  // after session_destroy of the old session
   }
   return *this;
@@ -76,6 +61,7 @@ Session& Session::operator=(Session&& o) noexcept {
 
 Session::~Session() {
   if (session_ != nullptr) plugin_->vtable->session_destroy(session_);
+  proxy_.reset();  // the worker ends (before the bridge it reports to)
   // plugin_ (and with it possibly the library) and bridge_ are released after the session.
 }
 
@@ -102,7 +88,7 @@ Status Session::plugin_failure(const char* call, int rc, const procam_error& err
 }
 
 Result<std::optional<Plan>> Session::next_plan() {
-  if (session_ == nullptr) return Error(Code::failed_precondition, "session was moved from");
+  if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (in_round_)
     return Error(Code::failed_precondition,
                  "next_plan called before end_round of the current round");
@@ -111,6 +97,18 @@ Result<std::optional<Plan>> Session::next_plan() {
   if (rounds_ >= kMaxRounds)
     return Error(Code::plugin_error, who + " asked for more than " + std::to_string(kMaxRounds) +
                                          " rounds; the scan was stopped");
+  if (proxy_) {
+    auto r = proxy_->next_plan(rounds_ + 1);
+    if (!r) return r.status();
+    if (!r->has_value()) {
+      finished_ = true;
+    } else {
+      ++rounds_;
+      in_round_ = true;
+      added_.assign((*r)->frames.size(), false);
+    }
+    return r;
+  }
   try {
     const procam_plan* plan = nullptr;
     procam_error err{};
@@ -125,56 +123,9 @@ Result<std::optional<Plan>> Session::next_plan() {
     }
     if (rc != 1) return plugin_failure("next_plan", rc, err);
 
-    const std::string bad =
-        who + " returned an invalid plan (round " + std::to_string(rounds_ + 1) + "): ";
-    if (plan == nullptr) return Error(Code::plugin_error, bad + "next_plan returned 1 but no plan");
-    if (plan->frame_count == 0)
-      return Error(Code::plugin_error, bad + "0 frames (return 0 from next_plan when done)");
-    if (plan->frame_count > kMaxFrames)
-      return Error(Code::plugin_error, bad + std::to_string(plan->frame_count) +
-                                           " frames, more than the limit of " +
-                                           std::to_string(kMaxFrames));
-    if (plan->frames == nullptr)
-      return Error(Code::plugin_error, bad + "frame_count is " + std::to_string(plan->frame_count) +
-                                           " but frames is NULL");
-    Plan out;
-    if (plan->note != nullptr && !copy_string(plan->note, kMaxText, out.note))
-      return Error(Code::plugin_error, bad + "note is longer than 64 KiB");
-    out.frames.reserve(plan->frame_count);
-    for (uint32_t i = 0; i < plan->frame_count; ++i) {
-      const procam_pattern_frame& f = plan->frames[i];
-      const std::string at = bad + "frame " + std::to_string(i) + " ";
-      PlannedFrame pf;
-      if (f.label == nullptr) return Error(Code::plugin_error, at + "has a NULL label");
-      if (!copy_string(f.label, kMaxLabel, pf.label))
-        return Error(Code::plugin_error, at + "label is longer than 255 bytes");
-      if (const char* p = label_problem(pf.label))
-        return Error(Code::plugin_error, at + "label \"" + detail::printable(pf.label) + "\" " + p +
-                                             " (labels are used in file names)");
-      if (const char* p = validate_view(f.pattern))
-        return Error(Code::plugin_error, at + "pattern: " + p);
-      if (f.pattern.channels != 1)
-        return Error(Code::plugin_error, at + "pattern has " + std::to_string(f.pattern.channels) +
-                                             " channels, projector patterns must have 1");
-      const procam_frame_settings& s = f.settings;
-      if (s.struct_size != sizeof(procam_frame_settings))
-        return Error(Code::plugin_error, at + "settings.struct_size is " +
-                                             std::to_string(s.struct_size) + ", expected " +
-                                             std::to_string(sizeof(procam_frame_settings)) +
-                                             " (set it to sizeof(procam_frame_settings))");
-      if (s.camera_index < 0)
-        return Error(Code::plugin_error, at + "settings.camera_index is negative");
-      if (!std::isfinite(s.exposure_us) || !std::isfinite(s.gain_db) ||
-          !std::isfinite(s.projector_focus_mm))
-        return Error(Code::plugin_error,
-                     at + "settings has a NaN or infinite exposure_us, gain_db or "
-                          "projector_focus_mm (use the documented 'rig default' values)");
-      if (std::isinf(s.polarizer_deg) || std::isinf(s.projector_polarizer_deg))
-        return Error(Code::plugin_error, at + "settings has an infinite polariser angle");
-      pf.pattern = f.pattern;
-      pf.settings = s;
-      out.frames.push_back(std::move(pf));
-    }
+    auto checked = detail::plan_from_abi(plan, who, rounds_ + 1);
+    if (!checked) return checked.status();
+    Plan out = std::move(*checked);
     ++rounds_;
     in_round_ = true;
     added_.assign(out.frames.size(), false);
@@ -185,7 +136,7 @@ Result<std::optional<Plan>> Session::next_plan() {
 }
 
 Status Session::add_frame(uint32_t index, const procam_image& frame) {
-  if (session_ == nullptr) return Error(Code::failed_precondition, "session was moved from");
+  if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (!in_round_)
     return Error(Code::failed_precondition,
                  "add_frame called outside a round (call next_plan first)");
@@ -198,6 +149,11 @@ Status Session::add_frame(uint32_t index, const procam_image& frame) {
                  "frame " + std::to_string(index) + " was already added");
   if (const char* p = validate_view(frame))
     return Error(Code::invalid_argument, "frame " + std::to_string(index) + ": " + p);
+  if (proxy_) {
+    PROCAM_TRY(proxy_->add_frame(index, frame));
+    added_[index] = true;
+    return {};
+  }
   procam_error err{};
   int rc = 0;
   {
@@ -210,7 +166,7 @@ Status Session::add_frame(uint32_t index, const procam_image& frame) {
 }
 
 Status Session::end_round() {
-  if (session_ == nullptr) return Error(Code::failed_precondition, "session was moved from");
+  if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (!in_round_)
     return Error(Code::failed_precondition,
                  "end_round called outside a round (call next_plan first)");
@@ -229,6 +185,10 @@ Status Session::end_round() {
   } catch (const std::exception& e) {
     return Error(Code::internal, std::string("end_round: ") + e.what());
   }
+  if (proxy_) {
+    in_round_ = false;
+    return proxy_->end_round(added_.size());
+  }
   procam_error err{};
   int rc = 0;
   {
@@ -241,12 +201,13 @@ Status Session::end_round() {
 }
 
 Result<std::vector<Output>> Session::outputs() {
-  if (session_ == nullptr) return Error(Code::failed_precondition, "session was moved from");
+  if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (!finished_)
     return Error(Code::failed_precondition,
                  "outputs requested before the scan finished (next_plan has not returned "
                  "'no more rounds')");
   const std::string who = "plugin '" + plugin_->name + "'";
+  if (proxy_) return proxy_->outputs();
   try {
     const procam_output* outs = nullptr;
     uint32_t count = 0;
@@ -257,75 +218,7 @@ Result<std::vector<Output>> Session::outputs() {
       rc = plugin_->vtable->get_outputs(session_, &outs, &count, &err);
     }
     if (rc != PROCAM_OK) return plugin_failure("get_outputs", rc, err);
-    const std::string bad = who + " returned invalid outputs: ";
-    if (count > kMaxOutputs)
-      return Error(Code::plugin_error, bad + std::to_string(count) +
-                                           " outputs, more than the limit of " +
-                                           std::to_string(kMaxOutputs));
-    if (count > 0 && outs == nullptr)
-      return Error(Code::plugin_error,
-                   bad + "count is " + std::to_string(count) + " but the array is NULL");
-    std::vector<Output> result;
-    result.reserve(count);
-    std::set<std::string> names;
-    for (uint32_t i = 0; i < count; ++i) {
-      const procam_output& o = outs[i];
-      Output r;
-      std::string at = bad + "output " + std::to_string(i) + " ";
-      if (o.name == nullptr) return Error(Code::plugin_error, at + "has a NULL name");
-      if (!copy_string(o.name, 64, r.name) || !detail::valid_output_name(r.name)) {
-        std::string shown;
-        if (!copy_string(o.name, 64, shown)) shown = std::string(o.name, 64) + "...";
-        return Error(Code::plugin_error,
-                     at + "has invalid name \"" + detail::printable(shown) +
-                         "\": names must be 1..64 characters of a-z, 0-9 and '_' (they become "
-                         "file names)");
-      }
-      at = bad + "output '" + r.name + "' ";
-      if (!names.insert(r.name).second) return Error(Code::plugin_error, at + "appears twice");
-      if (o.unit != nullptr && !copy_string(o.unit, kMaxText, r.unit))
-        return Error(Code::plugin_error, at + "unit is longer than 64 KiB");
-      if (o.description != nullptr && !copy_string(o.description, kMaxText, r.description))
-        return Error(Code::plugin_error, at + "description is longer than 64 KiB");
-      switch (o.kind) {
-        case PROCAM_OUTPUT_IMAGE:
-          if (const char* p = validate_view(o.image))
-            return Error(Code::plugin_error, at + "image: " + p);
-          r.image = o.image;
-          break;
-        case PROCAM_OUTPUT_SCALAR: r.scalar = o.scalar; break;
-        case PROCAM_OUTPUT_POINTS:
-          if (o.point_count > 0 && o.points == nullptr)
-            return Error(Code::plugin_error, at + "has " + std::to_string(o.point_count) +
-                                                 " points but a NULL points array");
-          if (o.point_stride < 3 || o.point_stride > 1024)
-            return Error(Code::plugin_error, at + "point_stride is " +
-                                                 std::to_string(o.point_stride) +
-                                                 ", expected 3..1024 floats per point");
-          if (o.point_count > (uint64_t{1} << 40) / o.point_stride)
-            return Error(Code::plugin_error, at + "point_count " + std::to_string(o.point_count) +
-                                                 " is implausibly large");
-          if (o.point_fields != nullptr && !copy_string(o.point_fields, kMaxText, r.point_fields))
-            return Error(Code::plugin_error, at + "point_fields is longer than 64 KiB");
-          r.points = o.points;
-          r.point_count = o.point_count;
-          r.point_stride = o.point_stride;
-          break;
-        case PROCAM_OUTPUT_JSON:
-          if (o.json == nullptr) return Error(Code::plugin_error, at + "is JSON but json is NULL");
-          if (!copy_string(o.json, kMaxJson, r.json))
-            return Error(Code::plugin_error, at + "json is longer than 1 GiB");
-          if (!nlohmann::json::accept(r.json))
-            return Error(Code::plugin_error,
-                         at + "json does not parse: \"" + detail::printable(r.json) + "\"");
-          break;
-        default:
-          return Error(Code::plugin_error, at + "has unknown kind " + std::to_string(o.kind));
-      }
-      r.kind = static_cast<procam_output_kind>(o.kind);
-      result.push_back(std::move(r));
-    }
-    return result;
+    return detail::outputs_from_abi(outs, count, who);
   } catch (const std::exception& e) {
     return Error(Code::internal, who + " outputs: " + e.what());
   }

@@ -39,6 +39,8 @@ namespace procam::host {
 namespace detail {
 struct LoadedPlugin;  // dlopen handle + vtable; defined in src/plugin_loader.hpp
 class HostBridge;     // the session's procam_host_services; src/host_services.hpp
+class WorkerProxy;    // an isolated session's worker process; src/worker_proxy.hpp
+struct SparePool;     // a pre-started worker; src/worker_proxy.hpp
 }
 
 // One input a method declares in describe()'s "inputs" (plugin_abi.h "Scan
@@ -91,6 +93,44 @@ struct LoadOptions {
   // How long the child may take (dlopen + create + describe) before it is
   // killed and the plugin rejected with Code::timeout.
   std::chrono::milliseconds probe_timeout{5000};
+};
+
+// Where sessions run (README.md "Process model"). Isolated (the default):
+// each session gets its own procam-plugin-worker process, which loads the
+// same .so with the same checks; a crash, hang, memory blow-up or garbage
+// there fails that scan only. In-process: the plugin runs in this process
+// (the last bit of speed, for plugins you trust).
+enum class Isolation { process, in_process };
+
+struct IsolationOptions {
+  Isolation mode = Isolation::process;
+  // Plugin names that run in-process even when mode is `process`.
+  std::vector<std::string> trusted;
+  // The worker executable; "" = find it (PROCAM_PLUGIN_WORKER, beside the
+  // running executable, ../libexec/procam/, the build tree).
+  std::string worker_path;
+  // Per-call deadlines: every call gets call_timeout; end_round and
+  // get_outputs get per_frame_timeout more per frame of the round. A worker
+  // that misses one is killed and the call fails with Code::timeout.
+  std::chrono::milliseconds call_timeout{30000};
+  std::chrono::milliseconds per_frame_timeout{1000};
+  // Spawn, load the plugin, session_create.
+  std::chrono::milliseconds start_timeout{30000};
+  // RLIMIT_AS of the worker in MiB (0: none). Allocations past it fail.
+  uint64_t memory_limit_mb = 8192;
+  // Slots of the shared frame ring (each one camera frame).
+  uint32_t frame_slots = 2;
+  // Least privilege (README.md "Least privilege"): a private scratch folder,
+  // no capabilities, Landlock (writes only in the scratch folder, no TCP, no
+  // signals out), seccomp (no non-Unix sockets).
+  bool sandbox = true;
+  // Where scratch folders are made ("" = $TMPDIR or /tmp); each is removed
+  // when its session ends.
+  std::string scratch_parent;
+  // Keep one worker started ahead (exec'd, sandboxed, waiting for its
+  // plugin), so a session does not wait for process start-up. It is a
+  // child process for as long as the PluginHost lives (procamd: on).
+  bool prestart = false;
 };
 
 // One frame of a round: show `pattern` on the projector, capture with `settings`.
@@ -156,6 +196,9 @@ public:
   void set_progress_handler(ProgressHandler handler);
   // True when the plugin accepted host services (its session_set_host ran).
   bool has_host_services() const { return bridge_ != nullptr; }
+  // True when the plugin runs in a worker process; its pid (else -1).
+  bool isolated() const { return proxy_ != nullptr; }
+  int worker_pid() const;
 
   // The next round to capture, or nullopt when the scan needs no more frames.
   Result<std::optional<Plan>> next_plan();
@@ -171,6 +214,9 @@ private:
   friend class PluginHost;
   Session(std::shared_ptr<const detail::LoadedPlugin> plugin, procam_session* session,
           std::string method, std::unique_ptr<detail::HostBridge> bridge);
+  Session(std::shared_ptr<const detail::LoadedPlugin> plugin, std::unique_ptr<detail::WorkerProxy> proxy,
+          std::string method, std::unique_ptr<detail::HostBridge> bridge);
+  bool moved_from() const { return session_ == nullptr && proxy_ == nullptr; }
   Status plugin_failure(const char* call, int rc, const procam_error& err) const;
 
   std::shared_ptr<const detail::LoadedPlugin> plugin_;
@@ -181,6 +227,7 @@ private:
   uint32_t rounds_ = 0;
   std::vector<bool> added_;  // per frame of the current plan
   std::unique_ptr<detail::HostBridge> bridge_;  // null: the plugin has no host services
+  std::unique_ptr<detail::WorkerProxy> proxy_;  // set: isolated (session_ is null)
 };
 
 class PluginHost {
@@ -207,6 +254,13 @@ public:
   const std::vector<Rejected>& rejected() const { return rejected_; }
   const PluginInfo* find(std::string_view name) const;
 
+  // Where create_session runs sessions (default: isolated, see
+  // IsolationOptions). Set before sessions are created.
+  void set_isolation(IsolationOptions options);
+  const IsolationOptions& isolation() const { return isolation_; }
+  // True when sessions of `plugin` run in a worker process.
+  bool runs_isolated(std::string_view plugin) const;
+
   // Starts a scan. not_found: unknown plugin (message lists the loaded ones)
   // or unknown method (lists the plugin's methods); invalid_argument: params
   // or rig is not a JSON object, or `inputs` do not match what the method
@@ -223,6 +277,8 @@ private:
   Status load_file_impl(const std::string& path);
 
   LoadOptions options_;
+  IsolationOptions isolation_;
+  std::unique_ptr<detail::SparePool> spare_;  // IsolationOptions::prestart
   std::vector<PluginInfo> plugins_;
   std::vector<std::shared_ptr<const detail::LoadedPlugin>> loaded_;  // parallel to plugins_
   std::vector<Rejected> rejected_;

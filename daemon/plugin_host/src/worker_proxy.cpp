@@ -1,0 +1,412 @@
+// SPDX-License-Identifier: MIT
+// Daemon side of an isolated session (worker_proxy.hpp).
+#include "worker_proxy.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+#include <atomic>
+
+#include "host_services.hpp"
+#include "procam/core/log.hpp"
+#include "session_checks.hpp"
+
+extern char** environ;
+
+#ifndef PROCAM_WORKER_BUILD_PATH
+#define PROCAM_WORKER_BUILD_PATH ""
+#endif
+
+namespace procam::host::detail {
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr const char* kWorkerName = "procam-plugin-worker";
+
+bool executable(const std::string& p) { return !p.empty() && ::access(p.c_str(), X_OK) == 0; }
+
+std::string signal_text(int sig) {
+  const char* abbrev = ::sigabbrev_np(sig);
+  return "signal " + std::to_string(sig) + (abbrev ? std::string(" (SIG") + abbrev + ")" : std::string());
+}
+
+std::string ms_text(std::chrono::milliseconds ms) { return std::to_string(ms.count()) + " ms"; }
+
+}  // namespace
+
+Result<std::string> find_worker(const std::string& configured) {
+  if (!configured.empty()) {
+    if (executable(configured)) return configured;
+    return Error(Code::not_found, "the plugin worker '" + configured + "' (configured) is not an executable file",
+                 "fix plugins.worker in procamd.json, leave it out to use the one installed beside procamd, or "
+                 "run plugins in-process (plugins.isolation \"in_process\")");
+  }
+  std::vector<std::string> tried;
+  if (const char* env = std::getenv("PROCAM_PLUGIN_WORKER"); env != nullptr && *env != '\0') {
+    if (executable(env)) return std::string(env);
+    tried.push_back(std::string(env) + " ($PROCAM_PLUGIN_WORKER)");
+  }
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    for (const fs::path& p : {exe.parent_path() / kWorkerName,
+                              exe.parent_path() / ".." / "libexec" / "procam" / kWorkerName}) {
+      if (executable(p.string())) return p.lexically_normal().string();
+      tried.push_back(p.lexically_normal().string());
+    }
+  }
+  if (executable(PROCAM_WORKER_BUILD_PATH)) return std::string(PROCAM_WORKER_BUILD_PATH);
+  std::string list;
+  for (const auto& t : tried) list += (list.empty() ? "" : ", ") + t;
+  return Error(Code::not_found, std::string("cannot find the plugin worker ") + kWorkerName + " (looked at: " + list + ")",
+               "install it beside procamd, set plugins.worker in procamd.json, or run plugins in-process "
+               "(plugins.isolation \"in_process\")");
+}
+
+WorkerProxy::WorkerProxy(const IsolationOptions& options, std::string plugin)
+    : options_(options), plugin_(std::move(plugin)) {}
+
+WorkerProxy::~WorkerProxy() {
+  sock_ = wire::UniqueFd();
+  // Nothing of the worker's is worth keeping: kill it rather than wait for
+  // its exit (static destructors, unmapping) on the caller's time.
+  if (pid_ > 0) (void)reap(/*kill_now=*/true);
+  if (!scratch_.empty()) {
+    std::error_code ec;
+    fs::remove_all(scratch_, ec);  // does not follow symlinks the plugin left there
+    if (ec) PROCAM_LOG(plugins, warn) << "cannot remove the worker's scratch folder '" << scratch_ << "': " << ec.message();
+  }
+}
+
+Status WorkerProxy::read_hello(const wire::Message& hello) {
+  wire::Reader r(reinterpret_cast<const uint8_t*>(hello.payload.data()), hello.payload.size());
+  const uint32_t flags = r.u32("sandbox flags");
+  const std::string scratch(r.str("scratch folder", 4096));
+  const std::string problems(r.str("sandbox problems", 8192));
+  if (!r.ok()) return Error(Code::corrupt_data, r.error());
+  // Only a folder of the name the worker makes, where it makes them.
+  const fs::path sp(scratch);
+  const fs::path parent = options_.scratch_parent.empty()
+                              ? fs::path(std::getenv("TMPDIR") && *std::getenv("TMPDIR") ? std::getenv("TMPDIR") : "/tmp")
+                              : fs::path(options_.scratch_parent);
+  std::error_code ec1, ec2;
+  if (!scratch.empty() && fs::weakly_canonical(sp.parent_path(), ec1) == fs::weakly_canonical(parent, ec2) &&
+      !ec1 && !ec2 && sp.filename().string().rfind("procam-worker-", 0) == 0)
+    scratch_ = scratch;
+  static std::atomic<bool> logged{false};
+  if (options_.sandbox && !logged.exchange(true)) {
+    if (problems.empty())
+      PROCAM_LOG(plugins, info) << "plugin workers run sandboxed (flags 0x" << std::hex << flags << std::dec
+                                << "; README.md \"Least privilege\")";
+    else
+      PROCAM_LOG(plugins, warn) << "plugin workers run with a partial sandbox: " << problems;
+  }
+  return {};
+}
+
+std::string WorkerProxy::reap(bool kill_now) {
+  if (pid_ <= 0) return "";
+  const pid_t pid = std::exchange(pid_, -1);
+  if (kill_now) ::kill(pid, SIGKILL);
+  int st = 0;
+  // A worker that got EOF exits at once; give it a moment, then kill it.
+  const auto give_up = Clock::now() + std::chrono::milliseconds(kill_now ? 5000 : 200);
+  for (;;) {
+    const pid_t w = ::waitpid(pid, &st, WNOHANG);
+    if (w == pid) break;
+    if (w < 0 && errno != EINTR) return "its exit status is unknown (SIGCHLD ignored?)";
+    if (Clock::now() > give_up) {
+      ::kill(pid, SIGKILL);
+      while (::waitpid(pid, &st, 0) < 0 && errno == EINTR) {
+      }
+      return "it was killed (it did not exit after its connection closed)";
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  if (WIFSIGNALED(st)) return "killed by " + signal_text(WTERMSIG(st));
+  if (WIFEXITED(st) && WEXITSTATUS(st) != 0) return "exited with status " + std::to_string(WEXITSTATUS(st));
+  return "";
+}
+
+Status WorkerProxy::fail(const char* call_name, Code code, const std::string& cause) {
+  broken_ = true;
+  if (pid_ > 0) (void)reap(/*kill_now=*/true);
+  sock_ = wire::UniqueFd();
+  const std::string message = "plugin '" + plugin_ + "' " + cause + " in " + call_name;
+  broken_reason_ = message;
+  PROCAM_LOG(plugins, warn) << message;
+  return Error(code, message,
+               "procamd is unaffected and the next scan gets a fresh worker; frames saved with save_frames "
+               "can be decoded again offline (procam decode)");
+}
+
+std::chrono::milliseconds WorkerProxy::round_deadline(size_t frames) const {
+  return options_.call_timeout + options_.per_frame_timeout * static_cast<int64_t>(frames);
+}
+
+Status WorkerProxy::spawn(const std::string& worker_path) {
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0)
+    return Error(Code::unavailable, std::string("socketpair for the plugin worker: ") + std::strerror(errno));
+  sock_ = wire::UniqueFd(sv[0]);
+  // The child's end goes to fd 3; keep its number clear of 0..3 first.
+  wire::UniqueFd child(::fcntl(sv[1], F_DUPFD_CLOEXEC, 10));
+  ::close(sv[1]);
+  if (!child) return Error(Code::unavailable, std::string("fcntl: ") + std::strerror(errno));
+  posix_spawn_file_actions_t fa;
+  posix_spawnattr_t attr;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawnattr_init(&attr);
+  posix_spawn_file_actions_adddup2(&fa, child.get(), wire::kControlFd);
+  // Default signal mask and dispositions: procamd blocks its stop signals for
+  // signalfd and may ignore some; the worker must die normally on faults.
+  sigset_t none, defaults;
+  sigemptyset(&none);
+  sigemptyset(&defaults);
+  for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGTERM, SIGINT, SIGHUP, SIGCHLD})
+    sigaddset(&defaults, s);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setsigdefault(&attr, &defaults);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+  std::vector<std::string> args = {worker_path, "--memory-limit-mb", std::to_string(options_.memory_limit_mb),
+                                   "--sandbox", options_.sandbox ? "1" : "0"};
+  if (!options_.scratch_parent.empty()) {
+    args.push_back("--scratch-parent");
+    args.push_back(options_.scratch_parent);
+  }
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = ::posix_spawn(&pid, worker_path.c_str(), &fa, &attr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  posix_spawnattr_destroy(&attr);
+  if (rc != 0)
+    return Error(Code::unavailable, "cannot start the plugin worker '" + worker_path + "': " + std::strerror(rc));
+  pid_ = pid;
+  return {};
+}
+
+SparePool::~SparePool() = default;
+
+Result<std::unique_ptr<WorkerProxy>> WorkerProxy::spawn_spare(const IsolationOptions& options) {
+  auto path = find_worker(options.worker_path);
+  if (!path) return path.status();
+  std::unique_ptr<WorkerProxy> p(new WorkerProxy(options, ""));
+  PROCAM_TRY(p->spawn(*path));
+  return p;
+}
+
+Result<std::unique_ptr<WorkerProxy>> WorkerProxy::start(const IsolationOptions& options,
+                                                        const wire::CreateRequest& request, bool& host_services,
+                                                        std::unique_ptr<WorkerProxy> spare) {
+  std::unique_ptr<WorkerProxy> p = std::move(spare);
+  Result<wire::Message> hello = Error(Code::unavailable, "no spare worker");
+  if (p) {
+    p->plugin_ = request.plugin_name;
+    hello = wire::recv_msg(p->sock_.get(), static_cast<int>(options.start_timeout.count()));
+    if (!hello) p.reset();  // died or stuck while waiting: start afresh below
+  }
+  if (!p) {
+    auto path = find_worker(options.worker_path);
+    if (!path) return path.status();
+    p.reset(new WorkerProxy(options, request.plugin_name));
+    PROCAM_TRY(p->spawn(*path));
+    // hello: the worker runs and speaks our protocol version.
+    hello = wire::recv_msg(p->sock_.get(), static_cast<int>(options.start_timeout.count()));
+  }
+  if (!hello) {
+    const Code c = hello.status().code();
+    return p->fail("start", c == Code::timeout ? Code::timeout : Code::plugin_error,
+                   c == Code::timeout   ? "worker did not start within " + ms_text(options.start_timeout)
+                   : c == Code::unavailable ? "worker ended before saying hello (" + p->reap(false) + ")"
+                                            : "worker sent a malformed hello (" + hello.status().message() + ")");
+  }
+  if (hello->type != static_cast<uint16_t>(wire::Msg::hello))
+    return p->fail("start", Code::plugin_error, std::string("worker sent '") + wire::msg_name(hello->type) +
+                                                    "' instead of hello");
+  if (Status st = p->read_hello(*hello); !st)
+    return p->fail("start", Code::plugin_error, "worker sent a malformed hello (" + st.message() + ")");
+  auto blob = wire::make_sealed_blob(wire::encode_create(request), "procam-create");
+  if (!blob) return blob.status();
+  auto ok = p->call(wire::Msg::create, "session_create", {}, blob->get(), options.start_timeout);
+  if (!ok) return ok.status();
+  wire::Reader r(reinterpret_cast<const uint8_t*>(ok->payload.data()), ok->payload.size());
+  host_services = r.u8("host services flag") != 0;
+  if (!r.ok()) return p->fail("session_create", Code::plugin_error, "worker sent a malformed reply (" + r.error() + ")");
+  return p;
+}
+
+Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, const std::string& payload, int fd,
+                                        std::chrono::milliseconds deadline) {
+  if (broken_)
+    return Error(Code::failed_precondition, "this session's worker is gone: " + broken_reason_,
+                 "start a new scan");
+  const uint32_t seq = ++seq_;
+  if (Status s = wire::send_msg(sock_.get(), type, seq, payload, fd); !s) {
+    const std::string how = reap(false);
+    return fail(call_name, Code::plugin_error, "worker is gone (" + (how.empty() ? s.message() : how) + ")");
+  }
+  const auto until = Clock::now() + deadline;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+    auto m = wire::recv_msg(sock_.get(), static_cast<int>(std::max<int64_t>(0, left.count())));
+    if (!m) {
+      switch (m.status().code()) {
+        case Code::timeout:
+          (void)reap(true);
+          return fail(call_name, Code::timeout,
+                      "did not answer within " + ms_text(deadline) + " (worker killed)");
+        case Code::unavailable: {
+          const std::string how = reap(false);
+          std::string cause = how.empty() ? std::string("closed its worker's control connection")
+                                          : "crashed: worker " + how;
+          if (options_.memory_limit_mb > 0 && !how.empty())
+            cause += " (the worker's address-space limit is " + std::to_string(options_.memory_limit_mb) +
+                     " MiB; a plugin that exceeds it sees failed allocations)";
+          return fail(call_name, Code::plugin_error, cause);
+        }
+        default:
+          (void)reap(true);
+          return fail(call_name, Code::plugin_error,
+                      "sent garbage on the control channel (" + m.status().message() + "; worker killed)");
+      }
+    }
+    if (m->seq != seq) {
+      (void)reap(true);
+      return fail(call_name, Code::plugin_error,
+                  "sent garbage on the control channel (a reply to request " + std::to_string(m->seq) +
+                      " while waiting for " + std::to_string(seq) + "; worker killed)");
+    }
+    wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+    switch (static_cast<wire::Msg>(m->type)) {
+      case wire::Msg::ok: return m;
+      case wire::Msg::error: {
+        Status st;
+        if (Status bad = wire::decode_error(m->payload, st); !bad)
+          return fail(call_name, Code::plugin_error,
+                      "sent garbage on the control channel (" + bad.message() + "; worker killed)");
+        if (options_.memory_limit_mb > 0 && st.message().find("PROCAM_ERR_NO_MEMORY") != std::string::npos)
+          st = Error(st.code(), st.message() + " (the worker's address-space limit is " +
+                                    std::to_string(options_.memory_limit_mb) + " MiB)", st.hint());
+        return st;
+      }
+      case wire::Msg::log: {
+        const int level = r.i32("log level");
+        std::string line(r.str("log line", 8 * 1024));
+        if (!r.ok()) break;
+        // The worker sanitised it; a hostile one may not have.
+        for (char c : line)
+          if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+            line = sanitize_log_message(line.c_str());
+            break;
+          }
+        if (bridge_ != nullptr) bridge_->deliver_log(level, line);
+        continue;
+      }
+      case wire::Msg::progress: {
+        const double fraction = r.f64("progress");
+        const std::string stage(r.str("stage", 1024));
+        if (!r.ok()) break;
+        if (bridge_ != nullptr) bridge_->deliver_progress(fraction, stage.c_str());
+        continue;
+      }
+      default:
+        r.fail(std::string("unexpected message type ") + std::to_string(m->type));
+    }
+    (void)reap(true);
+    return fail(call_name, Code::plugin_error,
+                "sent garbage on the control channel (" + r.error() + "; worker killed)");
+  }
+}
+
+Result<std::optional<Plan>> WorkerProxy::next_plan(uint32_t round) {
+  plan_blob_ = wire::Mapping();  // the previous plan's patterns die with this call
+  auto m = call(wire::Msg::next_plan, "next_plan", {}, -1, options_.call_timeout);
+  if (!m) return m.status();
+  wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+  const bool has = r.u8("plan flag") != 0;
+  if (!r.ok() || (has && !m->fd))
+    return fail("next_plan", Code::plugin_error, "sent a malformed plan reply (worker killed)");
+  if (!has) return std::optional<Plan>{};
+  auto blob = wire::map_sealed_blob(m->fd.get());
+  if (!blob) return fail("next_plan", Code::plugin_error, "sent a bad plan: " + blob.status().message());
+  plan_blob_ = std::move(*blob);
+  wire::AbiPlan abi;
+  if (Status s = wire::decode_plan(plan_blob_, abi); !s)
+    return fail("next_plan", Code::plugin_error, "sent a bad plan: " + s.message());
+  auto plan = plan_from_abi(&abi.plan, "plugin '" + plugin_ + "'", round);
+  if (!plan) return plan.status();
+  last_round_frames_ = plan->frames.size();
+  return std::optional<Plan>(std::move(*plan));
+}
+
+Status WorkerProxy::add_frame(uint32_t index, const procam_image& frame) {
+  const size_t row = wire::packed_row_bytes(frame);
+  const size_t bytes = row * frame.height;
+  if (row == 0) return Error(Code::invalid_argument, "frame " + std::to_string(index) + " has an unknown pixel type");
+  if (!ring_ || ring_->slot_size < bytes) {
+    // Slots sized from the first frame (every frame of a camera has one size).
+    const uint64_t slot = (bytes + 4095) / 4096 * 4096;
+    auto ring = wire::make_ring(std::max<uint32_t>(1, options_.frame_slots), slot);
+    if (!ring) return ring.status();
+    wire::Writer w;
+    w.u32(ring->slots);
+    w.u64(ring->slot_size);
+    auto m = call(wire::Msg::set_ring, "add_frame", w.bytes(), ring->worker_fd.get(), options_.call_timeout);
+    if (!m) return m.status();
+    ring->worker_fd = wire::UniqueFd();  // the worker has its copy
+    ring_ = std::move(*ring);
+    next_slot_ = 0;
+  }
+  const uint32_t slot = next_slot_++ % ring_->slots;
+  // The one copy: camera buffer -> shared slot.
+  uint8_t* dst = ring_->map.mutable_data() + slot * ring_->slot_size;
+  const auto* src = static_cast<const uint8_t*>(frame.data);
+  if (frame.stride_bytes == row) {
+    std::memcpy(dst, src, bytes);
+  } else {
+    for (uint32_t y = 0; y < frame.height; ++y) std::memcpy(dst + y * row, src + y * frame.stride_bytes, row);
+  }
+  wire::Writer w;
+  w.u32(index);
+  w.u32(slot);
+  w.u32(frame.width);
+  w.u32(frame.height);
+  w.u32(frame.channels);
+  w.u32(frame.pixel_type);
+  w.u32(frame.bit_depth);
+  auto m = call(wire::Msg::add_frame, "add_frame", w.bytes(), -1, options_.call_timeout);
+  return m ? Status::Ok() : m.status();
+}
+
+Status WorkerProxy::end_round(size_t frames) {
+  auto m = call(wire::Msg::end_round, "end_round", {}, -1, round_deadline(frames));
+  return m ? Status::Ok() : m.status();
+}
+
+Result<std::vector<Output>> WorkerProxy::outputs() {
+  auto m = call(wire::Msg::get_outputs, "get_outputs", {}, -1, round_deadline(last_round_frames_));
+  if (!m) return m.status();
+  if (!m->fd) return fail("get_outputs", Code::plugin_error, "sent outputs without their data (worker killed)");
+  auto blob = wire::map_sealed_blob(m->fd.get());
+  if (!blob) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + blob.status().message());
+  outputs_blob_ = std::move(*blob);
+  std::vector<procam_output> abi;
+  if (Status s = wire::decode_outputs(outputs_blob_, abi); !s)
+    return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+  return outputs_from_abi(abi.data(), static_cast<uint32_t>(abi.size()), "plugin '" + plugin_ + "'");
+}
+
+}  // namespace procam::host::detail

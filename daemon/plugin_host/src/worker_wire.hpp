@@ -1,0 +1,203 @@
+// SPDX-License-Identifier: MIT
+// The worker control protocol (WORKER_PROTOCOL.md): framing over a
+// SOCK_SEQPACKET socketpair, a bounds-checked byte reader/writer, sealed
+// memfd blobs for bulk data and the frame ring, and the encodings of plans,
+// outputs and session requests. Used by the daemon-side proxy
+// (worker_proxy.cpp) and the worker executable (worker/worker_main.cpp).
+//
+// Trust: everything decoded here may come from a hostile process. Readers
+// check every length and offset against the buffer and fail with
+// Code::corrupt_data naming what was malformed; they never read out of
+// bounds and never throw (except std::bad_alloc). Decoded views point into
+// the caller's mapping and are valid while it lives.
+// Threads: free functions, no shared state.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "procam/core/status.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "procam/plugin_abi.h"
+
+namespace procam::host::wire {
+
+inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
+inline constexpr uint16_t kVersion = 1;
+inline constexpr size_t kHeaderSize = 16;
+inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
+inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
+inline constexpr int kControlFd = 3;                  // the socket's number in the worker
+
+enum class Msg : uint16_t {
+  // daemon -> worker
+  create = 1,
+  next_plan = 2,
+  set_ring = 3,
+  add_frame = 4,
+  end_round = 5,
+  get_outputs = 6,
+  // worker -> daemon
+  hello = 64,
+  ok = 65,
+  error = 66,
+  log = 67,
+  progress = 68,
+};
+const char* msg_name(uint16_t type);  // "create", ..., "unknown"
+
+// An owned file descriptor (closed on destruction; -1 = none).
+class UniqueFd {
+public:
+  UniqueFd() = default;
+  explicit UniqueFd(int fd) : fd_(fd) {}
+  UniqueFd(UniqueFd&& o) noexcept : fd_(o.release()) {}
+  UniqueFd& operator=(UniqueFd&& o) noexcept;
+  UniqueFd(const UniqueFd&) = delete;
+  UniqueFd& operator=(const UniqueFd&) = delete;
+  ~UniqueFd();
+  int get() const { return fd_; }
+  int release() { int f = fd_; fd_ = -1; return f; }
+  explicit operator bool() const { return fd_ >= 0; }
+
+private:
+  int fd_ = -1;
+};
+
+// A read-only (or, for the daemon's ring, read-write) shared mapping.
+class Mapping {
+public:
+  Mapping() = default;
+  Mapping(void* addr, size_t size) : addr_(addr), size_(size) {}
+  Mapping(Mapping&& o) noexcept : addr_(o.addr_), size_(o.size_) { o.addr_ = nullptr; o.size_ = 0; }
+  Mapping& operator=(Mapping&& o) noexcept;
+  Mapping(const Mapping&) = delete;
+  Mapping& operator=(const Mapping&) = delete;
+  ~Mapping();
+  const uint8_t* data() const { return static_cast<const uint8_t*>(addr_); }
+  uint8_t* mutable_data() { return static_cast<uint8_t*>(addr_); }
+  size_t size() const { return size_; }
+
+private:
+  void* addr_ = nullptr;
+  size_t size_ = 0;
+};
+
+// Little-endian append-only buffer.
+class Writer {
+public:
+  void u8(uint8_t v) { buf_.push_back(static_cast<char>(v)); }
+  void u32(uint32_t v) { raw(&v, 4); }
+  void i32(int32_t v) { raw(&v, 4); }
+  void u64(uint64_t v) { raw(&v, 8); }
+  void f64(double v) { raw(&v, 8); }
+  void str(std::string_view s);  // u32 length, bytes, NUL
+  void raw(const void* p, size_t n) { buf_.append(static_cast<const char*>(p), n); }
+  void align(size_t a);
+  size_t size() const { return buf_.size(); }
+  std::string& bytes() { return buf_; }
+
+private:
+  std::string buf_;
+};
+
+// Bounds-checked reader; after the first failure every read returns 0/"" and
+// ok() is false with the reason in error().
+class Reader {
+public:
+  Reader(const uint8_t* p, size_t n) : p_(p), n_(n) {}
+  uint8_t u8(const char* what);
+  uint32_t u32(const char* what);
+  int32_t i32(const char* what);
+  uint64_t u64(const char* what);
+  double f64(const char* what);
+  // A string written by Writer::str; the view's data() is NUL-terminated.
+  std::string_view str(const char* what, size_t max = kMaxBlob);
+  bool ok() const { return error_.empty(); }
+  const std::string& error() const { return error_; }
+  bool at_end() const { return pos_ == n_; }
+  void fail(const std::string& why);
+
+private:
+  bool take(size_t n, const char* what);
+  const uint8_t* p_;
+  size_t n_;
+  size_t pos_ = 0;
+  std::string error_;
+};
+
+struct Message {
+  uint16_t type = 0;
+  uint32_t seq = 0;
+  std::string payload;
+  UniqueFd fd;  // at most one passed descriptor
+};
+
+// Sends one packet (header + payload, optionally one fd). MSG_NOSIGNAL: a
+// dead peer gives an error, never SIGPIPE. unavailable on failure.
+Status send_msg(int sock, Msg type, uint32_t seq, std::string_view payload, int fd = -1);
+// Receives one packet, waiting at most `timeout_ms` (< 0: forever).
+// timeout: nothing arrived in time; unavailable: the peer closed its end;
+// corrupt_data: truncated, oversized, bad magic/version, more than one fd.
+Result<Message> recv_msg(int sock, int timeout_ms);
+// The header checks of recv_msg on one received packet (no descriptor);
+// fills `m` or says what is malformed (corrupt_data). Fuzzed (tests/fuzz).
+Status parse_packet(const char* data, size_t n, Message& m);
+
+// Bulk data: a memfd holding `bytes`, sealed against shrinking, growing and
+// writing, so the receiver can map it without fear of SIGBUS or changes.
+Result<UniqueFd> make_sealed_blob(const std::string& bytes, const char* name);
+// Maps a received blob read-only after checking its seals and size.
+Result<Mapping> map_sealed_blob(int fd, size_t max_size = kMaxBlob);
+
+// The frame ring, daemon side: `slots` slots of `slot_size` bytes in a memfd
+// sealed against resizing, mapped read-write here; `worker_fd` is a
+// read-only descriptor of it (the worker cannot write frames).
+struct Ring {
+  Mapping map;
+  UniqueFd worker_fd;
+  uint32_t slots = 0;
+  uint64_t slot_size = 0;
+};
+Result<Ring> make_ring(uint32_t slots, uint64_t slot_size);
+// Worker side: maps a ring descriptor read-only; checks it holds slots*slot_size.
+Result<Mapping> map_ring(int fd, uint32_t slots, uint64_t slot_size);
+
+// Bytes of one sample of a pixel type; 0 for an unknown type.
+size_t sample_bytes(uint32_t pixel_type);
+// Packed row bytes of a view (width * channels * sample bytes); 0 if unknown type
+// or overflow.
+size_t packed_row_bytes(const procam_image& v);
+
+// ---- payload encodings (WORKER_PROTOCOL.md "Blobs") ----
+
+struct CreateRequest {
+  std::string plugin_file, plugin_name, method, params, rig;
+  std::vector<InputImage> inputs;  // decoded: image views point into the mapping
+};
+std::string encode_create(const CreateRequest& req);
+Status decode_create(const Mapping& blob, CreateRequest& out);
+
+std::string encode_plan(const Plan& plan);
+// A plan decoded into the C structs the plugin would have returned, ready
+// for detail::plan_from_abi; pointers refer to `blob` and to `frames`.
+struct AbiPlan {
+  procam_plan plan{};
+  std::vector<procam_pattern_frame> frames;
+};
+Status decode_plan(const Mapping& blob, AbiPlan& out);
+
+std::string encode_outputs(const std::vector<Output>& outputs);
+Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out);
+
+// An error reply: code, message, hint.
+std::string encode_error(const Status& st);
+// Decodes an error reply into `out`; corrupt_data if the payload is malformed.
+// An unknown code becomes Code::plugin_error.
+Status decode_error(std::string_view payload, Status& out);
+
+}  // namespace procam::host::wire

@@ -1,0 +1,171 @@
+// SPDX-License-Identifier: MIT
+// The worker protocol's framing and blobs (worker_wire.hpp): round trips, and
+// that malformed input from a hostile peer is refused, never read past.
+#include "worker_wire.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <random>
+
+namespace procam::host::wire {
+namespace {
+
+Mapping blob_of(const std::string& bytes) {
+  auto fd = make_sealed_blob(bytes, "test");
+  EXPECT_TRUE(fd.ok());
+  auto m = map_sealed_blob(fd->get());
+  EXPECT_TRUE(m.ok()) << m.status().to_string();
+  return std::move(*m);
+}
+
+Plan sample_plan(std::vector<uint8_t>& pixels) {
+  Plan p;
+  p.note = "why";
+  pixels.resize(5 * 3);
+  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = static_cast<uint8_t>(i * 3);
+  PlannedFrame f;
+  f.label = "col bit 0";
+  f.pattern.width = 4;  // a view with padding: stride 5
+  f.pattern.height = 3;
+  f.pattern.channels = 1;
+  f.pattern.pixel_type = PROCAM_PIXEL_U8;
+  f.pattern.bit_depth = 8;
+  f.pattern.stride_bytes = 5;
+  f.pattern.data = pixels.data();
+  f.settings.struct_size = sizeof(procam_frame_settings);
+  f.settings.exposure_us = 1250;
+  f.settings.polarizer_deg = NAN;
+  p.frames = {f, f};
+  p.frames[1].label = "col bit 0 inverse";
+  return p;
+}
+
+TEST(WorkerWire, PlanRoundTripsThroughASealedBlob) {
+  std::vector<uint8_t> px;
+  const Plan p = sample_plan(px);
+  Mapping m = blob_of(encode_plan(p));
+  AbiPlan abi;
+  ASSERT_TRUE(decode_plan(m, abi).ok());
+  ASSERT_EQ(abi.plan.frame_count, 2u);
+  EXPECT_STREQ(abi.plan.note, "why");
+  EXPECT_STREQ(abi.frames[1].label, "col bit 0 inverse");
+  EXPECT_EQ(abi.frames[0].settings.exposure_us, 1250);
+  EXPECT_TRUE(std::isnan(abi.frames[0].settings.polarizer_deg));
+  const procam_image& v = abi.frames[1].pattern;
+  ASSERT_EQ(v.stride_bytes, 4u);  // packed on the wire
+  for (uint32_t y = 0; y < 3; ++y)
+    for (uint32_t x = 0; x < 4; ++x)
+      EXPECT_EQ(static_cast<const uint8_t*>(v.data)[y * 4 + x], px[y * 5 + x]);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(v.data) % 64, 0u);  // pixel runs are aligned
+}
+
+TEST(WorkerWire, EveryTruncationOfAPlanIsRefused) {
+  std::vector<uint8_t> px;
+  const std::string bytes = encode_plan(sample_plan(px));
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    Mapping m = blob_of(bytes.substr(0, n));
+    AbiPlan abi;
+    Status st = decode_plan(m, abi);
+    EXPECT_FALSE(st.ok()) << "accepted a plan cut at " << n << " of " << bytes.size();
+    if (!st.ok()) {
+      EXPECT_EQ(st.code(), Code::corrupt_data);
+    }
+  }
+}
+
+TEST(WorkerWire, RandomlyFlippedOutputsNeverReadOutOfBounds) {
+  std::vector<Output> outs(3);
+  float img[4] = {1, 2, 3, 4};
+  float pts[6] = {1, 2, 3, 4, 5, 6};
+  outs[0].name = "depth_mm";
+  outs[0].kind = PROCAM_OUTPUT_IMAGE;
+  outs[0].image = {2, 2, 1, PROCAM_PIXEL_F32, 32, 0, 8, img};
+  outs[1].name = "cloud";
+  outs[1].kind = PROCAM_OUTPUT_POINTS;
+  outs[1].points = pts;
+  outs[1].point_count = 2;
+  outs[1].point_stride = 3;
+  outs[2].name = "report";
+  outs[2].kind = PROCAM_OUTPUT_JSON;
+  outs[2].json = "{}";
+  const std::string bytes = encode_outputs(outs);
+  {
+    Mapping m = blob_of(bytes);
+    std::vector<procam_output> abi;
+    ASSERT_TRUE(decode_outputs(m, abi).ok());
+    ASSERT_EQ(abi.size(), 3u);
+    EXPECT_EQ(abi[1].points[5], 6.0f);
+    EXPECT_EQ(static_cast<const float*>(abi[0].image.data)[3], 4.0f);
+  }
+  std::mt19937 rng(17);
+  for (int it = 0; it < 3000; ++it) {
+    std::string b = bytes;
+    for (int k = 0; k < 3; ++k) b[rng() % b.size()] = static_cast<char>(rng());
+    Mapping m = blob_of(b);
+    std::vector<procam_output> abi;
+    if (!decode_outputs(m, abi).ok()) continue;
+    // Whatever decoded lies inside the mapping (ASan builds check the reads).
+    for (const procam_output& o : abi) {
+      if (o.kind == PROCAM_OUTPUT_POINTS && o.point_count > 0) {
+        const auto* end = reinterpret_cast<const uint8_t*>(o.points + o.point_count * o.point_stride);
+        EXPECT_LE(end, m.data() + m.size());
+      }
+    }
+  }
+}
+
+TEST(WorkerWire, UnsealedBlobsAreRefused) {
+  const int fd = ::memfd_create("unsealed", MFD_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::write(fd, "abcd", 4), 4);
+  auto m = map_sealed_blob(fd);
+  ::close(fd);
+  ASSERT_FALSE(m.ok());
+  EXPECT_TRUE(m.status().message().find("not a sealed memfd") != std::string::npos);
+}
+
+TEST(WorkerWire, FramingRefusesShortBadAndOversizedPackets) {
+  int sv[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv), 0);
+  ASSERT_TRUE(send_msg(sv[0], Msg::log, 9, "hello").ok());
+  auto m = recv_msg(sv[1], 1000);
+  ASSERT_TRUE(m.ok());
+  EXPECT_EQ(m->type, static_cast<uint16_t>(Msg::log));
+  EXPECT_EQ(m->seq, 9u);
+  EXPECT_EQ(m->payload, "hello");
+  ASSERT_EQ(::write(sv[0], "junk", 4), 4);
+  EXPECT_EQ(recv_msg(sv[1], 1000).status().code(), Code::corrupt_data);
+  const std::string bad_magic(32, 'x');
+  ASSERT_EQ(::write(sv[0], bad_magic.data(), bad_magic.size()), 32);
+  auto bm = recv_msg(sv[1], 1000);
+  EXPECT_TRUE(bm.status().message().find("bad magic 0x78787878") != std::string::npos) << bm.status().message();
+  const std::string huge(kHeaderSize + kMaxPayload + 100, '\0');
+  ASSERT_EQ(::write(sv[0], huge.data(), huge.size()), static_cast<ssize_t>(huge.size()));
+  EXPECT_EQ(recv_msg(sv[1], 1000).status().code(), Code::corrupt_data);
+  EXPECT_EQ(recv_msg(sv[1], 10).status().code(), Code::timeout);
+  ::close(sv[0]);
+  EXPECT_EQ(recv_msg(sv[1], 1000).status().code(), Code::unavailable);
+  ::close(sv[1]);
+}
+
+TEST(WorkerWire, ErrorRepliesKeepCodeAndUnknownCodesBecomePluginErrors) {
+  Status st;
+  ASSERT_TRUE(decode_error(encode_error(Error(Code::failed_precondition, "needs a table", "add one")), st).ok());
+  EXPECT_EQ(st.code(), Code::failed_precondition);
+  EXPECT_EQ(st.message(), "needs a table");
+  EXPECT_EQ(st.hint(), "add one");
+  Writer w;
+  w.u32(9999);
+  w.str("x");
+  w.str("");
+  ASSERT_TRUE(decode_error(w.bytes(), st).ok());
+  EXPECT_EQ(st.code(), Code::plugin_error);
+  EXPECT_EQ(decode_error("\x01", st).code(), Code::corrupt_data);
+}
+
+}  // namespace
+}  // namespace procam::host::wire

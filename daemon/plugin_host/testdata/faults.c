@@ -1,0 +1,303 @@
+/* SPDX-License-Identifier: MIT
+ * Test fixture "faults": a plugin that misbehaves on request, one method per
+ * fault, for the worker-isolation tests (isolation_test.cpp) and the daemon
+ * test that a faulting scan leaves procamd serving. Every method plans one
+ * round of 3 black U8 frames of the rig's projector size (4x3 without a rig
+ * description); then:
+ *   ok           behaves: logs one line, outputs frame_sum (scalar: sum of
+ *                all pixels of all frames), sum_image (2x2 F32: 1, 2, 3, NaN),
+ *                points (2 points x 4 floats) and report (JSON)
+ *   segv         dereferences NULL in add_frame of frame 1 (mid-round)
+ *   abort        calls abort() in end_round
+ *   hang         never returns from end_round
+ *   oom          allocates 16 MiB blocks in end_round until malloc fails
+ *                (address space is what RLIMIT_AS counts: the blocks are
+ *                not touched, so this is quick), then returns
+ *                PROCAM_ERR_NO_MEMORY
+ *   garbage      writes junk to fd 3 (the worker's control socket,
+ *                WORKER_PROTOCOL.md) in end_round, then returns OK
+ *   write_frame  writes into the frame it was handed (host memory: in a
+ *                worker a read-only shared mapping) in add_frame
+ *   try_network, try_write_outside, try_write_scratch, try_signal, try_caps
+ *                attempt, in end_round, what the worker sandbox forbids (or,
+ *                for the scratch folder, allows) and log "<rule>: blocked
+ *                (<error>)" or "<rule>: allowed": a UDP and a TCP socket;
+ *                creating $PROCAM_TEST_OUTSIDE; creating $TMPDIR/plugin-file;
+ *                SIGCONT to the parent process; CapEff of /proc/self/status
+ *                ("caps: <hex>")
+ *   stream       plans 4096 frames and does nothing in add_frame: the
+ *                per-frame cost of the host itself (bench/worker_bench.cpp)
+ * Never load this into a process you care about.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/socket.h>
+
+#include "procam/plugin_abi.h"
+
+#define FX_EXPORT __attribute__((visibility("default")))
+
+FX_EXPORT const procam_plugin_info fx_info __asm__(PROCAM_PLUGIN_INFO_SYMBOL) = {
+    PROCAM_PLUGIN_MAGIC, PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_info), 0, "faults", "0.0.1",
+    "ok,segv,abort,hang,oom,garbage,write_frame,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps"};
+
+struct procam_session {
+  char method[32];
+  const procam_host_services* host;
+  int planned, ended;
+  double sum;
+  float image[4];
+  float points[8];
+  procam_pattern_frame frames[3];
+  procam_pattern_frame* stream; /* "stream": 4096 frames */
+  uint32_t pw, ph;               /* pattern size: the projector's */
+  uint8_t* pattern;              /* pw x ph zeros */
+  procam_plan plan;
+  procam_output outputs[4];
+};
+
+static void set_error(procam_error* err, const char* msg) {
+  if (err) snprintf(err->message, sizeof err->message, "%s", msg);
+}
+
+static int is(const procam_session* s, const char* m) { return strcmp(s->method, m) == 0; }
+
+static const char* fx_describe(void) {
+  return "[{\"name\": \"ok\"}, {\"name\": \"segv\"}, {\"name\": \"abort\"}, {\"name\": \"hang\"},"
+         " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"},"
+         " {\"name\": \"stream\"}, {\"name\": \"try_network\"}, {\"name\": \"try_write_outside\"},"
+         " {\"name\": \"try_write_scratch\"}, {\"name\": \"try_signal\"}, {\"name\": \"try_caps\"}]";
+}
+
+static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
+                             procam_session** out, procam_error* err) {
+  const char* proj;
+  (void)params_json;
+  if (strlen(method) >= 32) {
+    set_error(err, "unknown method");
+    return PROCAM_ERR_INVALID_ARGUMENT;
+  }
+  *out = calloc(1, sizeof(procam_session));
+  if (*out == NULL) return PROCAM_ERR_NO_MEMORY;
+  strcpy((*out)->method, method);
+  /* The rig JSON (nlohmann, compact): "projector":{"height":H,...,"width":W}. */
+  (*out)->pw = 4;
+  (*out)->ph = 3;
+  proj = rig_json ? strstr(rig_json, "\"projector\":") : NULL;
+  if (proj != NULL) {
+    const char* h = strstr(proj, "\"height\":");
+    const char* w = strstr(proj, "\"width\":");
+    if (h != NULL && w != NULL) {
+      (*out)->ph = (uint32_t)strtoul(h + 9, NULL, 10);
+      (*out)->pw = (uint32_t)strtoul(w + 8, NULL, 10);
+    }
+  }
+  if ((*out)->pw == 0 || (*out)->ph == 0 || (*out)->pw > 16384 || (*out)->ph > 16384) {
+    set_error(err, "projector size in the rig description out of range");
+    free(*out);
+    return PROCAM_ERR_INVALID_ARGUMENT;
+  }
+  (*out)->pattern = calloc((size_t)(*out)->pw * (*out)->ph, 1);
+  if ((*out)->pattern == NULL) {
+    free(*out);
+    return PROCAM_ERR_NO_MEMORY;
+  }
+  return PROCAM_OK;
+}
+
+static void fx_session_destroy(procam_session* s) {
+  free(s->stream);
+  free(s->pattern);
+  free(s);
+}
+
+static int fx_set_host(procam_session* s, const procam_host_services* host, procam_error* err) {
+  (void)err;
+  s->host = host;
+  return PROCAM_OK;
+}
+
+static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_error* err) {
+  int i;
+  if (s->planned) return 0;
+  s->planned = 1;
+  for (i = 0; i < 3; ++i) {
+    procam_pattern_frame* f = &s->frames[i];
+    f->label = i == 0 ? "a" : i == 1 ? "b" : "c";
+    f->pattern.width = s->pw;
+    f->pattern.height = s->ph;
+    f->pattern.channels = 1;
+    f->pattern.pixel_type = PROCAM_PIXEL_U8;
+    f->pattern.bit_depth = 8;
+    f->pattern.stride_bytes = s->pw;
+    f->pattern.data = s->pattern;
+    f->settings.struct_size = sizeof(procam_frame_settings);
+    f->settings.gain_db = -1;
+    f->settings.polarizer_deg = NAN;
+    f->settings.projector_polarizer_deg = NAN;
+  }
+  s->plan.frame_count = 3;
+  s->plan.frames = s->frames;
+  if (is(s, "stream")) {
+    s->stream = malloc(4096 * sizeof *s->stream);
+    if (s->stream == NULL) {
+      set_error(err, "no memory for the stream plan");
+      return PROCAM_ERR_NO_MEMORY;
+    }
+    for (i = 0; i < 4096; ++i) s->stream[i] = s->frames[0];
+    s->plan.frame_count = 4096;
+    s->plan.frames = s->stream;
+  }
+  s->plan.note = "three black frames";
+  *plan = &s->plan;
+  return 1;
+}
+
+static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f, procam_error* err) {
+  uint32_t x, y;
+  if ((f->pixel_type != PROCAM_PIXEL_U8 && f->pixel_type != PROCAM_PIXEL_U16) || f->channels != 1) {
+    set_error(err, "expected 1-channel U8 or U16 frames");
+    return PROCAM_ERR_BAD_FRAME;
+  }
+  if (is(s, "stream")) return PROCAM_OK;
+  if (is(s, "segv") && index == 1) *(volatile int*)(uintptr_t)0 = 1;
+  if (is(s, "write_frame")) ((volatile uint8_t*)(uintptr_t)f->data)[0] = 0xff;
+  for (y = 0; y < f->height; ++y) {
+    const uint8_t* row = (const uint8_t*)f->data + y * f->stride_bytes;
+    for (x = 0; x < f->width; ++x)
+      s->sum += f->pixel_type == PROCAM_PIXEL_U8 ? row[x] : ((const uint16_t*)(const void*)row)[x];
+  }
+  return PROCAM_OK;
+}
+
+static void fx_log(procam_session* s, const char* line) {
+  if (s->host != NULL && s->host->log != NULL) s->host->log(s->host->ctx, PROCAM_LOG_INFO, line);
+}
+
+/* Logs "<rule>: allowed" (ok != 0) or "<rule>: blocked (<strerror(errno)>)". */
+static void fx_verdict(procam_session* s, const char* rule, int ok) {
+  char line[256];
+  if (ok) snprintf(line, sizeof line, "%s: allowed", rule);
+  else snprintf(line, sizeof line, "%s: blocked (%s)", rule, strerror(errno));
+  fx_log(s, line);
+}
+
+static void fx_try(procam_session* s) {
+  if (is(s, "try_network")) {
+    int udp = socket(AF_INET, SOCK_DGRAM, 0);
+    fx_verdict(s, "udp", udp >= 0);
+    if (udp >= 0) close(udp);
+    int tcp = socket(AF_INET6, SOCK_STREAM, 0);
+    fx_verdict(s, "tcp", tcp >= 0);
+    if (tcp >= 0) close(tcp);
+  } else if (is(s, "try_write_outside") || is(s, "try_write_scratch")) {
+    char path[1024];
+    const char* dir = getenv("TMPDIR");
+    int fd;
+    if (is(s, "try_write_outside")) snprintf(path, sizeof path, "%s", getenv("PROCAM_TEST_OUTSIDE") ? getenv("PROCAM_TEST_OUTSIDE") : "/tmp/procam-outside");
+    else snprintf(path, sizeof path, "%s/plugin-file", dir ? dir : "/tmp");
+    fd = open(path, O_CREAT | O_WRONLY | O_TRUNC, 0600);
+    fx_verdict(s, is(s, "try_write_outside") ? "write_outside" : "write_scratch", fd >= 0);
+    if (fd >= 0) close(fd);
+  } else if (is(s, "try_signal")) {
+    fx_verdict(s, "signal", kill(getppid(), SIGCONT) == 0);
+  } else if (is(s, "try_caps")) {
+    char line[256], out[300];
+    FILE* f = fopen("/proc/self/status", "r");
+    while (f != NULL && fgets(line, sizeof line, f) != NULL)
+      if (strncmp(line, "CapEff:", 7) == 0) {
+        line[strcspn(line, "\n")] = '\0';
+        snprintf(out, sizeof out, "caps: %s", line + 8);
+        fx_log(s, out);
+      }
+    if (f != NULL) fclose(f);
+  }
+}
+
+static int fx_end_round(procam_session* s, procam_error* err) {
+  fx_try(s);
+  s->ended = 1;
+  if (is(s, "abort")) abort();
+  if (is(s, "hang"))
+    for (;;) sleep(1);
+  if (is(s, "garbage")) {
+    static const char junk[] = "this is not a procam worker message";
+    if (write(3, junk, sizeof junk) < 0) {
+      set_error(err, "fd 3 is not writable: not running in a worker?");
+      return PROCAM_ERR_INTERNAL;
+    }
+  }
+  if (is(s, "oom")) {
+    void* head = NULL;
+    size_t mib = 0;
+    for (;;) {
+      void** block = malloc(16u << 20);
+      if (block == NULL) break;
+      *block = head;
+      head = block;
+      mib += 16;
+    }
+    while (head != NULL) {
+      void* next = *(void**)head;
+      free(head);
+      head = next;
+    }
+    snprintf(err->message, sizeof err->message, "out of memory after %zu MiB", mib);
+    return PROCAM_ERR_NO_MEMORY;
+  }
+  if (s->host != NULL && s->host->log != NULL) s->host->log(s->host->ctx, PROCAM_LOG_INFO, "decoded 3 frames");
+  if (s->host != NULL && s->host->progress != NULL) s->host->progress(s->host->ctx, 1.0, "sum");
+  return PROCAM_OK;
+}
+
+static int fx_get_outputs(procam_session* s, const procam_output** outs, uint32_t* count, procam_error* err) {
+  int i;
+  (void)err;
+  memset(s->outputs, 0, sizeof s->outputs);
+  s->outputs[0].name = "frame_sum";
+  s->outputs[0].kind = PROCAM_OUTPUT_SCALAR;
+  s->outputs[0].unit = "";
+  s->outputs[0].scalar = s->sum;
+  s->image[0] = 1;
+  s->image[1] = 2;
+  s->image[2] = 3;
+  s->image[3] = NAN;
+  s->outputs[1].name = "sum_image";
+  s->outputs[1].kind = PROCAM_OUTPUT_IMAGE;
+  s->outputs[1].unit = "mm";
+  s->outputs[1].image.width = 2;
+  s->outputs[1].image.height = 2;
+  s->outputs[1].image.channels = 1;
+  s->outputs[1].image.pixel_type = PROCAM_PIXEL_F32;
+  s->outputs[1].image.bit_depth = 32;
+  s->outputs[1].image.stride_bytes = 8;
+  s->outputs[1].image.data = s->image;
+  for (i = 0; i < 8; ++i) s->points[i] = (float)i;
+  s->outputs[2].name = "points";
+  s->outputs[2].kind = PROCAM_OUTPUT_POINTS;
+  s->outputs[2].points = s->points;
+  s->outputs[2].point_count = 2;
+  s->outputs[2].point_stride = 4;
+  s->outputs[2].point_fields = "x,y,z,i";
+  s->outputs[3].name = "report";
+  s->outputs[3].kind = PROCAM_OUTPUT_JSON;
+  s->outputs[3].json = "{\"frames\": 3}";
+  *outs = s->outputs;
+  *count = 4;
+  return PROCAM_OK;
+}
+
+static const procam_plugin_vtable fx_vtable = {
+    PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_vtable), fx_describe, fx_session_create,
+    fx_session_destroy, fx_next_plan, fx_add_frame, fx_end_round, fx_get_outputs, fx_set_host, NULL};
+
+FX_EXPORT const procam_plugin_vtable* procam_plugin_create(uint32_t host_abi) {
+  return host_abi == PROCAM_PLUGIN_ABI_VERSION ? &fx_vtable : NULL;
+}

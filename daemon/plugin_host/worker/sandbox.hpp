@@ -1,0 +1,46 @@
+// SPDX-License-Identifier: MIT
+// Least privilege for procam-plugin-worker (README.md "Process model",
+// "Least privilege"), applied before any plugin code runs:
+//   - a private scratch folder (mkdtemp, 0700) that becomes TMPDIR and the
+//     working directory: the only place the plugin may create or change files;
+//   - no_new_privs, every capability dropped (effective, permitted,
+//     inheritable, ambient, bounding set where allowed);
+//   - Landlock (kernel 5.13+; what the running kernel offers): file writes,
+//     creation, removal, truncation only beneath the scratch folder (and
+//     writes to /dev/null); TCP bind/connect denied (ABI 4+); no signals to
+//     and no abstract-socket connections outside the worker (ABI 6+); ptrace
+//     of processes outside the worker denied (every ABI);
+//   - seccomp: socket() for any family but AF_UNIX fails with EACCES (UDP,
+//     raw, netlink: what Landlock does not cover), io_uring_setup fails with
+//     ENOSYS (it could bypass the socket rule).
+// What was applied is reported, not assumed: the daemon logs it and the
+// tests skip a rule the kernel cannot enforce.
+// Single-threaded use at worker start; not thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace procam::worker {
+
+enum SandboxFlags : uint32_t {
+  kScratch = 1u << 0,
+  kNoNewPrivs = 1u << 1,
+  kCapsDropped = 1u << 2,
+  kLandlockFs = 1u << 3,
+  kLandlockNet = 1u << 4,
+  kLandlockScope = 1u << 5,
+  kSeccomp = 1u << 6,
+};
+
+struct SandboxReport {
+  uint32_t flags = 0;   // SandboxFlags applied
+  std::string scratch;  // the scratch folder ("" if none)
+  std::string problems; // what could not be applied, for the daemon log
+};
+
+// Creates the scratch folder in `scratch_parent` ("" = $TMPDIR or /tmp) and
+// applies every rule it can. Never fails as a whole: see the report.
+SandboxReport enter_sandbox(const std::string& scratch_parent);
+
+}  // namespace procam::worker

@@ -1,0 +1,239 @@
+// SPDX-License-Identifier: MIT
+// procam-plugin-worker: hosts one decoder-plugin session for procamd (or
+// `procam decode`) in its own process (README.md "Process model"; protocol:
+// WORKER_PROTOCOL.md). Started by the daemon with the control socket on fd 3;
+// not meant to be run by hand.
+//
+// It loads the plugin with the same PluginHost code as the daemon (ELF
+// check, dlopen, vtable and describe() checks; no probe: the daemon did
+// that) and drives it through the same Session, whose checks run here and
+// again in the daemon. Frames are read from the shared ring (mapped
+// read-only); plans and outputs go back as sealed memfd blobs.
+// Exit: 0 when the daemon closes the socket; 2 on a protocol error from
+// the daemon's side; a plugin crash ends it by that signal.
+#include <signal.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <optional>
+#include <string>
+
+#include "procam/core/log.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "sandbox.hpp"
+#include "worker_wire.hpp"
+
+using namespace procam;
+using namespace procam::host;
+
+namespace {
+
+constexpr int kSock = wire::kControlFd;
+uint32_t g_seq = 0;  // the request being served: replies and reports carry it
+
+void send_or_die(wire::Msg type, const std::string& payload, int fd = -1) {
+  if (!wire::send_msg(kSock, type, g_seq, payload, fd)) std::_Exit(0);  // the daemon is gone
+}
+
+void reply_error(const Status& st) { send_or_die(wire::Msg::error, wire::encode_error(st)); }
+
+void reply_ok(const std::string& payload = {}, int fd = -1) { send_or_die(wire::Msg::ok, payload, fd); }
+
+void reply_blob(uint8_t flag, const std::string& bytes, const char* name) {
+  auto blob = wire::make_sealed_blob(bytes, name);
+  if (!blob) return reply_error(blob.status());
+  wire::Writer w;
+  w.u8(flag);
+  reply_ok(w.bytes(), blob->get());
+}
+
+void apply_limits(uint64_t memory_limit_mb) {
+  rlimit core{0, 0};
+  ::setrlimit(RLIMIT_CORE, &core);
+#if defined(__SANITIZE_ADDRESS__)
+  (void)memory_limit_mb;  // ASan reserves terabytes of address space
+#else
+  if (memory_limit_mb > 0) {
+    rlimit as{};
+    as.rlim_cur = as.rlim_max = static_cast<rlim_t>(memory_limit_mb) << 20;
+    ::setrlimit(RLIMIT_AS, &as);
+  }
+#endif
+}
+
+struct Served {
+  std::optional<Session> session;
+  wire::Mapping ring;
+  uint32_t slots = 0;
+  uint64_t slot_size = 0;
+};
+
+// create: load the plugin file and start the session.
+void serve_create(Served& s, const wire::Message& m) {
+  if (!m.fd) return reply_error(Error(Code::invalid_argument, "create request without its data blob"));
+  auto blob = wire::map_sealed_blob(m.fd.get());
+  if (!blob) return reply_error(blob.status());
+  wire::CreateRequest req;
+  if (Status st = wire::decode_create(*blob, req); !st) return reply_error(st);
+  LoadOptions lo;
+  lo.probe_in_child = false;  // the daemon probed this file
+  PluginHost host(lo);
+  IsolationOptions here;
+  here.mode = Isolation::in_process;
+  host.set_isolation(here);
+  if (Status st = host.load_file(req.plugin_file); !st) return reply_error(st);
+  if (host.find(req.plugin_name) == nullptr)
+    return reply_error(Error(Code::failed_precondition, "plugin file '" + req.plugin_file +
+                                                            "' no longer holds plugin '" + req.plugin_name + "'"));
+  auto session = host.create_session(req.plugin_name, req.method, req.params, req.rig, req.inputs);
+  if (!session) return reply_error(session.status());
+  s.session.emplace(std::move(*session));
+  // Host services: the Session's bridge checked and limited them; forward.
+  s.session->set_log_handler([](log::Level lv, const std::string& line) {
+    wire::Writer w;
+    w.i32(static_cast<int32_t>(lv));  // log::Level debug..error == PROCAM_LOG_DEBUG..ERROR
+    w.str(line);
+    send_or_die(wire::Msg::log, w.bytes());
+  });
+  s.session->set_progress_handler([](double fraction, const std::string& stage) {
+    wire::Writer w;
+    w.f64(fraction);
+    w.str(stage);
+    send_or_die(wire::Msg::progress, w.bytes());
+  });
+  wire::Writer w;
+  w.u8(s.session->has_host_services() ? 1 : 0);
+  reply_ok(w.bytes());
+}
+
+void serve_add_frame(Served& s, const wire::Message& m) {
+  wire::Reader r(reinterpret_cast<const uint8_t*>(m.payload.data()), m.payload.size());
+  const uint32_t index = r.u32("index"), slot = r.u32("slot");
+  procam_image v{};
+  v.width = r.u32("width");
+  v.height = r.u32("height");
+  v.channels = r.u32("channels");
+  v.pixel_type = r.u32("pixel type");
+  v.bit_depth = r.u32("bit depth");
+  if (!r.ok()) return reply_error(Error(Code::invalid_argument, "malformed add_frame: " + r.error()));
+  const size_t row = wire::packed_row_bytes(v);
+  size_t bytes = 0;
+  if (s.slots == 0 || slot >= s.slots || row == 0 || __builtin_mul_overflow(row, size_t{v.height}, &bytes) ||
+      bytes > s.slot_size)
+    return reply_error(Error(Code::invalid_argument, "add_frame names slot " + std::to_string(slot) +
+                                                         " or a frame that does not fit the ring"));
+  v.stride_bytes = row;
+  v.data = s.ring.data() + slot * s.slot_size;
+  Status st = s.session->add_frame(index, v);
+  if (!st) return reply_error(st);
+  reply_ok();
+}
+
+int serve(const worker::SandboxReport& sandbox) {
+  wire::Writer hello;
+  hello.u32(sandbox.flags);
+  hello.str(sandbox.scratch);
+  hello.str(sandbox.problems.substr(0, 4096));
+  if (!wire::send_msg(kSock, wire::Msg::hello, 0, hello.bytes())) return 0;
+  Served s;
+  for (;;) {
+    auto m = wire::recv_msg(kSock, -1);
+    if (!m) {
+      if (m.status().code() == Code::unavailable) return 0;  // the daemon closed: done
+      std::fprintf(stderr, "procam-plugin-worker: %s\n", m.status().to_string().c_str());
+      return 2;
+    }
+    g_seq = m->seq;
+    const auto type = static_cast<wire::Msg>(m->type);
+    if (type == wire::Msg::create) {
+      if (s.session) return 2;
+      serve_create(s, *m);
+      continue;
+    }
+    if (!s.session) {
+      reply_error(Error(Code::failed_precondition, std::string(wire::msg_name(m->type)) + " before create"));
+      continue;
+    }
+    switch (type) {
+      case wire::Msg::next_plan: {
+        auto plan = s.session->next_plan();
+        if (!plan) reply_error(plan.status());
+        else if (!plan->has_value()) reply_ok(std::string(1, '\0'));
+        else reply_blob(1, wire::encode_plan(**plan), "procam-plan");
+        break;
+      }
+      case wire::Msg::set_ring: {
+        wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+        const uint32_t slots = r.u32("slots");
+        const uint64_t slot_size = r.u64("slot size");
+        if (!r.ok() || !m->fd) {
+          reply_error(Error(Code::invalid_argument, "malformed set_ring"));
+          break;
+        }
+        auto map = wire::map_ring(m->fd.get(), slots, slot_size);
+        if (!map) {
+          reply_error(map.status());
+          break;
+        }
+        s.ring = std::move(*map);
+        s.slots = slots;
+        s.slot_size = slot_size;
+        reply_ok();
+        break;
+      }
+      case wire::Msg::add_frame: serve_add_frame(s, *m); break;
+      case wire::Msg::end_round: {
+        Status st = s.session->end_round();
+        if (!st) reply_error(st);
+        else reply_ok();
+        break;
+      }
+      case wire::Msg::get_outputs: {
+        auto outs = s.session->outputs();
+        if (!outs) reply_error(outs.status());
+        else reply_blob(1, wire::encode_outputs(*outs), "procam-outputs");
+        break;
+      }
+      default:
+        std::fprintf(stderr, "procam-plugin-worker: unexpected message %u\n", m->type);
+        return 2;
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  uint64_t memory_limit_mb = 0;
+  bool sandbox = true;
+  std::string scratch_parent;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--memory-limit-mb" && i + 1 < argc) {
+      memory_limit_mb = std::strtoull(argv[++i], nullptr, 10);
+    } else if (a == "--sandbox" && i + 1 < argc) {
+      sandbox = std::string(argv[++i]) != "0";
+    } else if (a == "--scratch-parent" && i + 1 < argc) {
+      scratch_parent = argv[++i];
+    } else {
+      std::fprintf(stderr,
+                   "procam-plugin-worker: unknown argument '%s'\n"
+                   "(started by procamd with its control socket on fd 3; not for interactive use)\n",
+                   a.c_str());
+      return 2;
+    }
+  }
+  ::signal(SIGPIPE, SIG_IGN);
+  // Nothing of the parent's but stdio and the control socket.
+  ::close_range(wire::kControlFd + 1, ~0u, 0);
+  apply_limits(memory_limit_mb);
+  // Plugin log lines reach the daemon through the protocol; only the
+  // worker's own warnings go to stderr (the daemon's log).
+  log::configure("warn,plugins=off");
+  // Before any plugin code (its static constructors run in dlopen).
+  const worker::SandboxReport report = sandbox ? worker::enter_sandbox(scratch_parent) : worker::SandboxReport{};
+  return serve(report);
+}
