@@ -5,7 +5,8 @@
 // (plan -> sim capture -> streaming decode, all rounds) -> outputs ->
 // engine::evaluate_outputs against the sim ground truth. No procamd.
 // Writes bench.md (table), bench.json (all numbers) and bench.png (plot of
-// gross-error rate vs capture time) to --out. Methods without a projector
+// gross-error rate vs capture time) to --out; with other families also
+// bench-depth.png and bench-direct.png (their error vs capture time). Methods without a projector
 // column map (defocus, separation, ...) get a second table with what their
 // outputs are evaluated on: depth against the true depth, direct/global
 // against the sim's light-transport split. Calibration methods (calibrate-*)
@@ -21,6 +22,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <set>
@@ -93,16 +95,23 @@ double num(const nlohmann::json& j, const char* k) {
 // Plot: x = capture time at 60 Hz (log scale), y = gross errors (% of decoded
 // lit pixels), one colour per method, one point per scene, the method's
 // median over scenes joined and labelled.
-void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, const std::string& path) {
+// What a plot shows: its y value per row (NaN: row not plotted) and title.
+struct PlotSpec {
+  std::function<double(const Row&)> y;  // percent
+  std::string title;
+};
+
+void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, const std::string& path,
+          const PlotSpec& spec) {
   const int W = 1100, H = 700, L = 90, R = 250, T = 50, B = 70;
   cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   double xmin = 1e9, xmax = 0, ymax = 1.0;
   for (const Row& r : rows) {
-    if (!r.ok || !r.correspondence) continue;
+    if (!r.ok || !std::isfinite(spec.y(r))) continue;
     const double x = static_cast<double>(r.patterns) / 60.0;
     xmin = std::min(xmin, x);
     xmax = std::max(xmax, x);
-    ymax = std::max(ymax, 100.0 * num(r.eval, "gross_error_fraction"));
+    ymax = std::max(ymax, spec.y(r));
   }
   if (xmax <= 0) return;
   xmin = std::max(0.05, xmin / 1.5);
@@ -123,7 +132,7 @@ void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, 
   }
   cv::rectangle(img, {L, T}, {W - R, H - B}, black);
   cv::putText(img, "capture time at 60 Hz (patterns / 60), log scale", {L + 150, H - 25}, cv::FONT_HERSHEY_SIMPLEX, 0.55, black);
-  cv::putText(img, "gross errors, % of decoded lit pixels (|col err| > 1)", {L, T - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, black);
+  cv::putText(img, spec.title, {L, T - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, black);
   const cv::Scalar palette[] = {{200, 0, 0}, {0, 140, 0}, {0, 0, 220}, {180, 0, 180}, {0, 150, 200},
                                 {120, 80, 0}, {80, 80, 80}, {0, 90, 255}, {150, 150, 0}, {255, 100, 100}};
   int legend_y = T + 10;
@@ -132,10 +141,10 @@ void plot(const std::vector<Row>& rows, const std::vector<std::string>& labels, 
     std::vector<double> ys;
     double x = 0;
     for (const Row& r : rows) {
-      if (!r.ok || !r.correspondence || r.label != labels[m]) continue;
-      x = static_cast<double>(r.patterns) / 60.0;
-      const double y = 100.0 * num(r.eval, "gross_error_fraction");
+      if (!r.ok || r.label != labels[m]) continue;
+      const double y = spec.y(r);
       if (!std::isfinite(y)) continue;
+      x = static_cast<double>(r.patterns) / 60.0;
       ys.push_back(y);
       cv::circle(img, {X(x), Y(y)}, 4, c, 1, cv::LINE_AA);
     }
@@ -395,7 +404,27 @@ int cmd_bench(const Args& a) {
                               {"runs", all}};
   std::ofstream(out / "bench.md") << md.str();
   std::ofstream(out / "bench.json") << doc.dump(2) << "\n";
-  plot(rows, labels, (out / "bench.png").string());
+  // Column codes: gross errors; other families: depth and direct-light error
+  // (bench-depth.png, bench-direct.png), each only when some row has it.
+  plot(rows, labels, (out / "bench.png").string(),
+       {[](const Row& r) { return r.correspondence ? 100.0 * num(r.eval, "gross_error_fraction") : std::nan(""); },
+        "gross errors, % of decoded lit pixels (|col err| > 1)"});
+  auto section = [](const Row& r, const char* name) {
+    return r.eval.contains(name) && r.eval[name].is_object() ? r.eval[name] : nlohmann::json::object();
+  };
+  const PlotSpec depth{[&](const Row& r) {
+                         return r.correspondence ? std::nan("") : 100.0 * num(section(r, "depth"), "median_rel_error");
+                       },
+                       "depth error, median % of the true depth"};
+  const PlotSpec direct{[&](const Row& r) {
+                          const auto c = section(r, "components");
+                          const auto d = c.contains("direct") ? c["direct"] : nlohmann::json::object();
+                          return r.correspondence ? std::nan("") : 100.0 * num(d, "median_rel_error");
+                        },
+                        "direct light (white) error, median % of the truth"};
+  for (const auto& [spec, file] : {std::pair{depth, "bench-depth.png"}, std::pair{direct, "bench-direct.png"}})
+    if (std::any_of(rows.begin(), rows.end(), [&](const Row& r) { return r.ok && std::isfinite(spec.y(r)); }))
+      plot(rows, labels, (out / file).string(), spec);
   if (a.json)
     std::cout << doc.dump(2) << "\n";
   else
