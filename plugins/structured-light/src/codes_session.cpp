@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <span>
 #include <limits>
 #include <optional>
 #include <utility>
@@ -39,6 +41,9 @@ struct Config {
   uint32_t mask_guard_px = 3;
   bool code_maps = false;
   double auto_tolerance = 0.001;
+  double min_round_gain = 0.002;
+  double min_acceptance = 0.25;
+  double probe_margin = 0.5;
   uint32_t max_weak_error_px = 1;
 };
 
@@ -91,49 +96,132 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   CodesSession& operator=(const CodesSession&) = delete;
 
 
+  // Frames: the probe's two frames are kept (the next correction round's
+  // masked white and masked finest xor02 plane); auto's first-step white is
+  // kept for the second step. A round leaves frames it already holds out of
+  // its plan and feeds the copies to its decoder: plan frame i is decoder
+  // frame plan_to_decoder_[i].
+  sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
+    const ScopedMs timed(decode_ms_);
+    if (step_ == Step::probe) {
+      if (index >= probe_.size())
+        return sdk::invalid_argument("correction probe: frame index " + std::to_string(index) + " (the probe has 3 frames)");
+      probe_[index].store(frame);
+      return sdk::ok();
+    }
+    if (!decoder_) return sdk::state_error("add_frame outside a round");
+    if (index >= plan_to_decoder_.size())
+      return sdk::invalid_argument("frame index " + std::to_string(index) + " beyond the round's " +
+                                   std::to_string(plan_to_decoder_.size()) + " frames");
+    if (keep_white_ && index == 0) white_.store(frame);
+    return decoder_->add_frame(plan_to_decoder_[index], frame);
+  }
+
   sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
     has_round = false;
     std::vector<uint32_t> subset;  // code indices projected this round
-    bool correction = false;
+    Step step = Step::first;
+    std::vector<std::pair<uint32_t, const FrameCopy*>> reuse;  // layout frame <- kept copy
     if (round_ == 0) {
       if (auto_mode()) {
         subset = {kXor04, kMinsw};  // cheapest pair of complementary codes
       } else {
         for (uint32_t k = 0; k < codes_.size(); ++k) subset.push_back(k);
       }
-    } else if (auto_mode() && round_ == 1) {
+      keep_white_ = auto_mode();
+    } else if (auto_mode() && step_ == Step::first) {
+      // Step 2 of auto: gray + xor02 can only resolve pixels where xor04 and
+      // minsw dispute the column (all others are settled), so the predicted
+      // gain is the disputed fraction.
       const RoundStats& last = rounds_.back();
-      const double frac = last.lit > 0 ? static_cast<double>(last.errors) / static_cast<double>(last.lit) : 0.0;
+      const double frac = fraction(last.errors, last.lit);
+      nlohmann::json st = {{"step", "add gray + xor02 (ensemble vote)"}, {"predicted_gain", frac},
+                           {"threshold", cfg_.auto_tolerance}, {"flagged_before", frac}};
       if (frac < cfg_.auto_tolerance) {
         auto_why_ = "xor04 and minsw (built for opposite effects) agree on all but " + fmt_pct(frac) +
                     " of lit pixels (< auto_tolerance " + fmt_pct(cfg_.auto_tolerance) +
                     "): no global-light errors to resolve, so no further patterns";
+        st["taken"] = false;
+        steps_.push_back(st);
         return sdk::ok();
       }
       auto_why_ = "xor04 and minsw disagree on " + fmt_pct(frac) +
                   " of lit pixels: projected gray and xor02 too and voted with all four codes";
+      st["taken"] = true;
+      steps_.push_back(st);
       subset = {kGray, kXor02};
+      step = Step::codes;
+      reuse.push_back({0, &white_});
+      keep_white_ = false;
+    } else if (step_ == Step::probe) {
+      // The probe measured what the mask takes away (correction.hpp
+      // forecast_round): project the round only when it is expected to pay.
+      const double gain = forecast_.predicted_gain();
+      nlohmann::json& st = steps_.back();
+      st["predicted_gain"] = gain;
+      st["threshold"] = cfg_.min_round_gain;
+      if (gain < cfg_.min_round_gain) {
+        stop_reason_ = "predicted gain " + fmt_pct(gain) + " of lit pixels (fixable flagged pixels) below min_round_gain " +
+                       fmt_pct(cfg_.min_round_gain) + ": round skipped";
+        st["taken"] = false;
+        return sdk::ok();
+      }
+      st["taken"] = true;
+      step = Step::correction;
+      for (uint32_t k = 0; k < codes_.size(); ++k) subset.push_back(k);
+      reuse.push_back({0, &probe_[0]});  // + the xor02 plane, below
     } else {
       if (!want_more_round()) return sdk::ok();
-      correction = true;
-      for (uint32_t k = 0; k < codes_.size(); ++k) subset.push_back(k);
-    }
-    if (correction)  // projector pixels of resolved points off (correction.hpp)
+      // Three-frame probe: the next round's masked white and masked finest
+      // xor02 plane (stripes 2 px wide) with its inverse, to predict what it
+      // can fix (correction.hpp forecast_round).
       mask_ = correction_mask(rig_, coord_, valid_, cls_, cfg_.mask_dilate_px, cfg_.mask_guard_px);
+      const ProjectedCode& x02 = codes_[kXor02];
+      const MultiLayout pl = make_multi_layout({x02}, true, false);  // white, (plane, inverse) per plane
+      std::vector<uint8_t> skip(pl.frames.size(), 1);
+      skip[0] = 0;
+      skip[pl.frames.size() - 2] = 0;  // plane bits-1: the stripe-width-2 base
+      skip[pl.frames.size() - 1] = 0;  // and its inverse
+      render_multi_plan(pl, {x02}, rig_.projector_width, rig_.projector_height, &mask_, plan, &skip);
+      plan.set_note(cfg_.method + ": correction probe (3 frames: masked white, masked finest xor02 plane "
+                    "and its inverse) — predicts what the next correction round can fix before projecting "
+                    "it; the round reuses the white and the plane");
+      steps_.push_back({{"step", "correction round " + std::to_string(corrections_done_ + 1)},
+                        {"flagged_before", fraction(errors_before_round(), rounds_.back().lit)}});
+      step_ = Step::probe;
+      patterns_ += plan.size();
+      ++round_;
+      has_round = true;
+      return sdk::ok();
+    }
+    const bool correction = step == Step::correction;
     round_codes_ = subset;
     std::vector<ProjectedCode> codes;
     for (uint32_t k : subset) codes.push_back(codes_[k]);
     MultiLayout layout = make_multi_layout(codes, cfg_.inverse, cfg_.black);
+    if (correction)  // the probe's plane (and inverse): xor02's last (finest) plane
+      for (uint32_t f = 0; f < layout.frames.size(); ++f) {
+        const MultiFrame& mf = layout.frames[f];
+        if (subset[mf.code] != kXor02 || mf.plane + 1 != layout.bits[mf.code]) continue;
+        if (mf.kind == FrameKind::plane) reuse.push_back({f, &probe_[1]});
+        if (mf.kind == FrameKind::inverse) reuse.push_back({f, &probe_[2]});
+      }
+    std::vector<uint8_t> skip(layout.frames.size(), 0);
+    for (const auto& r : reuse) skip[r.first] = 1;
+    plan_to_decoder_.clear();
+    for (uint32_t f = 0; f < layout.frames.size(); ++f)
+      if (skip[f] == 0) plan_to_decoder_.push_back(f);
     render_multi_plan(layout, codes, rig_.projector_width, rig_.projector_height,
-                      correction ? &mask_ : nullptr, plan);
-    std::string note = cfg_.method + ": " + std::to_string(layout.frames.size()) + " frames (";
+                      correction ? &mask_ : nullptr, plan, &skip);
+    std::string note = cfg_.method + ": " + std::to_string(plan.size()) + " frames (";
     for (size_t j = 0; j < codes.size(); ++j) note += (j ? ", " : "") + codes[j].id;
     note += ")";
+    if (!reuse.empty()) note += ", " + std::to_string(reuse.size()) + " frame(s) reused from the previous round";
     if (correction) {
       ++corrections_done_;
       note += " — correction round " + std::to_string(corrections_done_) + ": " +
               std::to_string(errors_before_round()) +
-              " error pixels re-measured with resolved projector pixels switched off";
+              " flagged pixels re-measured with resolved projector pixels switched off";
     }
     plan.set_note(note);
     const sdk::RigCamera& cam = rig_.cameras.at(0);
@@ -141,9 +229,13 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                      cfg_.max_weak_error_px,
                      codes_.size() > 1 ? MultiCodeDecoder::Output::vote
                                        : MultiCodeDecoder::Output::per_code);
+    for (const auto& r : reuse) {
+      if (r.second->empty()) return sdk::state_error("a kept frame of the previous round is missing");
+      if (sdk::Error e = decoder_->add_frame(r.first, r.second->image()); !e.ok()) return e;
+    }
     patterns_ += plan.size();
     ++round_;
-    correction_round_ = correction;
+    step_ = step;
     has_round = true;
     return sdk::ok();
   }
@@ -154,7 +246,25 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     const size_t n = size_t{cam.width} * cam.height;
     RoundStats stats;
     stats.round = round_;
-    const bool first_pass = !correction_round_;
+    if (step_ == Step::probe) {  // the forecast of the next correction round
+      for (const FrameCopy& c : probe_)
+        if (c.empty()) return sdk::state_error("correction probe: a frame did not arrive");
+      const std::vector<float> masked = probe_[0].intensity(), plane = probe_[1].intensity(),
+                               inverse = probe_[2].intensity();
+      forecast_ = forecast_round(rig_, mask_, coord_, cls_, lit_, masked, intensity_, plane, inverse, static_cast<float>(cfg_.probe_margin),
+                                 cfg_.code_maps ? &forecast_map_ : nullptr);
+      nlohmann::json& st = steps_.back();
+      st["probe"] = {{"flagged", forecast_.flagged}, {"own_light_off", forecast_.own_light_off},
+                     {"unchanged", forecast_.unchanged}, {"fine_stripes_lost", forecast_.blurred},
+                     {"fixable", forecast_.fixable}};
+      stats.kind = "probe";
+      stats.errors = errors_before_round();
+      stats.lit = rounds_.back().lit;
+      rounds_.push_back(stats);
+      return sdk::ok();
+    }
+    const bool first_pass = step_ != Step::correction;
+    stats.kind = step_ == Step::correction ? "correction" : step_ == Step::codes ? "codes" : "first";
     if (codes_.size() == 1) {
       MultiResult& r = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin);
       full_scale_ = r.full_scale;
@@ -169,11 +279,17 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     } else {
       // Full four-code view in one decode + vote pass (vote.hpp): this
       // round's codes, earlier first-pass rounds' maps (auto), NaN maps for
-      // codes not projected. Per-code maps are kept only where needed (auto's
-      // second round, code_maps).
-      const bool keep_maps = first_pass && (auto_mode() || cfg_.code_maps);
-      if (keep_maps && stage_maps_.empty())
-        stage_maps_.assign(kEnsembleCodes, std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()));
+      // codes not projected. Per-code maps are kept in the first pass: auto's
+      // second step votes with them, and the conflict rule reads them.
+      const bool keep_maps = first_pass;
+      if (keep_maps && stage_maps_.empty()) {  // written whole by the vote for this round's
+        stage_maps_.resize(kEnsembleCodes);     // codes; NaN for the others (auto's first step)
+        for (uint32_t k = 0; k < kEnsembleCodes; ++k) {
+          sdk::take_map(stage_maps_[k], n);
+          if (std::find(round_codes_.begin(), round_codes_.end(), k) == round_codes_.end())
+            std::fill(stage_maps_[k].begin(), stage_maps_[k].end(), std::numeric_limits<float>::quiet_NaN());
+        }
+      }
       VoteSpec spec;
       spec.agree_px = static_cast<float>(cfg_.agree_px);
       for (size_t j = 0; j < round_codes_.size(); ++j) {
@@ -196,18 +312,40 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         valid_ = std::move(v.valid);
         confidence_ = std::move(v.confidence);
         cls_ = std::move(v.cls);
-      } else {  // correction: only pixels still in error take the new result, where
-        // their new projector pixel was lit and they keep enough of their
-        // round-1 light (correction.hpp; r.intensity is the masked white frame)
+        // Conflict rule (correction.hpp) once all four codes are in the vote.
+        if (!auto_mode() || step_ == Step::codes) {
+          const float* code[kEnsembleCodes];
+          for (uint32_t k = 0; k < kEnsembleCodes; ++k) code[k] = stage_maps_[k].data();
+          conflicts_ = label_conflicts(code, static_cast<float>(cfg_.agree_px), 0, n, coord_.data(),
+                                       valid_.data(), confidence_.data(), cls_.data());
+        }
+      } else {  // correction: only flagged pixels take the new result, where every
+        // ground-truth-free test passes (correction.hpp merge_correction;
+        // r.intensity is the masked white frame)
+        std::vector<uint8_t> was_flagged(n);
+        for (size_t i = 0; i < n; ++i) was_flagged[i] = flagged(cls_[i]) ? 1 : 0;
         stats.resolved += merge_correction(rig_, mask_, v, r.intensity, intensity_, coord_, valid_,
                                            confidence_, cls_);
+        if (resolved_in_.size() != n) resolved_in_.assign(n, 0);
+        for (size_t i = 0; i < n; ++i)
+          if (was_flagged[i] != 0 && valid_[i] != 0) resolved_in_[i] = static_cast<uint8_t>(corrections_done_);
+        stats.acceptance = forecast_.fixable > 0 ? fraction(stats.resolved, forecast_.fixable) : 0.0;
       }
       recycle_maps(std::move(r));  // what this round's result still holds
     }
     decoder_.reset();
     for (size_t i = 0; i < n; ++i) {
-      stats.errors += cls_[i] == kError ? 1u : 0u;
+      stats.errors += flagged(cls_[i]) ? 1u : 0u;
       stats.lit += lit_[i] != 0 ? 1u : 0u;
+    }
+    if (step_ != Step::first && !steps_.empty()) {  // measured change of the step
+      nlohmann::json& st = steps_.back();
+      st["flagged_after"] = fraction(stats.errors, stats.lit);
+      st["measured_change"] = st["flagged_after"].get<double>() - st["flagged_before"].get<double>();
+      if (step_ == Step::correction) {
+        st["resolved"] = stats.resolved;
+        st["acceptance"] = stats.acceptance;
+      }
     }
     rounds_.push_back(stats);
     return sdk::ok();
@@ -255,7 +393,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       out.add_class_map("transport_class",
                         "light-transport class (thesis Fig. 3.1j): 0 unlit, 1 all codes agree, 2 only "
                         "XOR codes agree (inter-reflection), 3 only Gray codes agree (sub-surface), 4 "
-                        "partial agreement, 5 error (no two codes agree)",
+                        "partial agreement, 5 error (no two codes agree), 6 conflict (a correlated pair "
+                        "against a dissenting code, e.g. a mirror path)",
                         w, h, std::move(cls_),
                         {{kUnlit, transport_class_name(kUnlit), "no projector light reaches the pixel"},
                          {kAllAgree, transport_class_name(kAllAgree), "all four codes agree: direct light dominates"},
@@ -264,7 +403,19 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                          {kSubsurface, transport_class_name(kSubsurface),
                           "only the Gray codes agree: sub-surface scattering or defocus (short range)"},
                          {kPartial, transport_class_name(kPartial), "some codes agree"},
-                         {kError, transport_class_name(kError), "no two codes agree: error pixel (thesis §3.4)"}});
+                         {kError, transport_class_name(kError), "no two codes agree: error pixel (thesis §3.4)"},
+                         {kConflict, transport_class_name(kConflict),
+                          "only gray and an XOR code agree while another code disagrees: two light paths "
+                          "(e.g. a mirror reflection) compete; left invalid rather than voted"}});
+    if (!resolved_in_.empty())
+      out.add_image("resolved_in_round", "",
+                    "correction round whose answer a pixel took (1, 2, ...); 0: first-pass value or invalid",
+                    w, h, std::move(resolved_in_));
+    if (!forecast_map_.empty())
+      out.add_image("correction_forecast", "",
+                    "the last correction probe's verdict per pixel (code_maps): 0 not flagged, 1 own "
+                    "light switched off, 2 light unchanged, 3 fine stripes still lost, 4 fixable",
+                    w, h, std::move(forecast_map_));
     if (cfg_.code_maps)
       for (size_t k = 0; k < stage_maps_.size(); ++k)
         out.add_image(std::string("proj_col_px_") + kCodeIds[k], "px",
@@ -298,8 +449,14 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                        {"weak_plane_pixels", weak_[ci]}});
     }
     nlohmann::json rounds = nlohmann::json::array();
-    for (const RoundStats& s : rounds_)
-      rounds.push_back({{"round", s.round}, {"error_pixels", s.errors}, {"resolved", s.resolved}});
+    for (const RoundStats& s : rounds_) {
+      nlohmann::json r = {{"round", s.round}, {"kind", s.kind}, {"flagged_pixels", s.errors}};
+      if (std::string(s.kind) == "correction") {
+        r["resolved"] = s.resolved;
+        r["acceptance"] = s.acceptance;
+      }
+      rounds.push_back(r);
+    }
     nlohmann::json classes = nlohmann::json::object();
     for (uint32_t c = 0; c < kTransportClassCount; ++c)
       classes[transport_class_name(static_cast<uint8_t>(c))] = counts[c];
@@ -330,6 +487,10 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       report["correction_rounds_max"] = cfg_.correction_rounds;
       report["mask_dilate_px"] = cfg_.mask_dilate_px;
       report["mask_guard_px"] = cfg_.mask_guard_px;
+      report["min_round_gain"] = cfg_.min_round_gain;
+      report["min_acceptance"] = cfg_.min_acceptance;
+      report["conflicts"] = conflicts_;
+      report["steps"] = steps_;
       report["transport_classes"] = classes;
       if (stop_reason_.empty() && cfg_.correction_rounds > 0) stop_reason_ = "round limit";
       if (!stop_reason_.empty()) report["correction_stop"] = stop_reason_;
@@ -342,8 +503,48 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
  private:
   struct RoundStats {
     uint32_t round = 0;
-    size_t errors = 0, resolved = 0, lit = 0;
+    const char* kind = "first";  // first, codes (auto's second step), probe, correction
+    size_t errors = 0, resolved = 0, lit = 0;  // errors: flagged pixels (errors + conflicts)
+    double acceptance = 1.0;                   // correction: resolved / forecast fixable
   };
+  enum class Step { first, codes, probe, correction };
+
+  // A copy of one camera frame (the host's memory is call-scoped).
+  class FrameCopy {
+   public:
+    void store(const procam_image& f) {
+      img_ = f;
+      const size_t bpp = f.pixel_type == PROCAM_PIXEL_U8 ? 1 : f.pixel_type == PROCAM_PIXEL_U16 ? 2 : 4;
+      const size_t row = size_t{f.width} * f.channels * bpp;
+      bytes_.resize(row * f.height);
+      for (uint32_t y = 0; y < f.height; ++y)
+        std::memcpy(bytes_.data() + y * row, static_cast<const uint8_t*>(f.data) + y * f.stride_bytes, row);
+      img_.stride_bytes = row;
+      img_.data = bytes_.data();
+    }
+    bool empty() const { return bytes_.empty(); }
+    const procam_image& image() const { return img_; }
+    // Channel 0 / full scale (2^bit_depth - 1; F32: 1) per pixel.
+    std::vector<float> intensity() const {
+      const size_t n = size_t{img_.width} * img_.height;
+      std::vector<float> out(n);
+      const double fs = img_.pixel_type == PROCAM_PIXEL_F32 ? 1.0 : std::ldexp(1.0, static_cast<int>(img_.bit_depth)) - 1.0;
+      const size_t c = img_.channels;
+      for (size_t i = 0; i < n; ++i) {
+        double v = 0;
+        if (img_.pixel_type == PROCAM_PIXEL_U8) v = bytes_[i * c];
+        else if (img_.pixel_type == PROCAM_PIXEL_U16) v = reinterpret_cast<const uint16_t*>(bytes_.data())[i * c];
+        else v = reinterpret_cast<const float*>(bytes_.data())[i * c];
+        out[i] = static_cast<float>(v / fs);
+      }
+      return out;
+    }
+
+   private:
+    procam_image img_{};
+    std::vector<uint8_t> bytes_;
+  };
+  static double fraction(size_t a, size_t b) { return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0; }
 
 
   size_t errors_before_round() const { return rounds_.empty() ? 0 : rounds_.back().errors; }
@@ -360,6 +561,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     p.lit = last.lit;
     p.resolved_last = last.resolved;
     p.min_progress = cfg_.min_progress;
+    p.acceptance_last = last.acceptance;
+    p.min_acceptance = cfg_.min_acceptance;
     const CorrectionDecision d = decide_correction(p);
     if (d.stop_reason != nullptr) stop_reason_ = d.stop_reason;
     return d.more;
@@ -369,6 +572,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   void recycle_members() noexcept {
     for (std::vector<float>* v : {&coord_, &confidence_, &intensity_}) sdk::give_map(std::move(*v));
     for (std::vector<uint8_t>* v : {&valid_, &cls_, &lit_}) sdk::give_map(std::move(*v));
+    for (std::vector<float>& v : stage_maps_) sdk::give_map(std::move(v));
   }
 
   Config cfg_;
@@ -381,7 +585,16 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                                                 // only for auto and code_maps
   std::array<size_t, kEnsembleCodes> weak_{};   // per code of codes_: pixels kept through a weak plane
   std::vector<uint32_t> round_codes_;            // code indices of the current round
-  bool correction_round_ = false;
+  Step step_ = Step::first;        // kind of the current (or last) round
+  FrameCopy white_;                // auto's first-step white
+  std::array<FrameCopy, 3> probe_; // the probe's masked white, finest xor02 plane, its inverse
+  bool keep_white_ = false;
+  std::vector<uint32_t> plan_to_decoder_;  // this round's plan frame -> decoder (layout) frame
+  RoundForecast forecast_;         // of the last probe
+  size_t conflicts_ = 0;           // pixels labelled kConflict by the first pass
+  std::vector<uint8_t> resolved_in_;  // per pixel: the correction round it was resolved in (0: none)
+  std::vector<uint8_t> forecast_map_;  // code_maps: the last probe's per-pixel verdict
+  nlohmann::json steps_ = nlohmann::json::array();  // per step: predicted gain, measured change
   uint32_t corrections_done_ = 0;
   std::string auto_why_;
   bool auto_mode() const { return cfg_.method == "auto"; }
@@ -427,6 +640,20 @@ std::vector<sdk::ParamSpec> common_specs(bool ensemble) {
                  "stop correcting when the error pixels, or the pixels the last round resolved, "
                  "are fewer than this fraction of lit pixels (0.05%: another 41 frames would "
                  "not change the error rate measurably)"});
+    s.push_back({"min_round_gain", sdk::ParamType::number, 0.002, 0.0, 1.0, {},
+                 "before each correction round a three-frame probe (the round's masked white and "
+                 "finest xor02 plane with its inverse) counts the flagged pixels it can fix (own "
+                 "light kept, >= 10% of their light switched off, direct-dominated once masked); "
+                 "the round is projected only when they are at least this fraction "
+                 "of lit pixels (0.2%: a round costs as many patterns as the first pass)"});
+    s.push_back({"probe_margin", sdk::ParamType::number, 0.5, 0.0, 1.0, {},
+                 "a flagged pixel counts as fixable only when the probe's masked finest xor02 "
+                 "plane (2 px stripes) and its inverse differ by at least this fraction of its masked "
+                 "white (0.5: direct light >= the global light and ambient the mask leaves)"});
+    s.push_back({"min_acceptance", sdk::ParamType::number, 0.25, 0.0, 1.0, {},
+                 "stop correcting when a round's new values passed the no-ground-truth tests "
+                 "(all four codes agree, light kept and reduced, column clear of the mask) for "
+                 "fewer than this fraction of the pixels its probe predicted fixable"});
     s.push_back({"code_maps", sdk::ParamType::boolean, false, -kInf, kInf, {},
                  "also output each code's own round-1 column map (proj_col_px_<code>) for inspection"});
     s.push_back({"mask_dilate_px", sdk::ParamType::integer, 2, 0.0, 16.0, {},
@@ -526,6 +753,9 @@ sdk::Error create_codes_session(const sdk::CreateArgs& args, std::unique_ptr<sdk
     cfg.agree_px = params.get_number("agree_px");
     cfg.correction_rounds = static_cast<uint32_t>(params.get_int("correction_rounds"));
     cfg.min_progress = params.get_number("min_progress");
+    cfg.min_round_gain = params.get_number("min_round_gain");
+    cfg.min_acceptance = params.get_number("min_acceptance");
+    cfg.probe_margin = params.get_number("probe_margin");
     cfg.mask_dilate_px = static_cast<uint32_t>(params.get_int("mask_dilate_px"));
     cfg.mask_guard_px = static_cast<uint32_t>(params.get_int("mask_guard_px"));
     cfg.code_maps = params.get_bool("code_maps");

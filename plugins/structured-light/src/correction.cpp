@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "procam/base/calibration.hpp"
 
@@ -14,18 +15,107 @@ CorrectionDecision decide_correction(const CorrectionProgress& p) {
   if (!p.ensemble || p.max_rounds == 0) return {};
   if (p.rounds_done >= p.max_rounds) return stop("round limit");
   if (!p.can_triangulate) return stop("rig not calibrated: cannot locate resolved projector pixels");
-  if (p.errors == 0) return stop("no error pixels left");
+  if (p.errors == 0) return stop("no flagged pixels left");
   const double min_count = p.min_progress * static_cast<double>(p.lit);
   if (static_cast<double>(p.errors) < min_count)
-    return stop("error pixels below min_progress of lit pixels");
+    return stop("flagged pixels below min_progress of lit pixels");
   if (p.rounds_done > 0 && static_cast<double>(p.resolved_last) < min_count)
     return stop("last round resolved fewer than min_progress of lit pixels");
+  if (p.rounds_done > 0 && p.acceptance_last < p.min_acceptance)
+    return stop("last round's acceptance rate below min_acceptance");
   return {true, nullptr};
 }
 
-std::vector<uint8_t> near_error(const std::vector<uint8_t>& cls, size_t w, size_t h, uint32_t radius) {
+size_t label_conflicts(const float* const code[kEnsembleCodes], float agree_px, size_t begin,
+                       size_t end, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
+  size_t n = 0;
+  for (size_t i = begin; i < end; ++i) {
+    if (valid[i] == 0 || cls[i] == kAllAgree) continue;
+    float v[kEnsembleCodes];
+    for (uint32_t k = 0; k < kEnsembleCodes; ++k) v[k] = code[k][i];
+    const auto agree = [&](uint32_t a, uint32_t b) { return std::fabs(v[a] - v[b]) <= agree_px; };
+    uint32_t pairs = 0;
+    for (uint32_t a = 0; a < kEnsembleCodes; ++a)
+      for (uint32_t b = a + 1; b < kEnsembleCodes; ++b) pairs += agree(a, b) ? 1u : 0u;
+    if (pairs != 1) continue;
+    uint32_t x = kEnsembleCodes;  // the XOR code agreeing with gray, if that is the pair
+    if (agree(kGray, kXor02)) x = kXor02;
+    if (agree(kGray, kXor04)) x = kXor04;
+    if (x == kEnsembleCodes) continue;
+    bool dissent = false;  // a third valid code (it disagrees: the pair is the only one)
+    for (uint32_t k = 0; k < kEnsembleCodes; ++k)
+      if (k != kGray && k != x && !std::isnan(v[k])) dissent = true;
+    if (!dissent) continue;
+    coord[i] = std::numeric_limits<float>::quiet_NaN();
+    valid[i] = 0;
+    confidence[i] = 0.0f;
+    cls[i] = kConflict;
+    ++n;
+  }
+  return n;
+}
+
+bool fixable_pixel(float masked_white, float round1_white) {
+  return masked_white > 0.0f && masked_white >= kCorrectionMinLight * round1_white &&
+         masked_white <= (1.0f - kCorrectionMinDrop) * round1_white;
+}
+
+float row_column_estimate(const std::vector<float>& coord, size_t width, size_t i, uint32_t reach) {
+  const size_t x = i % width, row = i - x;
+  float left = std::numeric_limits<float>::quiet_NaN(), right = left;
+  size_t dl = 0, dr = 0;
+  for (size_t d = 1; d <= reach && d <= x; ++d)
+    if (!std::isnan(coord[row + x - d])) {
+      left = coord[row + x - d];
+      dl = d;
+      break;
+    }
+  for (size_t d = 1; d <= reach && x + d < width; ++d)
+    if (!std::isnan(coord[row + x + d])) {
+      right = coord[row + x + d];
+      dr = d;
+      break;
+    }
+  if (std::isnan(left)) return right;
+  if (std::isnan(right)) return left;
+  const float t = static_cast<float>(dl) / static_cast<float>(dl + dr);
+  return left + t * (right - left);
+}
+
+RoundForecast forecast_round(const sdk::Rig& rig, const std::vector<uint8_t>& mask,
+                             const std::vector<float>& coord,
+                             const std::vector<uint8_t>& cls, const std::vector<uint8_t>& lit,
+                             const std::vector<float>& masked_white,
+                             const std::vector<float>& round1_white,
+                             const std::vector<float>& masked_plane,
+                             const std::vector<float>& masked_inverse, float min_margin,
+                             std::vector<uint8_t>* per_pixel) {
+  RoundForecast f;
+  if (per_pixel != nullptr) per_pixel->assign(cls.size(), 0);
+  for (size_t i = 0; i < cls.size(); ++i) {
+    f.lit += lit[i] != 0 ? 1u : 0u;
+    if (!flagged(cls[i])) continue;
+    ++f.flagged;
+    const float m = masked_white[i], w = round1_white[i];
+    uint8_t k = 4;
+    float col = std::numeric_limits<float>::quiet_NaN();
+    if (!mask.empty()) col = row_column_estimate(coord, rig.cameras.at(0).width, i, 6);
+    if (!(m >= kCorrectionMinLight * w) || !(m > 0.0f)) k = 1;  // NaN or black: off
+    else if (!std::isnan(col) && !clear_of_mask(rig, mask, i, col)) k = 1;
+    else if (m > (1.0f - kCorrectionMinDrop) * w) k = 2;
+    else if (!(std::fabs(masked_plane[i] - masked_inverse[i]) >= min_margin * m)) k = 3;
+    f.own_light_off += k == 1;
+    f.unchanged += k == 2;
+    f.blurred += k == 3;
+    f.fixable += k == 4;
+    if (per_pixel != nullptr) (*per_pixel)[i] = k;
+  }
+  return f;
+}
+
+std::vector<uint8_t> near_flagged(const std::vector<uint8_t>& cls, size_t w, size_t h, uint32_t radius) {
   std::vector<uint8_t> err(w * h), out(w * h);
-  for (size_t i = 0; i < w * h; ++i) err[i] = cls[i] == kError ? 1 : 0;
+  for (size_t i = 0; i < w * h; ++i) err[i] = flagged(cls[i]) ? 1 : 0;
   if (radius == 0) return err;
   std::vector<uint8_t> tmp(w * h, 0);
   const auto rr = static_cast<size_t>(radius);
@@ -53,7 +143,7 @@ std::vector<uint8_t> correction_mask(const sdk::Rig& rig, const std::vector<floa
   const sdk::RigCamera& cam = rig.cameras.at(0);
   const Rigid3 proj_from_cam = cam.calibration.cam_from_proj.inverse();
   const auto r = static_cast<int64_t>(dilate_px);
-  const std::vector<uint8_t> guard = near_error(cls, cam.width, cam.height, guard_px);
+  const std::vector<uint8_t> guard = near_flagged(cls, cam.width, cam.height, guard_px);
   for (uint32_t v = 0; v < cam.height; ++v)
     for (uint32_t u = 0; u < cam.width; ++u) {
       const size_t i = size_t{v} * cam.width + u;
@@ -96,17 +186,23 @@ size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, c
                         std::vector<uint8_t>& valid, std::vector<float>& confidence,
                         std::vector<uint8_t>& cls) {
   const size_t n = cls.size();
-  size_t resolved = 0;
-  for (size_t i = 0; i < n; ++i)
-    if (cls[i] == kError && v.valid[i] != 0 && masked_white.size() == n &&
-        masked_white[i] >= kCorrectionMinLight * round1_white[i] && clear_of_mask(rig, mask, i, v.coord[i])) {
-      coord[i] = v.coord[i];
-      valid[i] = 255;
-      confidence[i] = v.confidence[i];
-      cls[i] = v.cls[i];
-      ++resolved;
-    }
-  return resolved;
+  const size_t width = rig.cameras.at(0).width;
+  std::vector<size_t> take;  // decided on the first-pass maps, then written
+  for (size_t i = 0; i < n; ++i) {
+    if (!(flagged(cls[i]) && v.valid[i] != 0 && v.cls[i] == kAllAgree && masked_white.size() == n &&
+          fixable_pixel(masked_white[i], round1_white[i]) && clear_of_mask(rig, mask, i, v.coord[i])))
+      continue;
+    const float est = row_column_estimate(coord, width, i, kCorrectionNeighbourReachPx);
+    if (!std::isnan(est) && std::fabs(v.coord[i] - est) > kCorrectionNeighbourPx) continue;
+    take.push_back(i);
+  }
+  for (size_t i : take) {
+    coord[i] = v.coord[i];
+    valid[i] = 255;
+    confidence[i] = v.confidence[i];
+    cls[i] = v.cls[i];
+  }
+  return take.size();
 }
 
 }  // namespace procam::sl

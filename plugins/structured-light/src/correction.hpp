@@ -35,6 +35,86 @@ namespace procam::sl {
 // centimetres away (wax) stays far below it.
 inline constexpr int64_t kCorrectionEdgeMarginPx = 2;
 inline constexpr float kCorrectionMinLight = 0.35f;
+// ... and the mask must have taken away at least this fraction of the
+// pixel's round-1 white light: a pixel whose light did not change kept the
+// global light that made its codes disagree, so a different answer in the
+// masked round is chance, not a correction. 0.1: the white ratio of an 8-bit
+// pixel at 100–200 DN carries 1–2 % shot + read noise (docs/sim.md sensor
+// model), so 10 % is a change, not noise, at 5 sigma.
+inline constexpr float kCorrectionMinDrop = 0.1f;
+// ... and the new column must lie within this many columns of the estimate
+// from its row (row_column_estimate(), valid pixels within
+// kCorrectionNeighbourReachPx), where there is one: 6 camera px at the
+// 1.1-1.5 projector px per camera px of the sim rig's geometry plus 2 px of
+// slack; a mirror path lands tens of columns away.
+inline constexpr uint32_t kCorrectionNeighbourReachPx = 6;
+inline constexpr float kCorrectionNeighbourPx = 10.0f;
+
+// Flagged pixels: what a correction round re-measures — errors (no two codes
+// agree) and conflicts (label_conflicts()).
+inline bool flagged(uint8_t cls) { return cls == kError || cls == kConflict; }
+
+// Conflict rule (issue 18; applied after the vote, outside its SIMD kernels):
+// a valid pixel whose vote rests on exactly two agreeing codes, gray and one
+// XOR code, while a third valid code disagrees with them, is set invalid
+// (class kConflict). XOR-02/04 planes are Gray planes XOR a base plane, so
+// those two codes share the Gray structure and their errors are correlated:
+// under a strong second light path (a mirror reflection, a glossy
+// inter-reflection) they can both decode the same wrong column, and their
+// agreement against an independent dissenting code is no evidence. On the
+// development scenes (corner-wax, glossy-pipe, metal-lamp, marble-slab) such
+// pixels were wrong 976 of 1265 times on the lamp and in every case on the
+// corner and the pipe. Every other vote (the thesis's XOR pair, the Gray
+// pair, 3–4 agreeing codes) stands. code[k]: column maps in vote.hpp order
+// (NaN = invalid). Pixels [begin, end). Returns the number set to kConflict.
+size_t label_conflicts(const float* const code[kEnsembleCodes], float agree_px, size_t begin,
+                       size_t end, float* coord, uint8_t* valid, float* confidence, uint8_t* cls);
+
+// What the three-frame probe of codes_session.cpp (the next round's masked
+// white Wm, masked finest xor02 plane L and its inverse L̄, stripes 2 px
+// wide, all / full scale) says about a correction round before it is
+// projected. Per flagged pixel, with r = Wm / round-1 white:
+//   r < kCorrectionMinLight, or     own projector pixel switched off: unfixable
+//   its column estimate (the valid  (merge_correction() would reject any answer
+//   pixels beside it in its row)    next to the mask)
+//   is not clear_of_mask()
+//   r > 1 - kCorrectionMinDrop      the mask took none of its global light away
+//   |L - L̄| < min_margin * Wm       its finest stripes still have too little
+//                                   direct contrast under the mask: short-range
+//                                   light (sub-surface, defocus), ambient or
+//                                   noise the mask cannot remove
+//   otherwise                       fixable: own light kept, global light gone
+// With stripes 2 px wide, |L - L̄| ~ D (the direct light, Nayar et al.'s
+// separation, thesis §2) and Wm = D + G' + ambient, so min_margin = 0.5 asks
+// for D >= G' + ambient: the pixel is direct-dominated once masked, which is
+// what every code needs to agree (Eq. 3.5, global light split evenly).
+// merge_correction() then accepts only all-four-agree answers, so the
+// forecast is an upper bound on what the round resolves.
+struct RoundForecast {
+  size_t flagged = 0, own_light_off = 0, unchanged = 0, blurred = 0, fixable = 0;
+  size_t lit = 0;
+  double predicted_gain() const {  // fixable / lit pixels
+    return lit > 0 ? static_cast<double>(fixable) / static_cast<double>(lit) : 0.0;
+  }
+};
+RoundForecast forecast_round(const sdk::Rig& rig, const std::vector<uint8_t>& mask,
+                             const std::vector<float>& coord,
+                             const std::vector<uint8_t>& cls, const std::vector<uint8_t>& lit,
+                             const std::vector<float>& masked_white,
+                             const std::vector<float>& round1_white,
+                             const std::vector<float>& masked_plane,
+                             const std::vector<float>& masked_inverse, float min_margin,
+                             std::vector<uint8_t>* per_pixel = nullptr);
+// per_pixel (optional, resized to cls.size()): 0 not flagged, then 1 own light
+// off, 2 unchanged, 3 fine stripes lost, 4 fixable. An empty mask skips the
+// column test (no rig geometry needed: unit tests of the light rules).
+
+// Column estimate of camera pixel i for the forecast: linear interpolation
+// between the nearest valid pixels (coord not NaN) left and right of it in its
+// row within `reach` px, or the one found; NaN when there is none.
+float row_column_estimate(const std::vector<float>& coord, size_t width, size_t i, uint32_t reach);
+// True for a flagged pixel the forecast counts as fixable (r in range).
+bool fixable_pixel(float masked_white, float round1_white);
 
 // What the §3.4 stop rule looks at after a round.
 struct CorrectionProgress {
@@ -42,9 +122,11 @@ struct CorrectionProgress {
   uint32_t max_rounds = 0;          // correction_rounds parameter
   uint32_t rounds_done = 0;         // correction rounds run so far
   bool can_triangulate = false;     // the mask needs each resolved pixel's projector pixel
-  size_t errors = 0, lit = 0;       // after the last round
+  size_t errors = 0, lit = 0;       // after the last round (errors: flagged pixels)
   size_t resolved_last = 0;         // pixels the last correction round resolved
   double min_progress = 0.0005;     // fraction of lit pixels
+  double acceptance_last = 1.0;     // accepted / fixable of the last correction round
+  double min_acceptance = 0.25;     // stop below this acceptance rate
 };
 
 struct CorrectionDecision {
@@ -52,15 +134,18 @@ struct CorrectionDecision {
   const char* stop_reason = nullptr;  // why not (null: correction is off, nothing to report)
 };
 
-// §3.4 stop rule: another round only for the ensemble, with a calibrated rig,
-// error pixels left, the round limit not reached, and progress in the last
-// round (errors and, after the first correction, resolved pixels at least
-// min_progress of lit pixels).
+// §3.4 stop rule, before the probe: another round only for the ensemble,
+// with a calibrated rig, flagged pixels left (errors + conflicts, at least
+// min_progress of lit pixels), the round limit not reached, and, after a
+// correction round, progress (resolved >= min_progress of lit pixels) at an
+// acceptance rate (accepted / fixable) of at least min_acceptance: a round
+// whose masked answers mostly fail merge_correction()'s tests is not
+// fixing what it was predicted to fix, and another one would not either.
 CorrectionDecision decide_correction(const CorrectionProgress& p);
 
-// 1 where an error pixel (cls == kError) lies within `radius` camera px
+// 1 where a flagged pixel (errors and conflicts) lies within `radius` camera px
 // (square window, Chebyshev distance), else 0: a separable max filter.
-std::vector<uint8_t> near_error(const std::vector<uint8_t>& cls, size_t width, size_t height,
+std::vector<uint8_t> near_flagged(const std::vector<uint8_t>& cls, size_t width, size_t height,
                                 uint32_t radius);
 
 // Projector mask of a correction round: every valid camera pixel that is not
@@ -80,13 +165,23 @@ std::vector<uint8_t> correction_mask(const sdk::Rig& rig, const std::vector<floa
 // `mask`; false when it cannot be located.
 bool clear_of_mask(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t i, float col);
 
-// Merges a correction round's vote `v` into the running maps: only pixels
-// still in error take the new result, and only where their new column is
-// clear_of_mask() and the masked white frame (masked_white, white / full
-// scale) keeps at least kCorrectionMinLight of the round-1 white light
-// (round1_white). A pixel whose own projector pixel was switched off sees
-// only light scattered in from the unmasked side and decodes to a column at
-// the mask's edge; it stays an error. Returns the number of pixels resolved.
+// Merges a correction round's vote `v` into the running maps. A flagged pixel
+// takes the new result only when every test that needs no ground truth
+// passes (issue 18: a round must never make things worse):
+//  - it is fixable_pixel(): the masked white frame (masked_white, white /
+//    full scale) keeps at least kCorrectionMinLight of its round-1 white light
+//    (round1_white) — a pixel whose own projector pixel was switched off sees
+//    only light scattered in from the unmasked side and decodes to a column at
+//    the mask's edge — and lost at least kCorrectionMinDrop of it;
+//  - all four codes agree in the masked round (class kAllAgree): with its
+//    global light gone the pixel must look like a direct-light pixel; a
+//    masked pair or triple was wrong 14 % (partial) and 1.8 % (Gray pair) of
+//    the time on the development scenes, all-four 0.02 % on the lamp;
+//  - the new column is clear_of_mask();
+//  - it agrees with its row's valid neighbours (row_column_estimate() within
+//    kCorrectionNeighbourPx), where it has any: global light is smooth, so a
+//    pixel that the first pass lost among valid neighbours lies between them.
+// Returns the number of pixels resolved.
 size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, const VoteMaps& v,
                         const std::vector<float>& masked_white,
                         const std::vector<float>& round1_white, std::vector<float>& coord,

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <iterator>
 #include <vector>
 
 #include "correction.hpp"
@@ -72,16 +73,24 @@ TEST(Correction, StopRuleFollowsThesisSection34) {
   EXPECT_EQ(reason(uncal), "rig not calibrated: cannot locate resolved projector pixels");
   CorrectionProgress none = p;
   none.errors = 0;
-  EXPECT_EQ(reason(none), "no error pixels left");
+  EXPECT_EQ(reason(none), "no flagged pixels left");
   CorrectionProgress few = p;
   few.errors = 4;  // < 5
-  EXPECT_EQ(reason(few), "error pixels below min_progress of lit pixels");
+  EXPECT_EQ(reason(few), "flagged pixels below min_progress of lit pixels");
   CorrectionProgress stalled = p;
   stalled.rounds_done = 1;
   stalled.resolved_last = 4;  // the last round resolved < 5
   EXPECT_EQ(reason(stalled), "last round resolved fewer than min_progress of lit pixels");
   stalled.resolved_last = 5;  // exactly at the threshold: go on
   EXPECT_TRUE(decide_correction(stalled).more);
+  // Issue 18: a round whose answers mostly failed the acceptance tests stops
+  // the correction, even with progress.
+  CorrectionProgress unsure = stalled;
+  unsure.resolved_last = 500;
+  unsure.acceptance_last = 0.2;  // < min_acceptance 0.25
+  EXPECT_EQ(reason(unsure), "last round's acceptance rate below min_acceptance");
+  unsure.acceptance_last = 0.25;  // at the threshold: go on
+  EXPECT_TRUE(decide_correction(unsure).more);
   // The first correction round does not need earlier progress.
   CorrectionProgress first = p;
   first.resolved_last = 0;
@@ -97,7 +106,7 @@ TEST(Correction, NearErrorIsAChebyshevDilation) {
   cls[0] = kError;          // corner
   cls[w * h - 1] = kError;  // other corner
   for (uint32_t r : {0u, 1u, 3u}) {
-    const std::vector<uint8_t> got = near_error(cls, w, h, r);
+    const std::vector<uint8_t> got = near_flagged(cls, w, h, r);
     for (size_t y = 0; y < h; ++y)
       for (size_t x = 0; x < w; ++x) {
         bool near = false;  // brute force over all error pixels
@@ -165,7 +174,7 @@ TEST(Correction, MergeTakesOnlyErrorPixelsThatPassEveryRule) {
   v.coord.assign(n, 40.0f);  // every camera pixel re-decodes to column 40
   v.valid.assign(n, 255);
   v.confidence.assign(n, 0.75f);
-  v.cls.assign(n, kPartial);
+  v.cls.assign(n, kAllAgree);
   // Pixel a: still an error, lit, window clear -> merged.
   const size_t a = 4 * kW + 20;
   // Pixel b: was resolved in round 1 (not an error) -> untouched.
@@ -186,20 +195,36 @@ TEST(Correction, MergeTakesOnlyErrorPixelsThatPassEveryRule) {
   // Pixel f: names projector (8, 12), whose window touches the switched-off run.
   const size_t f = 12 * kW + 0;
   v.coord[f] = 8.0f;
+  // Pixel g: the mask took away only 5 % of its light (< kCorrectionMinDrop):
+  // a different answer is chance -> stays an error.
+  const size_t g = 4 * kW + 25;
+  masked_white[g] = 0.95f;
+  // Pixel k: exactly 10 % taken away -> merged (the rule is <= 1 - 0.1).
+  const size_t k = 4 * kW + 26;
+  masked_white[k] = 0.9f;
+  // Pixel p: only a pair agrees in the masked round -> stays an error.
+  const size_t p = 4 * kW + 27;
+  v.cls[p] = kPartial;
+  // Pixel q: a conflict pixel (flagged like an error) -> merged.
+  const size_t q = 4 * kW + 28;
+  cls[q] = kConflict;
   // Everything else: no new column.
   for (size_t i = 0; i < n; ++i)
-    if (i != a && i != b && i != c && i != d && i != e && i != f) v.valid[i] = 0;
+    if (i != a && i != b && i != c && i != d && i != e && i != f && i != g && i != k && i != p && i != q)
+      v.valid[i] = 0;
   const size_t resolved =
       merge_correction(rig, mask, v, masked_white, round1, coord, valid, confidence, cls);
-  EXPECT_EQ(resolved, 2u);
+  EXPECT_EQ(resolved, 4u);
   EXPECT_EQ(coord[a], 40.0f);
   EXPECT_EQ(valid[a], 255);
   EXPECT_EQ(confidence[a], 0.75f);
-  EXPECT_EQ(cls[a], kPartial);
-  EXPECT_EQ(cls[e], kPartial);
+  for (size_t i : {a, e, k, q}) {
+    EXPECT_EQ(cls[i], kAllAgree) << i;
+    EXPECT_EQ(valid[i], 255) << i;
+  }
   EXPECT_EQ(coord[b], 41.0f);
   EXPECT_EQ(cls[b], kAllAgree);
-  for (size_t i : {c, d, f}) {
+  for (size_t i : {c, d, f, g, p}) {
     EXPECT_EQ(cls[i], kError) << i;
     EXPECT_EQ(valid[i], 0) << i;
     EXPECT_TRUE(std::isnan(coord[i])) << i;
@@ -208,6 +233,107 @@ TEST(Correction, MergeTakesOnlyErrorPixelsThatPassEveryRule) {
   std::vector<uint8_t> cls2(n, kError), valid2(n, 0);
   std::vector<float> coord2(n, kNaN), conf2(n, 0.0f);
   EXPECT_EQ(merge_correction(rig, mask, v, std::vector<float>(3, 1.0f), round1, coord2, valid2, conf2, cls2), 0u);
+}
+
+// The conflict rule on hand-made votes: only {gray, xor02/04} agreeing
+// against a valid third code is a conflict; every other vote stands.
+TEST(Correction, ConflictRuleFlagsOnlyACorrelatedPairAgainstADissenter) {
+  struct Case {
+    float g, x2, x4, m;
+    uint8_t cls;       // the vote's class (as vote.hpp would give it)
+    bool conflict;     // expected
+  };
+  const Case cases[] = {
+      {100, 100, kNaN, 300, kPartial, true},     // gray + xor02 vs minsw
+      {100, kNaN, 100.5f, 40, kPartial, true},   // gray + xor04 vs minsw
+      {100, 250, 100, kNaN, kPartial, true},     // gray + xor04 vs xor02
+      {100, 100, kNaN, kNaN, kPartial, false},   // the pair alone: no dissent, stands
+      {100, 100, 100, 300, kPartial, false},     // three agree (3 pairs): stands
+      {300, 100, 100, 120, kInterreflection, false},  // the thesis's XOR pair: stands
+      {100, 200, 300, 100, kSubsurface, false},  // the Gray pair: stands
+      {100, kNaN, 300, 300.5f, kPartial, false}, // xor04 + minsw vs gray: stands
+      {100, 100, 100, 100, kAllAgree, false},
+  };
+  const size_t n = std::size(cases);
+  std::vector<float> code[kEnsembleCodes];
+  for (auto& c : code) c.resize(n);
+  std::vector<float> coord(n, 100.0f), conf(n, 0.5f);
+  std::vector<uint8_t> valid(n, 255), cls(n);
+  for (size_t i = 0; i < n; ++i) {
+    code[kGray][i] = cases[i].g;
+    code[kXor02][i] = cases[i].x2;
+    code[kXor04][i] = cases[i].x4;
+    code[kMinsw][i] = cases[i].m;
+    cls[i] = cases[i].cls;
+  }
+  const float* ptr[kEnsembleCodes] = {code[0].data(), code[1].data(), code[2].data(), code[3].data()};
+  const size_t got = label_conflicts(ptr, 1.0f, 0, n, coord.data(), valid.data(), conf.data(), cls.data());
+  size_t want = 0;
+  for (size_t i = 0; i < n; ++i) {
+    want += cases[i].conflict ? 1u : 0u;
+    EXPECT_EQ(cls[i] == kConflict, cases[i].conflict) << "case " << i;
+    EXPECT_EQ(valid[i], cases[i].conflict ? 0 : 255) << "case " << i;
+    EXPECT_EQ(std::isnan(coord[i]), cases[i].conflict) << "case " << i;
+  }
+  EXPECT_EQ(got, want);
+}
+
+// The probe's forecast sorts flagged pixels by the three tests; the counts
+// are checked against the rule written out per pixel.
+TEST(Correction, ForecastCountsFixablePixelsByTheProbeRules) {
+  std::vector<uint8_t> cls = {kError, kError, kError, kError, kConflict, kAllAgree, kError, kUnlit};
+  std::vector<uint8_t> lit = {255, 255, 255, 255, 255, 255, 255, 0};
+  std::vector<float> w1 = {1.0f, 1.0f, 1.0f, 1.0f, 0.8f, 1.0f, 0.5f, 0.0f};
+  //                 own light off, unchanged, blurred, fixable, fixable, (valid), fixable (8-bit dark), unlit
+  std::vector<float> wm = {0.30f, 0.95f, 0.6f, 0.6f, 0.4f, 0.6f, 0.2f, 0.0f};
+  // |L - L_inv| / Wm: 0.2/0.6 = 0.33 < 0.5 (blurred); 0.4/0.6 = 0.67 (fixable);
+  // conflict: 0.4/0.4 = 1; last error: 0.2/0.2 = 1.
+  std::vector<float> plane = {0.3f, 0.5f, 0.4f, 0.5f, 0.4f, 0.3f, 0.2f, 0.0f};
+  std::vector<float> inverse = {0.0f, 0.45f, 0.2f, 0.1f, 0.0f, 0.3f, 0.0f, 0.0f};
+  const sdk::Rig rig = rectified_rig();
+  const std::vector<uint8_t> no_mask;
+  const std::vector<float> no_coord;
+  const RoundForecast f = forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f);
+  EXPECT_EQ(f.lit, 7u);
+  EXPECT_EQ(f.flagged, 6u);
+  EXPECT_EQ(f.own_light_off, 1u);
+  EXPECT_EQ(f.unchanged, 1u);
+  EXPECT_EQ(f.blurred, 1u);
+  EXPECT_EQ(f.fixable, 3u);
+  EXPECT_DOUBLE_EQ(f.predicted_gain(), 3.0 / 7.0);
+  EXPECT_EQ(f.flagged, f.own_light_off + f.unchanged + f.blurred + f.fixable);
+  // A black masked white (0 / 0) is "own light off", never NaN-fixable.
+  const RoundForecast z = forecast_round(rig, no_mask, no_coord, {kError}, {255}, {0.0f}, {0.0f}, {0.0f}, {0.0f}, 0.5f);
+  // An "on" stripe whose inverse is as bright (ambient or blur): not fixable,
+  // although |2L - Wm| alone would pass.
+  const RoundForecast amb = forecast_round(rig, no_mask, no_coord, {kError}, {255}, {0.6f}, {1.0f}, {0.5f}, {0.45f}, 0.5f);
+  EXPECT_EQ(amb.blurred, 1u);
+  EXPECT_EQ(z.fixable + z.unchanged + z.blurred + z.own_light_off, 1u);
+  EXPECT_EQ(z.fixable, 0u);
+  // With geometry: a flagged pixel whose row neighbours name a projector
+  // pixel next to the mask is "own light off" (merge_correction would reject
+  // any answer there); one whose neighbours name a lit area stays fixable.
+  const size_t n = size_t{kW} * kH;
+  std::vector<uint8_t> mask(n, 255), cls2(n, kAllAgree), lit2(n, 255);
+  for (uint32_t x = 30; x <= 34; ++x) mask[10 * kW + x] = 0;  // projector row 10, cols 30..34 off
+  std::vector<float> coord(n, kNaN), ones(n, 1.0f), half(n, 0.6f), on(n, 0.6f), off(n, 0.0f);
+  const size_t near_mask = 10 * kW + 20, far_from_mask = 10 * kW + 40;
+  cls2[near_mask] = kError;
+  cls2[far_from_mask] = kError;
+  coord[near_mask - 1] = 28.0f;  // neighbours: columns 28 and 30 -> estimate 29, within 2 of 30..34
+  coord[near_mask + 1] = 30.0f;
+  coord[far_from_mask - 2] = 55.0f;  // estimate 55 (one side only): far from the mask
+  const RoundForecast g = forecast_round(rig, mask, coord, cls2, lit2, half, ones, on, off, 0.5f);
+  EXPECT_EQ(g.flagged, 2u);
+  EXPECT_EQ(g.own_light_off, 1u);
+  EXPECT_EQ(g.fixable, 1u);
+  EXPECT_FLOAT_EQ(row_column_estimate(coord, kW, near_mask, 6), 29.0f);
+  EXPECT_FLOAT_EQ(row_column_estimate(coord, kW, far_from_mask, 6), 55.0f);
+  EXPECT_TRUE(std::isnan(row_column_estimate(coord, kW, 20 * kW + 5, 6)));
+  EXPECT_TRUE(fixable_pixel(0.6f, 1.0f));
+  EXPECT_FALSE(fixable_pixel(0.95f, 1.0f));
+  EXPECT_FALSE(fixable_pixel(0.2f, 1.0f));
+  EXPECT_FALSE(fixable_pixel(kNaN, 1.0f));
 }
 
 }  // namespace

@@ -39,14 +39,16 @@ MultiLayout make_multi_layout(const std::vector<ProjectedCode>& codes, bool inve
 
 void render_multi_plan(const MultiLayout& layout, const std::vector<ProjectedCode>& codes,
                        uint32_t width, uint32_t height, const std::vector<uint8_t>* mask,
-                       sdk::Plan& plan) {
+                       sdk::Plan& plan, const std::vector<uint8_t>* skip) {
   for (const ProjectedCode& c : codes)
     if (c.length() != width)
       throw std::invalid_argument("render_multi_plan: code length differs from projector width");
   if (mask != nullptr && mask->size() != size_t{width} * height)
     throw std::invalid_argument("render_multi_plan: mask size differs from projector size");
   std::vector<uint8_t> line(width);
-  for (const MultiFrame& f : layout.frames) {
+  for (size_t fi = 0; fi < layout.frames.size(); ++fi) {
+    if (skip != nullptr && fi < skip->size() && (*skip)[fi] != 0) continue;
+    const MultiFrame& f = layout.frames[fi];
     const uint32_t i = plan.add_frame(f.label, width, height, PROCAM_PIXEL_U8);
     std::span<uint8_t> px = plan.pattern_u8(i);
     switch (f.kind) {

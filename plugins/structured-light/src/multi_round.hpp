@@ -55,11 +55,13 @@ struct MultiLayout {
 MultiLayout make_multi_layout(const std::vector<ProjectedCode>& codes, bool inverse, bool black);
 
 // Appends the layout's patterns (projector W x H, U8 0/255, vertical stripes)
-// to `plan`. `mask` (W*H, nonzero = may be lit) switches projector pixels off
-// in every pattern, white included; null = all on.
+// to `plan`, leaving out layout frames i with (*skip)[i] != 0 (the session
+// already holds those frames from an earlier round, e.g. a probe, and feeds
+// them to the decoder itself). `mask` (W*H, nonzero = may be lit) switches
+// projector pixels off in every pattern, white included; null = all on.
 void render_multi_plan(const MultiLayout& layout, const std::vector<ProjectedCode>& codes,
                        uint32_t width, uint32_t height, const std::vector<uint8_t>* mask,
-                       sdk::Plan& plan);
+                       sdk::Plan& plan, const std::vector<uint8_t>* skip = nullptr);
 
 struct MultiResult {
   std::vector<AxisMaps> codes;   // per code: projector column (span centre), valid, confidence

@@ -21,6 +21,7 @@ const char* transport_class_name(uint8_t c) {
     case kSubsurface: return "subsurface";
     case kPartial: return "partial";
     case kError: return "error";
+    case kConflict: return "conflict";
     default: return "unknown";
   }
 }

@@ -44,8 +44,10 @@ enum TransportClass : uint8_t {
   kSubsurface = 3,
   kPartial = 4,
   kError = 5,
+  kConflict = 6,  // invalid: only a correlated pair agrees against a dissenting code
+                  // (label_conflicts(), correction.hpp); never written by the vote itself
 };
-inline constexpr uint32_t kTransportClassCount = 6;
+inline constexpr uint32_t kTransportClassCount = 7;
 const char* transport_class_name(uint8_t c);
 
 enum EnsembleCode : uint32_t { kGray = 0, kXor02 = 1, kXor04 = 2, kMinsw = 3, kEnsembleCodes = 4 };
