@@ -28,7 +28,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct Eval {
-  double decoded = 0, gross = 0, ok = 0;
+  double decoded = 0, gross = 0, ok = 0, patterns = 0;
   double wrong() const { return gross * decoded; }
   double failed() const { return 1.0 - ok; }
 };
@@ -60,7 +60,8 @@ Runs run(const std::string& scene, const std::vector<std::string>& methods, cons
       continue;
     }
     const auto& e = r["evaluation"];
-    Eval v{e.value("decoded_fraction", 0.0), e.value("gross_error_fraction", 0.0), e.value("within_1col_fraction", 0.0)};
+    Eval v{e.value("decoded_fraction", 0.0), e.value("gross_error_fraction", 0.0), e.value("within_1col_fraction", 0.0),
+           r.value("patterns", 0.0)};
     runs[r.value("method", "")] = v;
     std::printf("%-15s %-22s ok %6.2f%%  decoded %6.2f%%  wrong %6.3f%%  (gross %.3f%% of decoded)\n", scene.c_str(),
                 r.value("method", "").c_str(), 100 * v.ok, 100 * v.decoded, 100 * v.wrong(), 100 * v.gross);
@@ -190,17 +191,47 @@ TEST(SceneClaims, BowlOnMarbleEnsembleDefaults) {
 // Fig. 3.12 lamp: glossy inter-reflections, the failure case of every code.
 // The ensemble's vote cuts the errors; correction rounds (§3.4) then recover
 // most of the pixels the detector flags ("we progressively reduce the
-// errors"), within issue 4's 0.5 % goal. The rounds take a few wrong values
-// too (two codes agreeing on a wrong column in the masked round): bounded
-// here at 0.2 % of lit pixels (measured +0.11 %), against +9 % decoded right.
+// errors"), within issue 4's 0.5 % goal. Since issue 18 a round keeps only
+// answers all four codes agree on (measured: 8 wrong of ~80 000 resolved),
+// so the rounds must not raise the gross-error rate at all (tolerance: the
+// report's 0.005 percentage-point rounding, which also covers the capture
+// noise between the two separate scans).
 TEST(SceneClaims, MetalLampEnsembleAndCorrection) {
   auto r = run("metal-lamp", {"gray", "xor02", "xor04", "minsw", "ensemble-nocorr", "ensemble"});
   const double best = best_single_wrong(r);
   EXPECT_LT(r["ensemble-nocorr"].wrong(), best);
   EXPECT_GE(r["ensemble"].ok, r["ensemble-nocorr"].ok + 0.05);
-  EXPECT_LE(r["ensemble"].wrong(), r["ensemble-nocorr"].wrong() + 0.002);
+  EXPECT_LE(r["ensemble"].gross, r["ensemble-nocorr"].gross + 5e-5);
   EXPECT_LE(r["ensemble"].gross, 0.005);
 }
+
+// Issue 18: correction rounds and auto must pay for their patterns. On every
+// scene: the ensemble with rounds and auto have gross-error rates (of decoded
+// pixels) <= the ensemble without rounds (tolerance as above), auto uses <=
+// the ensemble's patterns and is within 0.02 percentage points of the best
+// binary method's gross-error rate. `min_patterns_saved`: where the probe
+// must have skipped every round (nothing it can fix), the ensemble uses at
+// most 44 + 3 (first pass + one probe) patterns.
+void expect_rounds_pay(const std::string& scene, bool rounds_skipped, bool auto_near_best = true) {
+  auto r = run(scene, {"gray", "xor02", "xor04", "minsw", "ensemble-nocorr", "ensemble", "auto"});
+  double best = 1;
+  for (const auto& [m, e] : r) best = std::min(best, e.gross);
+  std::printf("%s: best gross %.4f%%, ensemble %.4f%% (%g patterns), auto %.4f%% (%g patterns), nocorr %.4f%%\n",
+              scene.c_str(), 100 * best, 100 * r["ensemble"].gross, r["ensemble"].patterns, 100 * r["auto"].gross,
+              r["auto"].patterns, 100 * r["ensemble-nocorr"].gross);
+  EXPECT_LE(r["ensemble"].gross, r["ensemble-nocorr"].gross + 5e-5) << scene;
+  EXPECT_LE(r["auto"].gross, r["ensemble-nocorr"].gross + 5e-5) << scene;
+  EXPECT_LE(r["auto"].patterns, r["ensemble"].patterns) << scene;
+  if (auto_near_best) EXPECT_LE(r["auto"].gross, best + 2e-4) << scene;
+  if (rounds_skipped) EXPECT_LE(r["ensemble"].patterns, 47) << scene << ": the probe should have skipped the round";
+}
+
+// Development scenes (the rules were tuned on these and the library):
+// corner + wax (the corner's inter-reflections reach the wax, whose flagged
+// pixels a mask cannot fix: the probe skips the round) and a glossy pipe
+// (mirror paths; one round pays).
+TEST(SceneClaims, Issue18CornerWaxRoundSkipped) { expect_rounds_pay("corner-wax", true); }
+TEST(SceneClaims, Issue18GlossyPipeRoundPays) { expect_rounds_pay("glossy-pipe", false); }
 
 // §2.5 / Fig. 3.4: beyond the depth of field defocus blurs the finest planes.
 // min-SW (long minimum stripe) keeps decoding, without errors, where XOR-02

@@ -70,10 +70,11 @@ const char* why_of(const std::string& m) {
            "sub-surface scattering and defocus (which low-pass the pattern) keep alpha, beta >= "
            "0.5 and the bits decodable. Errs under long-range inter-reflections (wide stripes).";
   return "Ensemble (thesis §3.3.3): errors of codes built for different effects are nearly "
-         "independent, so any two agreeing codes give the right column; where none agree the "
-         "pixel is an error (§3.4) and, with correction_rounds > 0, is re-measured while the "
-         "projector pixels of already-resolved points are switched off (after Xu & Aliaga), "
-         "removing their global light.";
+         "independent, so any two agreeing codes give the right column (except gray with an XOR "
+         "code, which share the Gray structure: against a dissenting code that pair is a "
+         "conflict); where none agree the pixel is an error (§3.4) and, with correction_rounds > "
+         "0, is re-measured while the projector pixels of already-resolved points are switched "
+         "off (after Xu & Aliaga), when a 3-frame probe predicts the round pays.";
 }
 
 class CodesSession final : public StreamingSession<MultiCodeDecoder> {
@@ -703,17 +704,19 @@ sdk::MethodDescription describe_codes_method(const std::string& method) {
     d.patterns = 22u;  // defaults: binarize=inverse, black_frame on; 10 bits at any width
   } else if (method == "auto") {
     description = "Model only what the scene needs: first xor04 + minsw (codes for opposite "
-                  "global-light effects); where they disagree on more than auto_tolerance of lit "
+                  "global-light effects); where they dispute more than auto_tolerance of lit "
                   "pixels, add gray + xor02 and vote (the ensemble), then correction rounds only "
-                  "while error pixels remain. The report says which codes were used and why.";
-    patterns = "1 + ceil(log2 W) + 10 (23 at W = 1280) on easy scenes; + 1 + 2*ceil(log2 W) for "
-               "the rest of the ensemble; correction rounds as ensemble";
+                  "when a 3-frame probe predicts they pay. The report gives per step the "
+                  "predicted gain and the measured change.";
+    patterns = "1 + ceil(log2 W) + 10 (22 at W = 1280) on easy scenes; + 2*ceil(log2 W) (the "
+               "ensemble's 44 in all) where codes dispute; + 3 per correction probe and "
+               "3*ceil(log2 W) + 9 per round taken (42 at 1280), as ensemble";
   } else {
     description = "Ensemble of gray, xor02, xor04 and minsw with per-pixel vote, light-transport "
                   "classification map, error detection and error-correction rounds (thesis "
                   "§3.3.3-3.4).";
-    patterns = "1 + 3*ceil(log2 W) + 10 per round (41 for W = 1024, 44 for W = 1280); "
-               "correction rounds repeat it";
+    patterns = "1 + 3*ceil(log2 W) + 10 (41 for W = 1024, 44 for W = 1280); + 3 per correction "
+               "probe and 3*ceil(log2 W) + 9 per correction round taken (42 at 1280)";
   }
   d.name = method;
   d.summary = description;
