@@ -226,6 +226,11 @@ int cmd_bench(const Args& a) {
   // names); a --scene FILE adds its folder to the rig's scene folders and is
   // run by its name.
   std::vector<std::string> scene_dirs{scenes_dir.string()};
+  // The rig config's own scene folder last: its default scene must load even
+  // when --scenes names a folder without it (e.g. configs/scenes/validation).
+  const fs::path rig_scenes = (fs::path(rig_path).parent_path() / ".." / "scenes").lexically_normal();
+  if (fs::is_directory(rig_scenes) && fs::weakly_canonical(rig_scenes) != fs::weakly_canonical(scenes_dir))
+    scene_dirs.push_back(rig_scenes.string());
   for (const auto& s : a.list("scene")) {
     const fs::path p(s);
     if (p.extension() == ".json" || s.find('/') != std::string::npos) {

@@ -38,7 +38,8 @@ using Runs = std::map<std::string, Eval>;
 // Runs the bench for one scene and the given methods (labels as in bench.md).
 // extra: more bench arguments (e.g. --param M.key=value).
 Runs run(const std::string& scene, const std::vector<std::string>& methods, const std::string& extra = "") {
-  const fs::path out = fs::temp_directory_path() / ("procam-claims-" + scene + "-" + std::to_string(::getpid()));
+  const fs::path out = fs::temp_directory_path() /
+                       ("procam-claims-" + fs::path(scene).stem().string() + "-" + std::to_string(::getpid()));
   fs::remove_all(out);
   std::string cmd = std::string(PROCAM_BINARY_DIR) + "/bin/procam bench --only-listed 1 --threads 2 --scene " + scene +
                     " --plugins " + PROCAM_PLUGIN_DIR + " --out " + out.string();
@@ -209,7 +210,7 @@ TEST(SceneClaims, MetalLampEnsembleAndCorrection) {
 // scene: the ensemble with rounds and auto have gross-error rates (of decoded
 // pixels) <= the ensemble without rounds (tolerance as above), auto uses <=
 // the ensemble's patterns and is within 0.02 percentage points of the best
-// binary method's gross-error rate. `min_patterns_saved`: where the probe
+// binary method's gross-error rate (tolerance 0.01 pp: two separate captures of the same first pass differed by 0.005 pp on corner-wax with no round run). `rounds_skipped`: where the probe
 // must have skipped every round (nothing it can fix), the ensemble uses at
 // most 44 + 3 (first pass + one probe) patterns.
 void expect_rounds_pay(const std::string& scene, bool rounds_skipped, bool auto_near_best = true) {
@@ -219,8 +220,8 @@ void expect_rounds_pay(const std::string& scene, bool rounds_skipped, bool auto_
   std::printf("%s: best gross %.4f%%, ensemble %.4f%% (%g patterns), auto %.4f%% (%g patterns), nocorr %.4f%%\n",
               scene.c_str(), 100 * best, 100 * r["ensemble"].gross, r["ensemble"].patterns, 100 * r["auto"].gross,
               r["auto"].patterns, 100 * r["ensemble-nocorr"].gross);
-  EXPECT_LE(r["ensemble"].gross, r["ensemble-nocorr"].gross + 5e-5) << scene;
-  EXPECT_LE(r["auto"].gross, r["ensemble-nocorr"].gross + 5e-5) << scene;
+  EXPECT_LE(r["ensemble"].gross, r["ensemble-nocorr"].gross + 1e-4) << scene;
+  EXPECT_LE(r["auto"].gross, r["ensemble-nocorr"].gross + 1e-4) << scene;
   EXPECT_LE(r["auto"].patterns, r["ensemble"].patterns) << scene;
   if (auto_near_best) EXPECT_LE(r["auto"].gross, best + 2e-4) << scene;
   if (rounds_skipped) EXPECT_LE(r["ensemble"].patterns, 47) << scene << ": the probe should have skipped the round";
