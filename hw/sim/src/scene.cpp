@@ -205,7 +205,7 @@ static void parse_bulb(FieldReader& medium, Medium& m) {
   Medium::Bulb b;
   b.center_mm = r.vec3("center_mm", std::nullopt, "bulb centre, mm, world frame");
   b.radius_mm = r.number("radius_mm", 10.0, "mm", 0.1, 1000.0);
-  b.irradiance_at_1m = r.positive("irradiance_at_1m", 5e-4, "iu at 1 m per unit emitted light");
+  b.irradiance_at_1m = r.positive("irradiance_at_1m", 0.01, "iu at 1 m per unit emitted light");
   b.samples = static_cast<int>(r.integer("samples", 10, 1, 64));
   if (!r.errors().ok()) return;
   if (m.whole_scene) {

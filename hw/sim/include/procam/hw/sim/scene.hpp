@@ -138,7 +138,7 @@ struct Medium {
   struct Bulb {
     Vec3 center_mm;               // world frame, inside the tank
     double radius_mm = 10;        // sphere radius
-    double irradiance_at_1m = 5e-4;  // iu at 1 m in clear medium per unit emitted light: I0 = 10⁶ × this (iu·mm²)
+    double irradiance_at_1m = 0.01;  // iu at 1 m in clear medium per unit emitted light: I0 = 10⁶ × this (iu·mm²)
     int samples = 10;             // the visible cap is sampled samples × samples (§4.3.3: ~10×10)
     double intensity() const { return irradiance_at_1m * 1e6; }
     // Radiance of the bulb's surface (ru per unit emitted light): a Lambertian
