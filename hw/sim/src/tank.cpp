@@ -36,8 +36,9 @@ double bulb_in_scatter(const Medium& m, const Medium::Bulb& b, const Vec3& y) {
   const double cos_max = std::sqrt(std::max(0.0, 1 - sin_max * sin_max));
   const double omega = 2 * kPi * (1 - cos_max);
   if (d >= kFarRadii * r) {
-    // ω ≈ from Y to the centre; path to the surface ≈ d − r.
-    return L * omega * std::exp(-sigma * (d - r)) * hg_phase(m.g, -a_vec.z / d);
+    // ω ≈ from Y to the centre; the path to the surface averaged over the
+    // cone (uniform in solid angle) is d − 2r/3.
+    return L * omega * std::exp(-sigma * (d - 2.0 * r / 3.0)) * hg_phase(m.g, -a_vec.z / d);
   }
   const int n = b.samples;
   const Vec3 a = a_vec * (1.0 / d);

@@ -17,7 +17,8 @@
 // bulb's centre), l(ω) the distance to the bulb's surface, L = I0/(π r²) the
 // bulb's radiance (ru per unit emitted light). Far from the bulb
 // (|Y − c| ≥ 16 r) one direction, to the centre, with the cap's exact solid
-// angle 2π(1 − √(1 − r²/d²)) ≈ π r²/d² (so I0/d² · e^{−σ(d − r)}: Eq. 4.1).
+// angle 2π(1 − √(1 − r²/d²)) ≈ π r²/d² and the cone's mean path d − 2r/3
+// (so I0/d² · e^{−σ(d − 2r/3)}: Eq. 4.1).
 // Pixels whose line of sight hits the bulb also see its surface:
 // L · e^{−σ (z_hit − z_front)} (Eq. 4.3's regime), and no light from behind it.
 //
@@ -106,5 +107,37 @@ private:
 
 // Mean emitted light of a pattern's sharp level (the bulb's level for it).
 double mean_emitted(const PreparedPattern& pattern);
+
+// ---- Monte Carlo reference with multiple scattering (tank_mc.cpp) ----------
+
+// Light scattered towards the camera on the line of sight through face point
+// (x_mm, y_mm) (world frame) in ru per unit emitted light, by backward path
+// tracing: free flights with pdf σe^{−σs} from the face along +z, ending at
+// the walls (black) or the bulb; at each vertex the weight takes the albedo
+// β/σ, the bulb is connected by one direction drawn uniformly in its visible
+// cone (L e^{−σl} p Ω, as the renderer's cap samples), and the next direction
+// is drawn from the H-G phase function. `single` is the first vertex's
+// connection alone — an unbiased estimate of the renderer's `scatter`;
+// `total` adds every order up to `max_vertices`. *_se: standard errors of the
+// means (1/sqrt(paths)). The seen bulb (`source`) is not included.
+// Deterministic for a seed; reentrant; slow (tests and tools).
+struct TankMonteCarlo {
+  double single = 0, single_se = 0;
+  double total = 0, total_se = 0;
+};
+TankMonteCarlo tank_monte_carlo(const Medium& medium, double x_mm, double y_mm, size_t paths, uint64_t seed,
+                                int max_vertices);
+
+// Energy over the tank's face: the mean of tank_monte_carlo() over an
+// nx × ny grid of face points (cell centres), leaving out points within
+// r + 2 mm of the bulb's axis (the seen bulb). `relative_excess` =
+// (total − single)/total, the share of the image's energy that single
+// scattering misses (thesis §4.2.3, Fig. 4.5), with its standard error.
+struct TankEnergy {
+  double single = 0, total = 0;
+  double relative_excess = 0, relative_excess_se = 0;
+};
+TankEnergy tank_energy_monte_carlo(const Medium& medium, int nx, int ny, size_t paths_per_point, uint64_t seed,
+                                   int threads);
 
 }  // namespace procam::sim
