@@ -14,6 +14,7 @@
 #include "medium.hpp"
 #include "procam/hw/sim/ground_truth.hpp"
 #include "procam/hw/sim/sensor.hpp"
+#include "procam/hw/sim/sim_rig.hpp"
 #include "tank_test_util.hpp"
 
 namespace procam::sim {
@@ -242,6 +243,67 @@ TEST(TankScene, ShippedScenesAndRigGiveTheDocumentedGeometry) {
     EXPECT_NEAR(g->bulb_depth_mm, 150, 1e-12);
     EXPECT_NEAR(g->bulb_u_px, 639.5 - 130 / 0.4, 1e-9);
   }
+}
+
+// The whole path through the sim rig: frames follow the exposure and
+// saturate, and equal the ground truth; write_ground_truth writes tank.json.
+TEST(TankRig, FramesFollowExposureAndMatchTheGroundTruth) {
+  nlohmann::json j = test::read_json(test::configs_dir() + "/rigs/sim-tank.json");
+  auto& cam = j["cameras"][0];
+  cam["intrinsics"] = {{"width", 320}, {"height", 200}, {"fx", 3125.0}, {"fy", 3125.0}, {"cx", 159.5}, {"cy", 99.5}};
+  cam["shot_noise"] = false;
+  cam["read_noise_e"] = 0;
+  auto cfg = parse_sim_rig_config(j);
+  ASSERT_TRUE(cfg.ok()) << cfg.status().to_string();
+  auto rig = SimRig::create(*cfg, {test::configs_dir() + "/rigs", {test::configs_dir() + "/scenes"}});
+  ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+  SimRig& r = **rig;
+  const Intrinsics& kp = r.projector_intrinsics();
+  Image white(kp.width, kp.height, PixelType::u8);
+  std::fill(white.data(), white.data() + white.size_bytes(), uint8_t{255});
+  ASSERT_TRUE(r.projector().show(white.view(), 1).ok());
+  hw::Camera& camera = r.camera(0);
+  ASSERT_TRUE(camera.configure({20000, -1, NAN}).ok());
+  auto gt = r.ground_truth(0);
+  ASSERT_TRUE(gt.ok()) << gt.status().to_string();
+  auto f1 = camera.capture(std::chrono::milliseconds(100));
+  ASSERT_TRUE(camera.configure({40000, -1, NAN}).ok());
+  auto f2 = camera.capture(std::chrono::milliseconds(100));
+  ASSERT_TRUE(camera.configure({1e7, -1, NAN}).ok());
+  auto f3 = camera.capture(std::chrono::milliseconds(100));
+  ASSERT_TRUE(f1.ok() && f2.ok() && f3.ok());
+  ASSERT_EQ(f1->image.type(), PixelType::u16);  // 12-bit
+  const uint16_t* a = f1->image.ptr<uint16_t>();
+  const uint16_t* b = f2->image.ptr<uint16_t>();
+  const uint16_t* c = f3->image.ptr<uint16_t>();
+  const float* scat = gt->medium_backscatter.ptr<float>();
+  const float* src = gt->medium_source.ptr<float>();
+  size_t compared = 0;
+  for (size_t i = 0; i < f1->image.pixel_count(); ++i) {
+    const double truth = double(scat[i]) + double(src[i]);
+    if (truth < 4000) {  // below saturation: the frame is the truth, rounded
+      EXPECT_NEAR(a[i], truth, 0.51) << i;
+      if (a[i] > 100 && b[i] < 4000) {
+        EXPECT_NEAR(double(b[i]) / a[i], 2.0, 0.02) << i;
+      }
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 30000u);
+  const Result<TankGeometry> geo = [&] {
+    const Scene s = test::shipped_scene("tank-lowfat-milk");
+    return tank_geometry(*s.medium, Rigid3{}, r.camera_calibrations()[0].intrinsics);
+  }();
+  ASSERT_TRUE(geo.ok());
+  const size_t bulb = static_cast<size_t>(std::lround(geo->bulb_v_px)) * 320 + static_cast<size_t>(std::lround(geo->bulb_u_px));
+  EXPECT_EQ(c[bulb], 4095);  // 10 s: the bulb saturates
+  EXPECT_GT(double(src[bulb]), 0.0);
+  const std::string dir = ::testing::TempDir() + "/tank_truth";
+  ASSERT_TRUE(write_ground_truth(*gt, dir, {}).ok());
+  const nlohmann::json t = test::read_json(dir + "/tank.json");
+  EXPECT_NEAR(t["bulb_u_px"].get<double>(), geo->bulb_u_px, 1e-9);
+  EXPECT_NEAR(t["mm_per_px_x"].get<double>(), 1.6, 1e-12);
+  EXPECT_NEAR(t["exposure_us"].get<double>(), 20000, 1e-9);
 }
 
 TEST(TankScene, RejectsBulbsOutsideTheTankOrWithoutOne) {
