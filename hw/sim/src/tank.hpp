@@ -124,18 +124,25 @@ double mean_emitted(const PreparedPattern& pattern);
 struct TankMonteCarlo {
   double single = 0, single_se = 0;
   double total = 0, total_se = 0;
+  double excess_se = 0;  // standard error of total − single (same paths)
 };
 TankMonteCarlo tank_monte_carlo(const Medium& medium, double x_mm, double y_mm, size_t paths, uint64_t seed,
                                 int max_vertices);
 
-// Energy over the tank's face: the mean of tank_monte_carlo() over an
-// nx × ny grid of face points (cell centres), leaving out points within
-// r + 2 mm of the bulb's axis (the seen bulb). `relative_excess` =
-// (total − single)/total, the share of the image's energy that single
-// scattering misses (thesis §4.2.3, Fig. 4.5), with its standard error.
+// The image of the tank's face by tank_monte_carlo() on an nx × ny grid of
+// face points (cell centres), leaving out points within r + 2 mm of the
+// bulb's axis (the seen bulb), compared with single scattering (thesis
+// §4.2.3, Fig. 4.5) two ways:
+//  - relative_excess = Σ(total − single)/Σ total: the share of the image's
+//    energy that single scattering misses (with its standard error);
+//  - relative_rms = √Σ(total − single)² / √Σ total²: the RMS difference
+//    relative to the image's RMS, which weights the bright pixels near the
+//    bulb as a least-squares fit does (Monte Carlo variance subtracted from
+//    the squares; noisier: compare two seeds).
 struct TankEnergy {
-  double single = 0, total = 0;
+  double single = 0, total = 0;  // mean over the grid points, ru
   double relative_excess = 0, relative_excess_se = 0;
+  double relative_rms = 0;
 };
 TankEnergy tank_energy_monte_carlo(const Medium& medium, int nx, int ny, size_t paths_per_point, uint64_t seed,
                                    int threads);

@@ -68,7 +68,7 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   const double sigma = m.sigma_t_per_mm, albedo = m.sigma_s_per_mm / m.sigma_t_per_mm;
-  double s1 = 0, s1q = 0, st = 0, stq = 0;
+  double s1 = 0, s1q = 0, st = 0, stq = 0, sxq = 0, sx = 0;
   for (size_t k = 0; k < paths; ++k) {
     Vec3 p{x_mm, y_mm, m.box_min_mm.z};
     Vec3 w{0, 0, 1};
@@ -91,6 +91,8 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
     s1q += first * first;
     st += all;
     stq += all * all;
+    sx += all - first;
+    sxq += (all - first) * (all - first);
   }
   const double n = static_cast<double>(paths);
   auto se = [n](double sum, double sq) { return n > 1 ? std::sqrt(std::max(0.0, sq / n - (sum / n) * (sum / n)) / (n - 1)) : 0.0; };
@@ -98,6 +100,7 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
   out.single_se = se(s1, s1q);
   out.total = st / n;
   out.total_se = se(st, stq);
+  out.excess_se = se(sx, sxq);
   return out;
 }
 
@@ -119,16 +122,18 @@ TankEnergy tank_energy_monte_carlo(const Medium& m, int nx, int ny, size_t paths
         used[c] = 1;
       }
   });
-  // The excess (total − single) per cell comes from the same paths; its
-  // variance is bounded by (se_total + se_single)² per cell (conservative).
-  double single = 0, total = 0, var_excess = 0, var_total = 0;
+  double single = 0, total = 0, var_excess = 0, var_total = 0, sq_diff = 0, sq_total = 0;
   size_t count = 0;
   for (size_t c = 0; c < cells.size(); ++c) {
     if (!used[c]) continue;
-    single += cells[c].single;
-    total += cells[c].total;
-    var_excess += (cells[c].total_se + cells[c].single_se) * (cells[c].total_se + cells[c].single_se);
-    var_total += cells[c].total_se * cells[c].total_se;
+    const TankMonteCarlo& k = cells[c];
+    single += k.single;
+    total += k.total;
+    var_excess += k.excess_se * k.excess_se;
+    var_total += k.total_se * k.total_se;
+    // E[(X̂)²] = X² + se²: subtract the Monte Carlo variance from the squares.
+    sq_diff += (k.total - k.single) * (k.total - k.single) - k.excess_se * k.excess_se;
+    sq_total += k.total * k.total - k.total_se * k.total_se;
     ++count;
   }
   if (count == 0 || !(total > 0)) return out;
@@ -136,8 +141,11 @@ TankEnergy tank_energy_monte_carlo(const Medium& m, int nx, int ny, size_t paths
   out.total = total / static_cast<double>(count);
   const double excess = total - single;
   out.relative_excess = excess / total;
-  // First-order error of a ratio.
-  out.relative_excess_se = std::sqrt(var_excess / (total * total) + excess * excess * var_total / (total * total * total * total));
+  // First-order error of the ratio (numerator and denominator correlated:
+  // conservative to add the terms).
+  out.relative_excess_se =
+      std::sqrt(var_excess / (total * total) + excess * excess * var_total / (total * total * total * total));
+  out.relative_rms = sq_total > 0 ? std::sqrt(std::max(0.0, sq_diff) / sq_total) : 0.0;
   return out;
 }
 

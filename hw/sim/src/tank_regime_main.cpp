@@ -6,14 +6,15 @@
 // scattering misses, (E_all − E_single)/E_all, as CSV and a PNG heat map.
 //
 //   procam_medium_regime [--scene NAME|PATH] [--g G] [--paths N] [--grid NX NY]
-//                        [--sigma a,b,...] [--kappa a,b,...] [--out DIR] [--threads T]
+//                        [--sigma a,b,...] [--kappa a,b,...] [--out DIR] [--threads T] [--rms]
 //
 // Defaults: the tank-lowfat-milk scene's tank and bulb, g 0.9, 400 paths at
 // each of 8 × 6 face points, σ 0.0025–0.04 /mm, κ 0–0.008 /mm, out ".".
 // Writes DIR/medium_regime.csv (sigma_per_mm, kappa_per_mm, g, single_ru,
-// total_ru, relative_excess, relative_excess_se) and DIR/medium_regime.png
-// (columns σ, rows κ growing downwards; grey for κ > σ; a white frame marks
-// cells under 5 %).
+// total_ru, relative_excess, relative_excess_se, relative_rms; tank.hpp
+// TankEnergy) and DIR/medium_regime.png (columns σ, rows κ growing
+// downwards; colour: relative_excess, or relative_rms with --rms, blue 0 →
+// red ≥ 0.5; grey for κ > σ; a white frame marks cells under 5 %).
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -39,7 +40,7 @@ std::vector<double> parse_list(const std::string& s) {
 int usage(const char* why) {
   std::fprintf(stderr,
                "procam_medium_regime: %s\nusage: procam_medium_regime [--scene NAME|PATH] [--g G] [--paths N] "
-               "[--grid NX NY] [--sigma a,b,..] [--kappa a,b,..] [--out DIR] [--threads T]\n",
+               "[--grid NX NY] [--sigma a,b,..] [--kappa a,b,..] [--out DIR] [--threads T] [--rms]\n",
                why);
   return 2;
 }
@@ -61,6 +62,7 @@ int main(int argc, char** argv) {
   double g = 0.9;
   size_t paths = 400;
   int nx = 8, ny = 6, threads = 2;
+  bool rms = false;  // colour the PNG by relative_rms instead of relative_excess
   std::vector<double> sigmas{0.0025, 0.005, 0.01, 0.02, 0.03, 0.04}, kappas{0, 0.001, 0.002, 0.004, 0.008};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -74,6 +76,7 @@ int main(int argc, char** argv) {
     else if (a == "--kappa" && (v = next())) kappas = parse_list(v);
     else if (a == "--out" && (v = next())) out = v;
     else if (a == "--threads" && (v = next())) threads = std::atoi(v);
+    else if (a == "--rms") rms = true;
     else return usage(("unknown or incomplete argument " + a).c_str());
   }
   if (!(std::abs(g) < 1) || paths == 0 || nx < 1 || ny < 1 || sigmas.empty() || kappas.empty())
@@ -87,7 +90,7 @@ int main(int argc, char** argv) {
   }
   std::filesystem::create_directories(out);
   std::ofstream csv(out + "/medium_regime.csv");
-  csv << "sigma_per_mm,kappa_per_mm,g,single_ru,total_ru,relative_excess,relative_excess_se\n";
+  csv << "sigma_per_mm,kappa_per_mm,g,single_ru,total_ru,relative_excess,relative_excess_se,relative_rms\n";
   constexpr uint32_t kCell = 48;
   Image png(static_cast<uint32_t>(sigmas.size()) * kCell, static_cast<uint32_t>(kappas.size()) * kCell,
             PixelType::u8, 3);
@@ -103,11 +106,12 @@ int main(int argc, char** argv) {
         m.g = g;
         const TankEnergy e = tank_energy_monte_carlo(m, nx, ny, paths, 1000 * ki + si + 1, threads);
         csv << sigma << ',' << kappa << ',' << g << ',' << e.single << ',' << e.total << ',' << e.relative_excess
-            << ',' << e.relative_excess_se << '\n';
-        std::fprintf(stderr, "sigma %.4f kappa %.4f: excess %.4f ± %.4f\n", sigma, kappa, e.relative_excess,
-                     e.relative_excess_se);
-        heat(e.relative_excess, rgb);
-        valid = e.relative_excess < 0.05;
+            << ',' << e.relative_excess_se << ',' << e.relative_rms << '\n';
+        std::fprintf(stderr, "sigma %.4f kappa %.4f: excess %.4f ± %.4f, rms %.4f\n", sigma, kappa, e.relative_excess,
+                     e.relative_excess_se, e.relative_rms);
+        const double metric = rms ? e.relative_rms : e.relative_excess;
+        heat(metric, rgb);
+        valid = metric < 0.05;
       }
       for (uint32_t y = 0; y < kCell; ++y)
         for (uint32_t x = 0; x < kCell; ++x) {
