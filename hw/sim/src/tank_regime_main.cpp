@@ -6,15 +6,16 @@
 // scattering misses, (E_all − E_single)/E_all, as CSV and a PNG heat map.
 //
 //   procam_medium_regime [--scene NAME|PATH] [--g G] [--paths N] [--grid NX NY]
-//                        [--sigma a,b,...] [--kappa a,b,...] [--out DIR] [--threads T] [--rms]
+//                        [--sigma a,b,...|--beta a,b,...] [--kappa a,b,...] [--out DIR] [--threads T] [--rms]
 //
+// --beta gives the columns as scattering β (σ = β + κ) instead of σ.
 // Defaults: the tank-lowfat-milk scene's tank and bulb, g 0.9, 400 paths at
 // each of 8 × 6 face points, σ 0.0025–0.04 /mm, κ 0–0.008 /mm, out ".".
 // Writes DIR/medium_regime.csv (sigma_per_mm, kappa_per_mm, g, single_ru,
 // total_ru, relative_excess, relative_excess_se, relative_rms; tank.hpp
 // TankEnergy) and DIR/medium_regime.png (columns σ, rows κ growing
 // downwards; colour: relative_excess, or relative_rms with --rms, blue 0 →
-// red ≥ 0.5; grey for κ > σ; a white frame marks cells under 5 %).
+// red ≥ 0.5; dark grey for κ > σ; a white frame marks cells under 5 %).
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -40,7 +41,7 @@ std::vector<double> parse_list(const std::string& s) {
 int usage(const char* why) {
   std::fprintf(stderr,
                "procam_medium_regime: %s\nusage: procam_medium_regime [--scene NAME|PATH] [--g G] [--paths N] "
-               "[--grid NX NY] [--sigma a,b,..] [--kappa a,b,..] [--out DIR] [--threads T] [--rms]\n",
+               "[--grid NX NY] [--sigma a,b,..|--beta a,b,..] [--kappa a,b,..] [--out DIR] [--threads T] [--rms]\n",
                why);
   return 2;
 }
@@ -50,7 +51,7 @@ void heat(double e, uint8_t* rgb) {
   const double t = std::clamp(e / 0.5, 0.0, 1.0);
   rgb[0] = static_cast<uint8_t>(255 * std::min(1.0, 2 * t));
   rgb[1] = static_cast<uint8_t>(255 * (t < 0.5 ? 2 * t : 2 - 2 * t));
-  rgb[2] = static_cast<uint8_t>(255 * std::max(0.0, 1 - 2 * t));
+  rgb[2] = static_cast<uint8_t>(255 * (1 - t));
 }
 
 }  // namespace
@@ -62,7 +63,8 @@ int main(int argc, char** argv) {
   double g = 0.9;
   size_t paths = 400;
   int nx = 8, ny = 6, threads = 2;
-  bool rms = false;  // colour the PNG by relative_rms instead of relative_excess
+  bool rms = false;      // colour the PNG by relative_rms instead of relative_excess
+  bool by_beta = false;  // columns are β = σ − κ (--beta) instead of σ
   std::vector<double> sigmas{0.0025, 0.005, 0.01, 0.02, 0.03, 0.04}, kappas{0, 0.001, 0.002, 0.004, 0.008};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -77,6 +79,7 @@ int main(int argc, char** argv) {
     else if (a == "--out" && (v = next())) out = v;
     else if (a == "--threads" && (v = next())) threads = std::atoi(v);
     else if (a == "--rms") rms = true;
+    else if (a == "--beta" && (v = next())) { sigmas = parse_list(v); by_beta = true; }
     else return usage(("unknown or incomplete argument " + a).c_str());
   }
   if (!(std::abs(g) < 1) || paths == 0 || nx < 1 || ny < 1 || sigmas.empty() || kappas.empty())
@@ -96,8 +99,8 @@ int main(int argc, char** argv) {
             PixelType::u8, 3);
   for (size_t ki = 0; ki < kappas.size(); ++ki)
     for (size_t si = 0; si < sigmas.size(); ++si) {
-      const double sigma = sigmas[si], kappa = kappas[ki];
-      uint8_t rgb[3] = {128, 128, 128};
+      const double kappa = kappas[ki], sigma = by_beta ? sigmas[si] + kappa : sigmas[si];
+      uint8_t rgb[3] = {40, 40, 40};
       bool valid = false;
       if (kappa <= sigma) {
         Medium m = *scene->medium;
