@@ -40,7 +40,7 @@ double bulb_in_scatter(const Medium& m, const Medium::Bulb& b, const Vec3& y) {
     // cone (uniform in solid angle) is d − 2r/3.
     return L * omega * std::exp(-sigma * (d - 2.0 * r / 3.0)) * hg_phase(m.g, -a_vec.z / d);
   }
-  const int n = b.samples;
+  const int n = std::clamp(b.samples, 1, 64);  // az[] below holds 64
   const Vec3 a = a_vec * (1.0 / d);
   const Vec3 helper = std::abs(a.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
   const Vec3 e1 = normalized(cross(a, helper));
@@ -140,7 +140,7 @@ Result<TankGeometry> tank_geometry(const Medium& m, const Rigid3& world_from_cam
   return g;
 }
 
-TankProfile tank_profile(const Medium& m, const TankGeometry& geo, double rho_mm, int z_steps) {
+TankProfile tank_profile(const Medium& m, double rho_mm, int z_steps) {
   TankProfile out;
   if (!m.bulb || z_steps < 1) return out;
   const Medium::Bulb& b = *m.bulb;
@@ -150,7 +150,6 @@ TankProfile tank_profile(const Medium& m, const TankGeometry& geo, double rho_mm
     z_end = zb - std::sqrt(r * r - rho_mm * rho_mm);  // the line of sight stops on the bulb
     out.source = b.radiance() * std::exp(-m.sigma_t_per_mm * (z_end - z0));
   }
-  (void)geo;
   if (!(m.sigma_s_per_mm > 0)) return out;
   // z = zb + h tan t: uniform steps in the angle t about the bulb (the phase
   // function's argument) resolve the forward peak; dz = h / cos²t dt.
@@ -203,7 +202,7 @@ Result<std::shared_ptr<const TankTaps>> prepare_tank(const Medium& m, const Rigi
       for (uint32_t k = lo; k < hi; ++k) {
         // The inner table's last entry sits just inside the rim.
         const double rho = tab == &inner ? std::min(tab->rho_at(k), r * (1 - 1e-9)) : tab->rho_at(k);
-        const TankProfile p = tank_profile(m, *geo, rho, kZSteps);
+        const TankProfile p = tank_profile(m, rho, kZSteps);
         tab->scatter[k] = p.scatter;
         tab->source[k] = p.source;
       }

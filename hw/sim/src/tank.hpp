@@ -79,7 +79,7 @@ struct TankProfile {
   double scatter = 0;
   double source = 0;
 };
-TankProfile tank_profile(const Medium& medium, const TankGeometry& geometry, double rho_mm, int z_steps);
+TankProfile tank_profile(const Medium& medium, double rho_mm, int z_steps);
 
 // Builds the taps for prepared view `v` (camera 0 or any camera whose axis
 // looks along +z). Errors as tank_geometry().

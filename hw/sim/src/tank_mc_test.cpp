@@ -23,9 +23,8 @@ TEST(TankMonteCarlo, OneVertexMatchesTheSingleScatteringProfile) {
                              R"("sigma_t_per_mm": 0.02, "sigma_s_per_mm": 0.015, "g": -0.3)"}) {
     const Scene s = tank_scene(medium, 10.0);
     const Medium& m = *s.medium;
-    const TankGeometry geo = geometry_of(s);
     for (double rho : {25.0, 80.0, 160.0}) {
-      const TankProfile p = tank_profile(m, geo, rho, 768);
+      const TankProfile p = tank_profile(m, rho, 768);
       const TankMonteCarlo mc =
           tank_monte_carlo(m, m.bulb->center_mm.x + rho, m.bulb->center_mm.y, 60000, 17 + static_cast<uint64_t>(rho), 1);
       EXPECT_GT(mc.single_se, 0.0);

@@ -32,7 +32,6 @@ constexpr double kPi = 3.14159265358979323846;
 TEST(TankProfile, IsotropicLosslessMatchesTheSolidAngleIntegral) {
   const Scene s = tank_scene(R"("sigma_t_per_mm": 1e-7, "sigma_s_per_mm": 1e-7, "g": 0)");
   const Medium& m = *s.medium;
-  const TankGeometry geo = geometry_of(s);
   const double L = m.bulb->radiance(), r = m.bulb->radius_mm, zb = m.bulb->center_mm.z;
   for (double rho : {10.5, 12.0, 30.0, 100.0, 250.0}) {
     const int steps = 200000;
@@ -43,7 +42,7 @@ TEST(TankProfile, IsotropicLosslessMatchesTheSolidAngleIntegral) {
       const double d2 = rho * rho + (z - zb) * (z - zb);
       expect += 1e-7 / (4 * kPi) * L * 2 * kPi * (1 - std::sqrt(1 - r * r / d2)) * dz;
     }
-    const TankProfile p = tank_profile(m, geo, rho, 768);
+    const TankProfile p = tank_profile(m, rho, 768);
     EXPECT_NEAR(p.scatter, expect, 1e-3 * expect) << "rho " << rho;
     EXPECT_EQ(p.source, 0.0);
   }
@@ -54,10 +53,9 @@ TEST(TankProfile, IsotropicLosslessMatchesTheSolidAngleIntegral) {
 TEST(TankProfile, SmallBulbMatchesBruteForceEq42) {
   const Scene s = tank_scene(R"("sigma_t_per_mm": 0.0107, "sigma_s_per_mm": 0.0105, "g": 0.9)", 0.2);
   const Medium& m = *s.medium;
-  const TankGeometry geo = geometry_of(s);
   for (double rho : {3.0, 20.0, 60.0, 150.0}) {
     const double ref = eq42_point_source(m, rho, 400000);
-    const TankProfile p = tank_profile(m, geo, rho, 768);
+    const TankProfile p = tank_profile(m, rho, 768);
     EXPECT_NEAR(p.scatter, ref, 3e-3 * ref) << "rho " << rho;
   }
 }
@@ -72,7 +70,7 @@ TEST(TankProfile, AreaBulbMatchesWholeSphereBruteForce) {
   for (double rho : {11.0, 15.0, 40.0}) {
     const Scene& s = rho < 15 ? s40 : s10;
     const double ref = area_bulb_brute_force(*s.medium, rho, 2000, 100);
-    const TankProfile p = tank_profile(*s.medium, geometry_of(s), rho, 768);
+    const TankProfile p = tank_profile(*s.medium, rho, 768);
     EXPECT_NEAR(p.scatter, ref, 1e-2 * ref) << "rho " << rho;
   }
 }
@@ -85,7 +83,7 @@ TEST(TankProfile, SeenBulbIsAttenuatedRadiance) {
   const double zb = m.bulb->center_mm.z, z0 = m.box_min_mm.z;
   for (double rho : {0.0, 6.0, 9.9}) {
     const double z_hit = zb - std::sqrt(100.0 - rho * rho);
-    const TankProfile p = tank_profile(m, geometry_of(s), rho, 768);
+    const TankProfile p = tank_profile(m, rho, 768);
     EXPECT_NEAR(p.source, L * std::exp(-0.01 * (z_hit - z0)), 1e-9 * L) << rho;
     EXPECT_GT(p.scatter, 0.0);
   }
@@ -117,7 +115,7 @@ TEST(TankRender, PixelsFollowTheProfileAndTheFrameMean) {
                            row < geo.face_v_max - 1;
       if (!on_face) continue;
       if (std::abs(rho - geo.bulb_radius_mm) < 3 * geo.mm_per_px_x) continue;  // rim: box-filtered
-      const TankProfile p = tank_profile(*s.medium, geo, rho, 768);
+      const TankProfile p = tank_profile(*s.medium, rho, 768);
       EXPECT_NEAR(a[i], p.scatter + p.source, 2e-3 * (p.scatter + p.source)) << col << "," << row << " rho " << rho;
       ++checked;
     }
