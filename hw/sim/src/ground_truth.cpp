@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 
 #include "procam/core/image_io.hpp"
+
 #include "medium.hpp"
+#include "tank.hpp"
 #include "procam/hw/sim/sensor.hpp"
 
 namespace procam::sim {
@@ -64,11 +67,12 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
                         {"medium_direct.exr", &truth.medium_direct, "DN"},
                         {"medium_indirect.exr", &truth.medium_indirect, "DN"},
                         {"medium_backscatter.exr", &truth.medium_backscatter, "DN"},
-                        {"medium_backscatter_dop.exr", &truth.medium_backscatter_dop, ""}};
+                        {"medium_backscatter_dop.exr", &truth.medium_backscatter_dop, ""},
+                        {"medium_source.exr", &truth.medium_source, "DN"}};
   for (const Item& it : items) {
     const bool optional = it.image == &truth.object || it.image == &truth.medium_direct ||
                           it.image == &truth.medium_indirect || it.image == &truth.medium_backscatter ||
-                          it.image == &truth.medium_backscatter_dop;
+                          it.image == &truth.medium_backscatter_dop || it.image == &truth.medium_source;
     if (it.image->empty() && optional) continue;
     if (it.image->empty())
       return Error(Code::invalid_argument, std::string("ground truth map for '") + it.file + "' is empty");
@@ -77,6 +81,13 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
     const std::string path = (dir / it.file).string();
     Status st = write_image(path, *it.image, std::string(it.file).ends_with(".exr") ? attrs : std::map<std::string, std::string>{});
     if (!st.ok()) return st.with_context("writing ground truth '" + path + "'");
+  }
+  if (truth.medium.is_object() && truth.medium.contains("tank")) {
+    // The tank rig's geometry for a plugin's params (docs/media.md "Tank rig").
+    const std::string path = (dir / "tank.json").string();
+    std::ofstream out(path);
+    out << truth.medium["tank"].dump(1) << "\n";
+    if (!out) return Error(Code::io_error, "cannot write ground truth '" + path + "'");
   }
   return Status::Ok();
 }
@@ -133,6 +144,13 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   if (!st.ok()) return st;
   if (st.ok()) st = renderer.render_component(*pw, a.ptr<float>(), "medium-indirect");  // zeros if not modelled
   if (!st.ok()) return st;
+  Image src;
+  if (v.tank) {  // tank rig: B is the bulb's single scattering, the bulb itself apart
+    src = Image(w, h, PixelType::f32);
+    st = renderer.render_component(*pw, b.ptr<float>(), "tank-bulb-scatter");
+    if (st.ok()) st = renderer.render_component(*pw, src.ptr<float>(), "tank-bulb-source");
+    if (!st.ok()) return st;
+  }
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::fill(dop.ptr<float>(), dop.ptr<float>() + dop.pixel_count(), nan);
   if (v.medium) {
@@ -142,8 +160,14 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
       if (s.i[i] > 0.f)
         p[i] = std::min(1.f, std::sqrt(s.q[i] * s.q[i] + s.u[i] * s.u[i]) / s.i[i]);
   }
+  if (v.tank) {  // the bulb is unpolarized
+    const float* bp = b.ptr<float>();
+    float* p = dop.ptr<float>();
+    for (size_t i = 0; i < dop.pixel_count(); ++i) p[i] = bp[i] > 0.f ? 0.f : nan;
+  }
   const double dn_per_ru = expected_dn(sensor, 1.0, exposure_us, gain_db);
-  for (Image* im : {&d, &a, &b}) {
+  for (Image* im : {&d, &a, &b, &src}) {
+    if (im->empty()) continue;
     float* p = im->ptr<float>();
     for (size_t i = 0; i < im->pixel_count(); ++i) p[i] = static_cast<float>(double(p[i]) * dn_per_ru);
   }
@@ -151,9 +175,21 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   truth.medium_indirect = std::move(a);
   truth.medium_backscatter = std::move(b);
   truth.medium_backscatter_dop = std::move(dop);
+  truth.medium_source = std::move(src);
   truth.medium = {{"extinction_per_mm", medium->sigma_t_per_mm},
                   {"scattering_per_mm", medium->sigma_s_per_mm},
                   {"hg_g", medium->g}};
+  if (!medium->material.empty())
+    truth.medium["library"] = {{"material", medium->material},
+                               {"volume_ml", medium->volume_ml},
+                               {"tank_litres", medium->tank_litres},
+                               {"channel", medium->channel}};
+  if (v.tank) {
+    nlohmann::json t = v.tank->geometry.to_json();
+    t["dn_per_ru"] = dn_per_ru;  // frames' DN = dn_per_ru × ru at this exposure and gain
+    t["exposure_us"] = exposure_us;
+    truth.medium["tank"] = std::move(t);
+  }
   return Status::Ok();
 }
 

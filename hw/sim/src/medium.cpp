@@ -30,6 +30,7 @@
 // Measured against a 200 000-step brute-force integral (medium_test): ≤ 1e-3
 // relative for flood, stripes and random patterns on the shipped scenes.
 #include "medium.hpp"
+#include "tank.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -314,6 +315,13 @@ Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const
     const double tp = std::exp(-sigma * medium_length(m, proj_c, x));
     v.direct_gain[i] = static_cast<float>(static_cast<double>(v.direct_gain[i]) * tp);
     v.irradiance_gain[i] = static_cast<float>(static_cast<double>(v.irradiance_gain[i]) * tp);
+  }
+  if (m.bulb) {
+    // Tank rig: the bulb lights the medium, the projector only dims it (tank.hpp).
+    Result<std::shared_ptr<const TankTaps>> tank = prepare_tank(m, world_from_cam, v, threads);
+    if (!tank.ok()) return tank.status();
+    v.tank = std::move(*tank);
+    return Status::Ok();
   }
   if (!(m.sigma_s_per_mm > 0)) return Status::Ok();  // pure absorber (or clear): no backscatter
 

@@ -23,6 +23,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "procam/base/geometry.hpp"
@@ -147,6 +148,10 @@ BackscatterStokes backscatter_stokes(const MediumTaps& taps, const PreparedPatte
                                      int threads);
 
 namespace detail {
+// Direction whose cosine to the unit vector w is drawn from HG(g), uniform
+// azimuth (the phase function's exact importance sample; medium_mc.cpp).
+Vec3 sample_hg(const Vec3& w, double g, std::mt19937_64& rng);
+
 // Row prefix sums of the emitted light for the chunk integrals (per frame).
 struct RowPrefix {
   uint32_t width = 0, height = 0;

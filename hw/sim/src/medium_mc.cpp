@@ -17,9 +17,8 @@
 #include "procam/hw/sim/raycast.hpp"
 
 namespace procam::sim {
-namespace {
+namespace detail {
 
-// Direction with cos(angle to w) drawn from HG(g), uniform azimuth.
 Vec3 sample_hg(const Vec3& w, double g, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   const double xi = u01(rng), phi = 2 * M_PI * u01(rng);
@@ -37,7 +36,7 @@ Vec3 sample_hg(const Vec3& w, double g, std::mt19937_64& rng) {
   return normalized(w * c + t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)));
 }
 
-}  // namespace
+}  // namespace detail
 
 double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
                                const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
@@ -85,7 +84,7 @@ double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& project
       weight *= albedo;
       sum += weight * connect(y, w);
       o = y;
-      w = sample_hg(w, m.g, rng);
+      w = detail::sample_hg(w, m.g, rng);
     }
   }
   return sum / static_cast<double>(paths);

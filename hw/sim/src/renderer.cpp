@@ -10,6 +10,7 @@
 
 #include "global_internal.hpp"
 #include "medium.hpp"
+#include "tank.hpp"
 #include "parallel.hpp"
 #include "procam/hw/sim/raycast.hpp"
 
@@ -397,6 +398,10 @@ Renderer::Renderer(PreparedView view, ProjectorModel projector, int threads)
     : view_(std::move(view)), projector_(std::move(projector)), threads_(threads < 1 ? 1 : threads) {
   defocus_ = compute_defocus(view_, projector_, projector_.focus_mm);
   components_.push_back(std::make_unique<DirectComponent>());
+  if (view_.tank) {
+    components_.push_back(std::make_unique<TankComponent>(view_.tank, TankComponent::Part::scatter));
+    components_.push_back(std::make_unique<TankComponent>(view_.tank, TankComponent::Part::source));
+  }
   if (view_.medium) {
     components_.push_back(std::make_unique<MediumComponent>(view_.medium));
     if (!view_.medium->indirect_gain.empty())

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "procam/core/json_fields.hpp"
+#include "procam/hw/sim/medium_library.hpp"
 
 namespace procam::sim {
 namespace fs = std::filesystem;
@@ -134,16 +135,110 @@ std::string read_file(const std::string& path, Status& st) {
 
 }  // namespace
 
-// "medium" (SCENES.md): homogeneous, whole scene or an axis-aligned box.
+// "medium" σ, β, g from the library (medium_library.hpp): "material" is a
+// name, a "a + b 1:3" spec (with "volume_ml" the total), or a list of
+// {"name", "volume_ml"}.
+static void parse_medium_material(FieldReader& r, Medium& m) {
+  for (const char* k : {"sigma_t_per_mm", "sigma_s_per_mm", "g"})
+    if (r.has(k)) {
+      r.fail(k, "not allowed together with \"material\"", "give either a library material or sigma/beta/g numbers");
+      return;
+    }
+  m.tank_litres = r.number("tank_litres", 23.0, "litres in the tank (thesis: 23)", 1e-6, 1e6);
+  m.channel = r.string("channel", std::string("green"));
+  if (!r.errors().ok()) return;
+  const Result<ColorChannel> channel = parse_color_channel(m.channel);
+  if (!channel.ok()) {
+    r.fail("channel", channel.status().message(), channel.status().hint());
+    return;
+  }
+  const nlohmann::json* mat = r.get("material");
+  std::vector<MixturePart> parts;
+  if (mat->is_string()) {
+    m.material = mat->get<std::string>();
+    m.volume_ml = r.positive("volume_ml", std::nullopt, "ml of the material (or mixture) in the tank");
+    if (!r.errors().ok()) return;
+    Result<std::vector<MixturePart>> p = parse_mixture_spec(m.material, m.volume_ml);
+    if (!p.ok()) {
+      r.fail("material", p.status().message(), p.status().hint());
+      return;
+    }
+    parts = std::move(*p);
+  } else if (mat->is_array() && !mat->empty()) {
+    if (r.has("volume_ml")) {
+      r.fail("volume_ml", "not allowed with a list of materials", "give each part its own volume_ml");
+      return;
+    }
+    for (size_t i = 0; i < mat->size() && r.errors().ok(); ++i) {
+      FieldReader pr((*mat)[i], r.field("material") + "[" + std::to_string(i) + "]", r.errors());
+      pr.only({"name", "volume_ml"});
+      MixturePart part;
+      part.name = pr.string("name", std::nullopt);
+      part.volume_ml = pr.positive("volume_ml", std::nullopt, "ml of this material in the tank");
+      m.material += (m.material.empty() ? "" : " + ") + part.name;
+      m.volume_ml += part.volume_ml;
+      parts.push_back(part);
+    }
+    if (!r.errors().ok()) return;
+  } else {
+    r.fail("material", std::string("must be a name or a non-empty list of {name, volume_ml}, got ") + mat->type_name(),
+           "e.g. \"Merlot\" or \"milk + espresso 1:3\"");
+    return;
+  }
+  const Result<Medium> lib = mixture_medium(parts, m.tank_litres, *channel);
+  if (!lib.ok()) {
+    r.fail("material", lib.status().message(), lib.status().hint());
+    return;
+  }
+  m.sigma_t_per_mm = lib->sigma_t_per_mm;
+  m.sigma_s_per_mm = lib->sigma_s_per_mm;
+  m.g = std::clamp(lib->g, -0.999, 0.999);
+}
+
+// "medium"."bulb": the tank rig's light source; needs the tank (a box) with
+// the whole sphere inside it.
+static void parse_bulb(FieldReader& medium, Medium& m) {
+  const nlohmann::json* bj = medium.object("bulb", false);
+  if (bj == nullptr) return;
+  FieldReader r(*bj, medium.field("bulb"), medium.errors());
+  r.only({"center_mm", "radius_mm", "irradiance_at_1m", "samples", "comment"});
+  Medium::Bulb b;
+  b.center_mm = r.vec3("center_mm", std::nullopt, "bulb centre, mm, world frame");
+  b.radius_mm = r.number("radius_mm", 10.0, "mm", 0.1, 1000.0);
+  b.irradiance_at_1m = r.positive("irradiance_at_1m", 0.01, "iu at 1 m per unit emitted light");
+  b.samples = static_cast<int>(r.integer("samples", 10, 1, 64));
+  if (!r.errors().ok()) return;
+  if (m.whole_scene) {
+    r.fail("center_mm", "a bulb needs the tank: give medium.box_min_mm and box_max_mm");
+    return;
+  }
+  const Vec3& c = b.center_mm;
+  const double rr = b.radius_mm;
+  if (!(c.x - rr > m.box_min_mm.x && c.x + rr < m.box_max_mm.x && c.y - rr > m.box_min_mm.y &&
+        c.y + rr < m.box_max_mm.y && c.z - rr > m.box_min_mm.z && c.z + rr < m.box_max_mm.z))
+    r.fail("center_mm", "the bulb (centre ± radius_mm) must lie inside the tank box",
+           "move it inwards or make it smaller");
+  m.bulb = b;
+}
+
+// "medium" (SCENES.md): homogeneous, whole scene or an axis-aligned box;
+// σ, β, g as numbers or from the material library.
 Medium parse_medium(FieldReader& root) {
   Medium m;
   const nlohmann::json* mj = root.object("medium", false);
   if (mj == nullptr) return m;
   FieldReader r(*mj, root.field("medium"), root.errors());
-  r.only({"sigma_t_per_mm", "sigma_s_per_mm", "g", "dop_model", "box_min_mm", "box_max_mm", "comment"});
-  m.sigma_t_per_mm = r.number("sigma_t_per_mm", std::nullopt, "extinction, 1/mm", 0.0, 10.0);
-  m.sigma_s_per_mm = r.number("sigma_s_per_mm", std::nullopt, "scattering, 1/mm", 0.0, 10.0);
-  m.g = r.number("g", 0.0, "Henyey-Greenstein asymmetry, |g| < 1", -0.999, 0.999);
+  r.only({"sigma_t_per_mm", "sigma_s_per_mm", "g", "material", "volume_ml", "tank_litres", "channel", "dop_model",
+          "box_min_mm", "box_max_mm", "bulb", "comment"});
+  if (r.has("material")) {
+    parse_medium_material(r, m);
+  } else {
+    for (const char* k : {"volume_ml", "tank_litres", "channel"})
+      if (r.has(k)) r.fail(k, "only meaningful with \"material\"", "name a library material, or remove it");
+    m.sigma_t_per_mm = r.number("sigma_t_per_mm", std::nullopt, "extinction, 1/mm", 0.0, 10.0);
+    m.sigma_s_per_mm = r.number("sigma_s_per_mm", std::nullopt, "scattering, 1/mm", 0.0, 10.0);
+    m.g = r.number("g", 0.0, "Henyey-Greenstein asymmetry, |g| < 1", -0.999, 0.999);
+  }
   const std::string dop = r.string("dop_model", std::string("rayleigh"));
   if (!r.errors().ok()) return m;
   if (dop == "rayleigh") m.dop_model = Medium::DopModel::rayleigh;
@@ -166,6 +261,7 @@ Medium parse_medium(FieldReader& root) {
                              m.box_max_mm.z > m.box_min_mm.z))
       r.fail("box_max_mm", "empty box: box_max_mm must exceed box_min_mm on every axis");
   }
+  if (r.errors().ok()) parse_bulb(r, m);
   return m;
 }
 

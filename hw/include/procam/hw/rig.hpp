@@ -50,6 +50,12 @@ struct GroundTruth {
   Image medium_indirect;
   Image medium_backscatter;
   Image medium_backscatter_dop;
+  // Tank rig (docs/media.md "Tank rig"): the light source seen straight
+  // through the medium (the bulb, attenuated: Eq. 4.3's regime), same units
+  // and white pattern; empty without one. With a bulb, medium_backscatter is
+  // the bulb's single-scattered light (Eq. 4.1-4.2) and `medium` holds the
+  // geometry a plugin needs under "tank" (tank.json beside the images).
+  Image medium_source;
   // Truth of a participating medium's parameters (e.g. {"extinction_per_mm":
   // 0.002}), keyed by the name a plugin's output carries after "medium_";
   // null when the scene has none or the rig does not know it.

@@ -46,6 +46,7 @@
 namespace procam::sim {
 
 struct MediumTaps;  // medium.hpp: per-pixel backscatter taps of a participating medium
+struct TankTaps;    // tank.hpp: per-pixel bulb light of the dilution tank rig
 
 // σ of the blur-stack levels in projector pixels; level 0 is the sharp image.
 // σ above the last level is clamped to it.
@@ -88,6 +89,9 @@ struct PreparedView {
   // exp(−σ·ℓ_cam) (1 where no surface); `medium` holds the backscatter taps.
   std::vector<float> camera_transmittance;
   std::shared_ptr<const MediumTaps> medium;
+  // Tank rig (Medium::bulb; tank.hpp): the bulb's light per pixel. With a
+  // bulb the projector does not light the medium (`medium` stays empty).
+  std::shared_ptr<const TankTaps> tank;
 
   size_t pixel_count() const { return size_t{width} * height; }
 };

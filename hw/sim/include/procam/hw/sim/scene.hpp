@@ -124,6 +124,28 @@ struct Medium {
   DopModel dop_model = DopModel::rayleigh;
   bool whole_scene = true;    // false: only inside [box_min_mm, box_max_mm]
   Vec3 box_min_mm, box_max_mm;
+  // Where σ, β, g came from when the scene named a library material
+  // (medium_library.hpp): the spec as written ("Merlot", "milk + espresso 1:3",
+  // or the parts joined by " + "), its volume in the tank, the tank's litres
+  // and the RGB column. Empty `material`: σ, β, g were given as numbers.
+  std::string material;
+  double volume_ml = 0, tank_litres = 0;
+  std::string channel;
+  // The dilution rig's light source (thesis §4.2.1, §4.3.3; docs/media.md
+  // "Tank rig"): a spherical diffuse (Lambertian) bulb inside the tank. With a
+  // bulb the projector does not light the medium; it only dims the bulb (the
+  // bulb emits in proportion to the frame's mean emitted light).
+  struct Bulb {
+    Vec3 center_mm;               // world frame, inside the tank
+    double radius_mm = 10;        // sphere radius
+    double irradiance_at_1m = 0.01;  // iu at 1 m in clear medium per unit emitted light: I0 = 10⁶ × this (iu·mm²)
+    int samples = 10;             // the visible cap is sampled samples × samples (§4.3.3: ~10×10)
+    double intensity() const { return irradiance_at_1m * 1e6; }
+    // Radiance of the bulb's surface (ru per unit emitted light): a Lambertian
+    // sphere of radiance L has intensity π r² L in every direction.
+    double radiance() const { return intensity() / (3.14159265358979323846 * radius_mm * radius_mm); }
+  };
+  std::optional<Bulb> bulb;
 };
 
 struct Scene {
