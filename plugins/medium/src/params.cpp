@@ -29,7 +29,7 @@ std::vector<ParamSpec> common_specs() {
       {"bulb_y_px", ParamType::number, -1.0, -1e5, 1e5, {},
        "camera row of the bulb centre's image, px; -1 = the middle row"},
       {"bulb_radius_mm", ParamType::number, 0.0, 0.0, 1e3, {},
-       "radius R of the (spherical, diffuse) bulb, mm; 0 = point source. Needed with water_radiance for beta's "
+       "radius R of the (spherical, diffuse) bulb, mm; 0 = point source (the bulb image's centre pixel, path B, is then used for attenuation). Needed with water_radiance for beta's "
        "absolute scale (I0 = W pi R^2) and for sigma by attenuation (pure absorbers, concentration)"},
       {"mm_per_px", ParamType::number, 1.0, 1e-6, 1e4, {},
        "size of one camera pixel at the tank, mm (orthographic view: measure a ruler on the front glass)"},
@@ -216,9 +216,6 @@ sdk::Error parse_config(const std::string& method, const nlohmann::json& params,
     if (cfg.volumes_ml.front() > 0 && !(f.water_radiance > 0))
       return sdk::invalid_argument("concentration needs the bulb's pure-water radiance: start volumes_ml with 0 (a "
                                    "pure-water bracket) or give water_radiance");
-    if (!(f.bulb_radius_mm > 0))
-      return sdk::invalid_argument("concentration needs bulb_radius_mm > 0: sigma-hat comes from the bulb's direct "
-                                   "image (Eq. 4.3), R sets the path length through the medium");
     cfg.linear_points = static_cast<uint32_t>(p.get_int("linear_points"));
     cfg.linearity_tolerance = p.get_number("linearity_tolerance");
     cfg.max_sigma_per_mm = p.get_number("max_sigma_per_mm");
