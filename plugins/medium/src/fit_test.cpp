@@ -110,6 +110,9 @@ TEST(Fit, RecoversTable41MediaWithNoise) {
       const FitResult r = fit_image(c.m, sc, s, 0.03, 7);
       ASSERT_TRUE(r.error.empty()) << r.error;
       SCOPED_TRACE(std::string(c.name) + (obj == Objective::normalized ? " normalized" : " profiled"));
+      std::printf("%-11s %-10s sigma %+.2f %%  beta %+.2f %%  g %.4f (true %.3f)  rms %.2f %%  ci95(sigma) %.2f %%\n", c.name,
+                  obj == Objective::normalized ? "normalized" : "profiled", 100 * (r.sigma.value / c.m.sigma - 1),
+                  100 * (r.beta.value / c.m.beta - 1), r.g.value, c.m.g, r.rms_percent, 100 * r.sigma.ci95 / c.m.sigma);
       EXPECT_EQ(r.model, "henyey_greenstein");
       EXPECT_LT(rel(r.sigma.value, c.m.sigma), c.tol) << r.sigma.value;
       EXPECT_LT(rel(r.beta.value, c.m.beta), c.tol) << r.beta.value;
@@ -176,6 +179,9 @@ TEST(Fit, ForwardScatteringTriesTruncatedLegendre) {
       const FitResult r = fit_image(m, sc, settings_for(sc), 0.03, 5);
       ASSERT_TRUE(r.error.empty()) << r.error;
       SCOPED_TRACE("g " + std::to_string(g) + " terms " + std::to_string(terms));
+      std::printf("g %.2f %-11s -> %-18s sigma %+.2f %%  beta %+.2f %%  g %.4f  rms %.2f %%\n", g,
+                  terms == 0 ? "H-G" : "Legendre-99", r.model.c_str(), 100 * (r.sigma.value / m.sigma - 1),
+                  100 * (r.beta.value / m.beta - 1), r.g.value, r.rms_percent);
       EXPECT_EQ(r.model, terms == 0 ? "henyey_greenstein" : "truncated_legendre") << r.model_reason;
       EXPECT_TRUE(std::isfinite(r.legendre_objective));
       EXPECT_GT(r.g.value, 0.95);

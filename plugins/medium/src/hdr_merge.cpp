@@ -20,17 +20,24 @@ sdk::Error HdrMerge::prepare(const procam_image& frame) {
     return sdk::ok();
   }
   full_scale_ = sdk::full_scale(frame);
+  if (frame.pixel_type == PROCAM_PIXEL_U16 && s_.camera_bits >= 8 && s_.camera_bits < frame.bit_depth)
+    full_scale_ = double((uint32_t{1} << s_.camera_bits) - 1u);  // codes above are saturated (table below)
   if (frame.pixel_type != PROCAM_PIXEL_F32) {
-    const size_t codes = size_t{1} << frame.bit_depth;
-    if (!s_.lut.empty() && s_.lut.size() < codes)
-      return sdk::invalid_argument("response LUT has " + std::to_string(s_.lut.size()) + " entries but " +
-                                   std::to_string(frame.bit_depth) + "-bit frames need " + std::to_string(codes) +
+    const size_t codes = size_t{1} << frame.bit_depth, used = static_cast<size_t>(full_scale_) + 1;
+    if (!s_.lut.empty() && s_.lut.size() < used)
+      return sdk::invalid_argument("response LUT has " + std::to_string(s_.lut.size()) + " entries but the camera's " +
+                                   "codes 0.." + std::to_string(used - 1) + " need " + std::to_string(used) +
                                    ": give one linear value per DN code");
     lin_.resize(codes);
     a_.resize(codes);
     const double sat = s_.saturation * full_scale_, floor = s_.floor * full_scale_;
     for (size_t c = 0; c < codes; ++c) {
       const double dn = double(c);
+      if (c >= used) {  // above the camera's full scale: saturated
+        lin_[c] = 0.0f;
+        a_[c] = 0.0f;
+        continue;
+      }
       const double lin = s_.lut.empty() ? full_scale_ * std::pow(dn / full_scale_, s_.gamma) : s_.lut[c];
       const double x = lin - s_.black_dn;  // not clipped at 0: noise around black must average out
       lin_[c] = static_cast<float>(x);

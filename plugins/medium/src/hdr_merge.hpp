@@ -45,6 +45,8 @@ struct HdrSettings {
   double floor = 0.02;          // x below this fraction of full scale: weight 1e-6 t
   double gamma = 1.0;           // response: linear = full_scale (DN / full_scale)^gamma (1 = linear)
   std::vector<double> lut;      // if not empty: linear value per DN code (overrides gamma)
+  uint32_t camera_bits = 16;    // the rig's camera bit depth: U16 frames that claim more (a 12-bit
+                                // camera saved as 16-bit PNG) are read with this full scale
 };
 
 class HdrMerge {

@@ -50,7 +50,9 @@ class BracketSession : public sdk::Session {
       plan.settings(i).exposure_us = t;
     }
     pattern_count_ += plan.size();
-    merge_.emplace(rig_.cameras[0].width, rig_.cameras[0].height, cfg_.hdr);
+    HdrSettings hs = cfg_.hdr;
+    hs.camera_bits = rig_.cameras[0].bit_depth;
+    merge_.emplace(rig_.cameras[0].width, rig_.cameras[0].height, hs);
   }
 
   sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
@@ -66,7 +68,7 @@ class BracketSession : public sdk::Session {
             {"patterns", pattern_count_},
             {"exposures_us", cfg_.exposures_us},
             {"hdr", {{"weights", "w = t (inverse variance of DN/t under shot noise): radiance = sum x / sum t over "
-                                  "unsaturated frames; samples below floor get weight 1e-6 t"},
+                                  "unsaturated frames; samples below floor get weight 1e-12 t^2 (least squares of x = L t)"},
                      {"full_scale_dn", merge_ ? merge_->full_scale() : 0.0},
                      {"response", cfg_.params.get_string("response")}}},
             {"geometry", {{"tank_depth_mm", cfg_.fit.tank.depth_mm},
