@@ -131,7 +131,8 @@ Minimum nelder_mead(Problem& pr, const FitSettings& s, Phase ph, std::array<doub
     const size_t best = o[0], mid = o[1], worst = o[2];
     const double size = std::max(std::abs(x[worst][0] - x[best][0]) + std::abs(x[worst][1] - x[best][1]),
                                  std::abs(x[mid][0] - x[best][0]) + std::abs(x[mid][1] - x[best][1]));
-    if (size < 1e-7 && f[worst] - f[best] <= 1e-13 * std::abs(f[best]) + 1e-300) break;
+    // Converged: simplex below 1e-6 in (ln sigma, atanh g) (a 1e-6 relative change of sigma) and flat.
+    if (size < 1e-6 && f[worst] - f[best] <= 1e-10 * std::abs(f[best]) + 1e-300) break;
     const std::array<double, 2> c = {0.5 * (x[best][0] + x[mid][0]), 0.5 * (x[best][1] + x[mid][1])};
     auto along = [&](double t) {
       return std::array<double, 2>{c[0] + t * (x[worst][0] - c[0]), c[1] + t * (x[worst][1] - c[1])};
@@ -330,7 +331,7 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
     pr.unit_model(m.sigma, m.g + hg, r.phase, gp);
     pr.unit_model(m.sigma, m.g - hg, r.phase, gm);
     std::array<std::array<double, 3>, 3> jtj{}, cov{};
-    double ss = p.within_ss;
+    double ss = 0;
     for (size_t i = 0; i < k.size(); ++i) {
       const double n = double(p.bins[i].n);
       const std::array<double, 3> row = {r.scale * (kp[i] - km[i]) / (2 * hs), r.scale * (gp[i] - gm[i]) / (2 * hg), k[i]};
@@ -339,7 +340,11 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
       const double res = p.bins[i].mean - r.scale * k[i];
       ss += n * res * res;
     }
-    const double s2 = ss / std::max(1.0, double(p.pixels) - 3.0);
+    // Per-pixel noise variance from the bin residuals: E[n (mean - f)^2] =
+    // sigma^2 for a correct model, so s^2 = sum n res^2 / (bins - 3). (The
+    // within-bin spread is no estimate: near the bulb it is dominated by the
+    // model's own variation across a 1-px ring.)
+    const double s2 = ss / std::max(1.0, double(k.size()) - 3.0);
     double se_scale = kNaN;
     if (invert3(jtj, cov)) {
       r.sigma.ci95 = 1.96 * std::sqrt(std::max(0.0, s2 * cov[0][0]));

@@ -38,8 +38,9 @@
 //    (Eq. 4.3 with radiance: E_bulb = W exp(-sigma l), l the path from the
 //    bulb's front surface to the front face).
 // 5. 95 % confidence intervals from the Jacobian of the bin residuals at the
-//    optimum (covariance s^2 (J^T J)^-1, s^2 from the pixel residuals incl.
-//    the within-bin variance): assumes independent pixel noise of one variance.
+//    optimum (covariance s^2 (J^T J)^-1, s^2 = sum n res^2 / (bins - 3), the
+//    per-pixel noise variance the bin residuals imply): assumes independent
+//    pixel noise of one variance and a correct model.
 //
 // Units: radiance in DN/us, rho in px and mm, sigma/beta/kappa in 1/mm.
 // Threads: pure functions; call from any thread. Errors: FitResult::error

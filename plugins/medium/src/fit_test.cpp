@@ -118,8 +118,11 @@ TEST(Fit, RecoversTable41MediaWithNoise) {
       EXPECT_LT(rel(r.beta.value, c.m.beta), c.tol) << r.beta.value;
       EXPECT_NEAR(r.g.value, c.m.g, 0.03);
       EXPECT_LT(r.rms_percent, c.tol * 100);
-      // The 95 % intervals are finite and cover the truth (with some slack for bias).
+      // The 95 % intervals are finite, informative and cover the truth (with
+      // some slack for the model's own discretisation bias).
       EXPECT_TRUE(std::isfinite(r.sigma.ci95) && r.sigma.ci95 > 0);
+      EXPECT_LT(r.sigma.ci95, 0.02 * c.m.sigma);
+      EXPECT_LT(std::abs(r.beta.value - c.m.beta), 3 * r.beta.ci95 + 0.002 * c.m.beta);
       EXPECT_LT(std::abs(r.sigma.value - c.m.sigma), 3 * r.sigma.ci95 + 0.002 * c.m.sigma);
       EXPECT_TRUE(r.g_defined);
     }
