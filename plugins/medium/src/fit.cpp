@@ -169,9 +169,10 @@ Minimum nelder_mead(Problem& pr, const FitSettings& s, Phase ph, std::array<doub
   return m;
 }
 
-// A 10 x |gs| grid (sigma log-spaced), then NM from the best three nodes
+// A 10 x |gs| grid (sigma log-spaced), then NM from the best `starts` nodes
 // and from `extra` (if given); the best minimum.
-Minimum search(Problem& pr, const FitSettings& s, Phase ph, const std::vector<double>& gs, const Minimum* extra = nullptr) {
+Minimum search(Problem& pr, const FitSettings& s, Phase ph, const std::vector<double>& gs, size_t starts,
+               const Minimum* extra = nullptr) {
   struct Node {
     double f;
     std::array<double, 2> x;
@@ -183,9 +184,11 @@ Minimum search(Problem& pr, const FitSettings& s, Phase ph, const std::vector<do
       const std::array<double, 2> x = {lo + (hi - lo) * (double(i) + 0.5) / 10.0, std::atanh(g)};
       nodes.push_back({search_objective(pr, s, ph, x), x});
     }
-  std::partial_sort(nodes.begin(), nodes.begin() + 3, nodes.end(), [](const Node& a, const Node& b) { return a.f < b.f; });
+  starts = std::min(starts, nodes.size());
+  std::partial_sort(nodes.begin(), nodes.begin() + std::ptrdiff_t(starts), nodes.end(),
+                    [](const Node& a, const Node& b) { return a.f < b.f; });
   Minimum best;
-  for (size_t i = 0; i < 3; ++i) {
+  for (size_t i = 0; i < starts; ++i) {
     const Minimum m = nelder_mead(pr, s, ph, nodes[i].x);
     if (!(best.objective <= m.objective)) best = m;
   }
@@ -295,13 +298,15 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
   bool absorber = !(pr.emax() > 0);
   std::vector<double> k;
   if (!absorber) {
-    Minimum m = search(pr, s, Phase::henyey_greenstein, {-0.6, -0.2, 0.2, 0.5, 0.7, 0.8, 0.87, 0.92, 0.96, 0.99});
+    Minimum m = search(pr, s, Phase::henyey_greenstein, {-0.6, -0.2, 0.2, 0.5, 0.7, 0.8, 0.87, 0.92, 0.96, 0.99}, 3);
     r.model_reason = "H-G fit";
     if (m.g > s.legendre_above_g) {
       // §4.3.3: for g > 0.95 the truncated Legendre expansion of H-G. It rings
       // in the side and back directions (relative error > 100 at g = 0.97 with
       // 99 terms), so it is kept only where it fits the image at least as well.
-      const Minimum l = search(pr, s, Phase::truncated_legendre, {0.955, 0.965, 0.975, 0.985, 0.995}, &m);
+      // Its own grid (its minimum may lie far from H-G's), NM from the best
+      // node and from the H-G optimum: ~30x the cost of an H-G evaluation.
+      const Minimum l = search(pr, s, Phase::truncated_legendre, {0.955, 0.965, 0.975, 0.985, 0.995}, 1, &m);
       const std::string head = "H-G fit gave g = " + fmt(m.g) + " > legendre_above_g = " +
                                fmt(s.legendre_above_g) + ": refit with the truncated Legendre expansion (" +
                                std::to_string(s.legendre_terms) + " terms, thesis §4.3.3); ";

@@ -57,6 +57,14 @@ TEST(ProfileModel, MatchesBruteForceEq42) {
       EXPECT_LT(rel(k[i], want), m.g > 0.95 ? 2e-4 : 2e-5) << "g " << m.g << " rho " << rhos[i];
     }
   }
+  // The truncated Legendre series (M5) on the finer panels the fit uses for
+  // it (<= 0.02 rad: the series oscillates with period ~0.06 rad).
+  const ref::Medium lg{0.008, 0.006, 0.97, 99};
+  ProfileModel fine({300, 150}, {std::begin(rhos), std::end(rhos)}, 0.02);
+  std::vector<double> kl;
+  fine.evaluate(lg.sigma, lg.g, Phase::truncated_legendre, 99, kl);
+  for (size_t i = 0; i < kl.size(); ++i)
+    EXPECT_LT(rel(kl[i], ref::eq_4_2(lg, rhos[i], 300, 150, 20000) / lg.beta), 2e-3) << "Legendre rho " << rhos[i];
   // Off-centre bulb (B != D / 2) too.
   ProfileModel model({250, 60}, {30.0});
   std::vector<double> k;

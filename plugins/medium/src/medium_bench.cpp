@@ -6,6 +6,7 @@
 //                     profile, sigma/g search, beta, intervals, the model
 //                     image for fit_residual (goal <= 2 s);
 //   BM_FitProfileOnly the search on a ready profile.
+//   BM_FitForwardG097 the same for g = 0.97, where the Legendre refit runs.
 // The image is Eq. 4.2 for lowfat milk (Table 4.1, G) from the plugin's own
 // model (speed only; accuracy is in fit_test.cpp against the brute force).
 // Run: build/plugins/medium/procam_medium_bench
@@ -34,32 +35,34 @@ FitSettings settings() {
   return s;
 }
 
+// Eq. 4.2 (beta = sigma, I0 = 5e4) with Gaussian noise at 0.03 of the mean (thesis §5.4.1's level).
+std::vector<float> make_image(double sigma, double g) {
+  const FitSettings s = settings();
+  std::vector<double> rho;
+  for (int i = 0; i < 4096; ++i) rho.push_back(std::exp(std::log(0.5) + i * (std::log(1600.0) - std::log(0.5)) / 4095) * s.mm_per_px);
+  std::vector<double> k;
+  ProfileModel(s.tank, rho).evaluate(sigma, g, Phase::henyey_greenstein, 99, k);
+  std::vector<double> clean(size_t{kW} * kH);
+  for (uint32_t y = 0; y < kH; ++y)
+    for (uint32_t x = 0; x < kW; ++x) {
+      const double d = std::max(0.5, std::hypot(double(x) - s.bulb_x_px, double(y) - s.bulb_y_px));
+      const double t = (std::log(d) - std::log(0.5)) / (std::log(1600.0) - std::log(0.5)) * 4095;
+      const auto i = std::min<size_t>(size_t(t), 4094);
+      const double v = 5e4 * sigma * (k[i] + (t - double(i)) * (k[i + 1] - k[i]));
+      clean[size_t{y} * kW + x] = v;
+    }
+  double mean = 0;
+  for (double v : clean) mean += v;
+  mean /= double(clean.size());
+  std::mt19937 rng(1);
+  std::normal_distribution<double> n(0, 0.03 * mean);
+  std::vector<float> out(clean.size());
+  for (size_t i = 0; i < out.size(); ++i) out[i] = static_cast<float>(clean[i] + n(rng));
+  return out;
+}
+
 const std::vector<float>& milk_image() {
-  static const std::vector<float> img = [] {
-    const FitSettings s = settings();
-    std::vector<double> rho;
-    for (int i = 0; i < 4096; ++i) rho.push_back(std::exp(std::log(0.5) + i * (std::log(1600.0) - std::log(0.5)) / 4095) * s.mm_per_px);
-    std::vector<double> k;
-    ProfileModel(s.tank, rho).evaluate(0.010748, 0.902, Phase::henyey_greenstein, 99, k);
-    std::vector<double> clean(size_t{kW} * kH);
-    for (uint32_t y = 0; y < kH; ++y)
-      for (uint32_t x = 0; x < kW; ++x) {
-        const double d = std::max(0.5, std::hypot(double(x) - s.bulb_x_px, double(y) - s.bulb_y_px));
-        const double t = (std::log(d) - std::log(0.5)) / (std::log(1600.0) - std::log(0.5)) * 4095;
-        const auto i = std::min<size_t>(size_t(t), 4094);
-        const double v = 5e4 * 0.010748 * (k[i] + (t - double(i)) * (k[i + 1] - k[i]));
-        clean[size_t{y} * kW + x] = v;
-      }
-    // Gaussian noise at 0.03 of the mean (thesis §5.4.1's level).
-    double mean = 0;
-    for (double v : clean) mean += v;
-    mean /= double(clean.size());
-    std::mt19937 rng(1);
-    std::normal_distribution<double> n(0, 0.03 * mean);
-    std::vector<float> out(clean.size());
-    for (size_t i = 0; i < out.size(); ++i) out[i] = static_cast<float>(clean[i] + n(rng));
-    return out;
-  }();
+  static const std::vector<float> img = make_image(0.010748, 0.902);
   return img;
 }
 
@@ -96,6 +99,19 @@ void BM_Fit(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Fit)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// g = 0.97: the H-G fit, then the truncated Legendre refit (M5) is tried.
+void BM_FitForwardG097(benchmark::State& state) {
+  static const std::vector<float> img = make_image(0.008, 0.97);
+  const FitSettings s = settings();
+  for (auto _ : state) {
+    const FitResult r = fit_profile(radial_profile(img, kW, kH, s), s, img, kW, kH);
+    benchmark::DoNotOptimize(model_image(r, s, kW, kH));
+    state.counters["evals"] = r.evaluations;
+    state.counters["legendre_tried"] = std::isfinite(r.legendre_objective) ? 1 : 0;
+  }
+}
+BENCHMARK(BM_FitForwardG097)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_FitProfileOnly(benchmark::State& state) {
   const std::vector<float>& img = milk_image();

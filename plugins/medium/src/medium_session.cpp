@@ -291,28 +291,29 @@ class ConcentrationSession final : public BracketSession {
 }  // namespace
 
 nlohmann::json describe_methods() {
-  nlohmann::json a = nlohmann::json::array();
-  sdk::MethodDescription m;
-  m.name = "measure";
-  m.summary = "HDR bracket of the tank lit by a small bulb; sigma, beta, g (and kappa) by the single-scattering fit "
-              "(thesis §4.2-4.4, Eq. 4.2-4.7)";
-  m.patterns = 25;
-  m.patterns_formula = "exposures";
-  m.outputs = outputs_of(Method::measure);
-  m.params = specs_for(Method::measure);
-  a.push_back(m.to_json());
-  sdk::MethodDescription c;
-  c.name = "concentration";
-  c.summary = "one HDR bracket per dilution; sigma-hat from the bulb's attenuation (Eq. 4.3) vs volume, linearity, "
-              "best volume, stop beyond single scattering (thesis §4.2.3-4.2.4)";
-  c.patterns = 25;
-  c.patterns_formula = "exposures per round";
-  c.rounds = 6;
+  const auto describe = [](Method m, const char* name, const char* summary, const char* formula) {
+    sdk::MethodDescription d;
+    d.name = name;
+    d.summary = summary;
+    d.patterns = 25;  // the default bracket
+    d.patterns_formula = formula;
+    d.outputs = outputs_of(m);
+    d.params = specs_for(m);
+    return d;
+  };
+  sdk::MethodDescription c = describe(
+      Method::concentration, "concentration",
+      "one HDR bracket per dilution; sigma-hat from the bulb's attenuation (Eq. 4.3) vs volume, linearity, best volume, "
+      "stop beyond single scattering (thesis §4.2.3-4.2.4)",
+      "exposures per round");
+  c.rounds = 6;  // default volumes_ml
   c.rounds_formula = "number of volumes_ml";
-  c.outputs = outputs_of(Method::concentration);
-  c.params = specs_for(Method::concentration);
-  a.push_back(c.to_json());
-  return a;
+  return nlohmann::json::array({describe(Method::measure, "measure",
+                                         "HDR bracket of the tank lit by a small bulb; sigma, beta, g (and kappa) by "
+                                         "the single-scattering fit (thesis §4.2-4.4, Eq. 4.2-4.7)",
+                                         "exposures")
+                                    .to_json(),
+                                c.to_json()});
 }
 
 sdk::Error create_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {

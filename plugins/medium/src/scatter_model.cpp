@@ -53,23 +53,25 @@ ProfileModel::ProfileModel(const TankGeometry& geo, std::vector<double> rho_mm, 
     : rho_(std::move(rho_mm)) {
   const double b = geo.bulb_depth_mm, back = geo.depth_mm - geo.bulb_depth_mm;
   if (!(b > 0) || !(back > 0)) throw std::invalid_argument("ProfileModel: needs 0 < bulb depth < tank depth");
-  // Every rho gets the same node count: panels split into `sub` equal parts,
-  // sub = what the widest panel needs for max_panel_rad (a < pi).
-  size_t sub = 1;
-  if (max_panel_rad > 0) {
-    double widest = 0;
-    for (size_t p = 0; p + 1 < kEdges.size(); ++p) widest = std::max(widest, kEdges[p + 1] - kEdges[p]);
-    sub = static_cast<size_t>(std::ceil(widest * std::numbers::pi / max_panel_rad));
+  // Every rho gets the same node count: panel p is split into sub[p] equal
+  // parts, enough for max_panel_rad at the widest span a1 - a0 < pi.
+  std::array<size_t, kEdges.size() - 1> sub{};
+  nodes_per_rho_ = 0;
+  for (size_t p = 0; p + 1 < kEdges.size(); ++p) {
+    sub[p] = max_panel_rad > 0
+                 ? std::max<size_t>(1, static_cast<size_t>(std::ceil((kEdges[p + 1] - kEdges[p]) * std::numbers::pi / max_panel_rad)))
+                 : 1;
+    nodes_per_rho_ += sub[p] * kGlX.size();
   }
-  nodes_per_rho_ = (kEdges.size() - 1) * sub * kGlX.size();
   nodes_.reserve(rho_.size() * nodes_per_rho_);
   for (const double rho : rho_) {
     if (!(rho > 0)) throw std::invalid_argument("ProfileModel: every rho must be > 0");
     const double a0 = std::atan2(rho, b), a1 = std::numbers::pi - std::atan2(rho, back);
     for (size_t p = 0; p + 1 < kEdges.size(); ++p) {
       const double plo = a0 + (a1 - a0) * kEdges[p], phi = a0 + (a1 - a0) * kEdges[p + 1];
-      for (size_t q = 0; q < sub; ++q) {
-        const double lo = plo + (phi - plo) * double(q) / double(sub), hi = plo + (phi - plo) * double(q + 1) / double(sub);
+      for (size_t q = 0; q < sub[p]; ++q) {
+        const double lo = plo + (phi - plo) * double(q) / double(sub[p]);
+        const double hi = plo + (phi - plo) * double(q + 1) / double(sub[p]);
         const double half = 0.5 * (hi - lo), mid = 0.5 * (hi + lo);
         for (size_t k = 0; k < kGlX.size(); ++k) {
           const double a = mid + half * kGlX[k];
