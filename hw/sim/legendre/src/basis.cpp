@@ -2,6 +2,8 @@
 #include "procam/legendre/basis.hpp"
 
 #include <cmath>
+#include <map>
+#include <tuple>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -105,6 +107,14 @@ std::vector<TripleEntry> triple_product_entries(size_t na, size_t nb, size_t nc)
                        (2.0 * static_cast<double>(k) + 1.0) / 2.0 * triple_product(i, j, k)});
     }
   return out;
+}
+
+const std::vector<TripleEntry>& cached_triple_product_entries(size_t na, size_t nb, size_t nc) {
+  thread_local std::map<std::tuple<size_t, size_t, size_t>, std::vector<TripleEntry>> cache;
+  const auto key = std::make_tuple(na, nb, nc);
+  auto it = cache.find(key);
+  if (it == cache.end()) it = cache.emplace(key, triple_product_entries(na, nb, nc)).first;
+  return it->second;
 }
 
 Matrix chebyshev_truncation_matrix(size_t n_out, size_t n_in) {

@@ -108,9 +108,9 @@ Field truncate(const Field& f, const Shape& shape, Truncation how) {
 Field product(const Field& f, const Field& g, const Shape& out) {
   if (f.d != g.d) throw std::invalid_argument("product: fields have different dimensions");
   Field h(out, f.box, f.d);
-  const auto ex = triple_product_entries(f.n[0], g.n[0], out[0]);
-  const auto ey = triple_product_entries(f.n[1], g.n[1], out[1]);
-  const auto ez = triple_product_entries(f.n[2], g.n[2], out[2]);
+  const auto& ex = cached_triple_product_entries(f.n[0], g.n[0], out[0]);
+  const auto& ey = cached_triple_product_entries(f.n[1], g.n[1], out[1]);
+  const auto& ez = cached_triple_product_entries(f.n[2], g.n[2], out[2]);
   // Thesis Eq. 6.10 / Appendix A: H_c = sum_{a,b} F_a G_b prod_axis w(a_ax, b_ax, c_ax),
   // visiting only each axis' nonzero triples, factorised one axis at a time
   // (x, then y, then z) so the cost is n^4 |Ex| + n^2 |Ey| n + |Ez| n^2
@@ -145,6 +145,53 @@ Field product(const Field& f, const Field& g, const Shape& out) {
     for (size_t k = 0; k < plane; ++k) dst[k] += e.w * src[k];
   }
   return h;
+}
+
+Matrix product_matrix(const Field& g, const Shape& in, const Shape& out) {
+  const auto& ex = cached_triple_product_entries(g.n[0], in[0], out[0]);
+  const auto& ey = cached_triple_product_entries(g.n[1], in[1], out[1]);
+  const auto& ez = cached_triple_product_entries(g.n[2], in[2], out[2]);
+  const size_t gz = g.n[2], gy = g.n[1];
+  const size_t ix = in[0], iy = in[1], ox = out[0], oy = out[1];
+  // 1) x: t1[(az * gy + ay) * ix * ox + bx * ox + cx] = sum_ax w G[az][ay][ax].
+  std::vector<double> t1(gz * gy * ix * ox, 0.0);
+  for (size_t r = 0; r < gz * gy; ++r) {
+    const double* gr = &g.c[r * g.n[0]];
+    double* dst = &t1[r * ix * ox];
+    for (const TripleEntry& e : ex) dst[e.j * ox + e.k] += e.w * gr[e.i];
+  }
+  // 2) y: t2[az][by][bx][cy][cx].
+  const size_t bxcx = ix * ox;
+  std::vector<double> t2(gz * iy * ix * oy * ox, 0.0);
+  for (size_t az = 0; az < gz; ++az)
+    for (const TripleEntry& e : ey) {
+      const double* src = &t1[(az * gy + e.i) * bxcx];
+      double* dst = &t2[(az * iy + e.j) * ix * oy * ox];
+      for (size_t bx = 0; bx < ix; ++bx)
+        for (size_t cx = 0; cx < ox; ++cx) dst[(bx * oy + e.k) * ox + cx] += e.w * src[bx * ox + cx];
+    }
+  // 3) z, scattered into M(c, b).
+  const size_t kin = in[0] * in[1] * in[2], kout = out[0] * out[1] * out[2];
+  Matrix m(kout, kin);
+  for (const TripleEntry& e : ez) {
+    const double* src = &t2[e.i * iy * ix * oy * ox];
+    for (size_t by = 0; by < iy; ++by)
+      for (size_t bx = 0; bx < ix; ++bx) {
+        const size_t col = (e.j * iy + by) * ix + bx;
+        const double* s2 = &src[(by * ix + bx) * oy * ox];
+        for (size_t cy = 0; cy < oy; ++cy)
+          for (size_t cx = 0; cx < ox; ++cx) m((e.k * oy + cy) * ox + cx, col) += e.w * s2[cy * ox + cx];
+      }
+  }
+  return m;
+}
+
+Field apply(const Matrix& m, const Field& x, const Shape& out) {
+  if (m.cols != x.size()) throw std::invalid_argument("apply: matrix/field size mismatch");
+  Field y(out, x.box, x.d);
+  if (m.rows != y.size()) throw std::invalid_argument("apply: matrix rows do not match the output shape");
+  y.c = multiply(m, x.c);
+  return y;
 }
 
 Field product_truncated(const Field& f, const Field& g, Truncation how) {

@@ -120,6 +120,9 @@ TEST(LegendreField, ProductMatchesPointwiseMultiplication) {
     const Field Ht = product(F, G, F.n);
     const Field Hp = truncate(H, F.n);
     for (size_t i = 0; i < Ht.size(); ++i) ASSERT_NEAR(Ht.c[i], Hp.c[i], 1e-13);
+    // The multiplication matrix M^G gives the same product (Eq. 6.10).
+    const Field Hm = apply(product_matrix(G, F.n, full), F, full);
+    for (size_t i = 0; i < H.size(); ++i) ASSERT_NEAR(Hm.c[i], H.c[i], 1e-13);
   }
 }
 

@@ -169,10 +169,11 @@ double LegendreFluid::wall_normal_max() const {
 }
 
 Field LegendreFluid::advect_rate(const Field& q, const Frozen& f) const {
-  // Eq. 6.13 (skew-symmetric form): -Pi(sum_j u_j d_j q + 1/2 div(u) q).
-  Field r = product(f.div_u, q, q.n);
+  // Eq. 6.13 (skew-symmetric form): -Pi(sum_j u_j d_j q + 1/2 div(u) q),
+  // each product through its multiplication matrix.
+  Field r = apply(f.m_div, q, q.n);
   for (double& v : r.c) v *= 0.5;
-  for (size_t j = 0; j < dims_; ++j) axpy(r, 1.0, product(f.u[j], derivative(q, j), q.n));
+  for (size_t j = 0; j < dims_; ++j) axpy(r, 1.0, apply(f.m_u[j], derivative(q, j), q.n));
   for (double& v : r.c) v = -v;
   return r;
 }
@@ -218,11 +219,14 @@ void LegendreFluid::diffuse(Field& q, double coeff_dt) {
 StepReport LegendreFluid::substep(double dt) {
   StepReport r;
   Frozen f;
-  f.u = velocity;
-  f.div_u = derivative(velocity[0], 0);
-  for (size_t a = 1; a < dims_; ++a) axpy(f.div_u, 1.0, derivative(velocity[a], a));
+  Field div_u = derivative(velocity[0], 0);
+  for (size_t a = 1; a < dims_; ++a) axpy(div_u, 1.0, derivative(velocity[a], a));
   for (size_t a = 0; a < dims_; ++a)
     for (double v : velocity[a].c) f.moving = f.moving || v != 0.0;
+  if (f.moving) {
+    for (size_t a = 0; a < dims_; ++a) f.m_u[a] = product_matrix(velocity[a], density.n, density.n);
+    f.m_div = product_matrix(div_u, density.n, density.n);
+  }
   for (size_t a = 0; a < dims_; ++a) {
     advect(velocity[a], dt, f);                      // Eq. 6.13-6.14
     diffuse(velocity[a], params_.viscosity * dt);    // Eq. 6.16

@@ -74,18 +74,8 @@ RenderResult LegendreRenderer::render(const Field& density, const Shape& image_c
   const Shape s = cube_shape(dims_, n_);
   const size_t K = s[0] * s[1] * s[2];
   const auto st = strides(s);
-  // M^R (Eq. 6.10): M(c, b) = sum_a R_a TI_x TI_y TI_z, sparse per axis.
-  const auto ex = triple_product_entries(density.n[0], s[0], s[0]);
-  const auto ey = triple_product_entries(density.n[1], s[1], s[1]);
-  const auto ez = triple_product_entries(density.n[2], s[2], s[2]);
-  Matrix m(K, K);
-  for (const TripleEntry& z : ez)
-    for (const TripleEntry& y : ey)
-      for (const TripleEntry& x : ex) {
-        const double r = density.at(x.i, y.i, z.i);
-        if (r == 0.0) continue;
-        m(z.k * st[2] + y.k * st[1] + x.k, z.j * st[2] + y.j * st[1] + x.j) += z.w * y.w * x.w * r;
-      }
+  // M^R (Eq. 6.10), sparse per axis (Appendix A).
+  const Matrix m = product_matrix(density, s, s);
   auto bc_rows = [&](size_t axis, double value_at_constant, std::vector<double>& rhs) {
     for (size_t r = 0; r < K; ++r) {
       const size_t kr = (r / st[axis]) % n_;

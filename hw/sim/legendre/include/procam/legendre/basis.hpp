@@ -74,6 +74,10 @@ struct TripleEntry {
   double w;
 };
 std::vector<TripleEntry> triple_product_entries(size_t na, size_t nb, size_t nc);
+// The same list from a per-thread cache (products call this every time; the
+// closed form costs four lgamma calls per entry). The reference stays valid
+// for the calling thread's lifetime.
+const std::vector<TripleEntry>& cached_triple_product_entries(size_t na, size_t nb, size_t nc);
 
 // Appendix B truncation matrix T (n_out x n_in, n_out <= n_in): Legendre
 // coefficients of the degree n_out-1 approximation of a degree n_in-1

@@ -75,6 +75,15 @@ Field truncate(const Field& f, const Shape& shape, Truncation how = Truncation::
 // shape: f.n + g.n - 1 per axis gives the exact product; a smaller shape
 // gives its L2 (Galerkin) truncation directly. Boxes must match.
 Field product(const Field& f, const Field& g, const Shape& out);
+// The multiplication matrix M^G of Eq. 6.10: product(g, f, out) == M f for
+// every f of shape `in` (rows: out coefficients, columns: in). Built in
+// O(n^{d+3}) by factorising over the axes (Theorem 1's entries only); worth
+// it when one field multiplies many (the fluid's advecting velocity, the
+// renderer's density): each use is then one K x K matrix-vector product.
+Matrix product_matrix(const Field& g, const Shape& in, const Shape& out);
+// y = M x for a field of the matrix' input shape, result of shape `out`.
+Field apply(const Matrix& m, const Field& x, const Shape& out);
+
 // Exact product, then truncation to f's shape by `how` (thesis: T M^G).
 Field product_truncated(const Field& f, const Field& g, Truncation how);
 

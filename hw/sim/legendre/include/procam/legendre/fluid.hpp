@@ -89,8 +89,8 @@ class LegendreFluid {
 
  private:
   struct Frozen {  // the advecting velocity of one sub-step
-    std::array<Field, 3> u;
-    Field div_u;
+    std::array<Matrix, 3> m_u;  // M^{u_j} (Eq. 6.10), K x K
+    Matrix m_div;               // M^{div u}
     bool moving = false;
   };
   // dq/dt = -A q with A q = Pi(u . grad q + 1/2 div(u) q), u frozen.
