@@ -6,16 +6,12 @@
 #include <random>
 
 #include "procam/legendre/field.hpp"
+#include "test_util.hpp"
 
 namespace procam::legendre {
 namespace {
 
-Box box2(double x0, double x1, double y0, double y1) {
-  Box b;
-  b.lo = {x0, y0, 0.0};
-  b.hi = {x1, y1, 1.0};
-  return b;
-}
+using testing::box2;
 
 TEST(LegendreBasis, ValuesMatchClosedForms) {
   for (double x : {-1.0, -0.3, 0.0, 0.7, 1.0}) {

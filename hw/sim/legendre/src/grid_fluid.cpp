@@ -72,11 +72,25 @@ inline double plus_nb(const double* q, size_t i, size_t c, size_t n, size_t stri
 }
 }  // namespace
 
+void GridFluid::gauss_seidel(std::vector<double>& q, const std::vector<double>& rhs, const std::array<double, 3>& c,
+                             double denom, size_t normal_axis) const {
+  // q_i = (rhs_i + sum_a c_a (q_{i-a} + q_{i+a})) / denom, in place, walls by
+  // the neighbour rule above (normal_axis 3: none).
+  const std::array<size_t, 3> stride{1, n_[0], n_[0] * n_[1]};
+  double* d = q.data();
+  for (int it = 0; it < params_.iterations; ++it)
+    for_each_cell([&](size_t i, const size_t* co) {
+      double s = rhs[i];
+      for (size_t a = 0; a < dims_; ++a)
+        s += c[a] * (minus_nb(d, i, co[a], stride[a], a == normal_axis) +
+                     plus_nb(d, i, co[a], n_[a], stride[a], a == normal_axis));
+      d[i] = s / denom;
+    });
+}
+
 void GridFluid::diffuse(std::vector<double>& q, double coeff_dt, Bc bc) const {
   if (coeff_dt <= 0.0) return;
   // Implicit (1 - c lap) q' = q by Gauss-Seidel sweeps (Stam 1999).
-  const std::vector<double> q0 = q;
-  const std::array<size_t, 3> stride{1, n_[0], n_[0] * n_[1]};
   std::array<double, 3> c{};
   double denom = 1.0;
   for (size_t a = 0; a < dims_; ++a) {
@@ -84,87 +98,51 @@ void GridFluid::diffuse(std::vector<double>& q, double coeff_dt, Bc bc) const {
     denom += 2.0 * c[a];
   }
   const size_t normal = bc == Bc::kNormalX ? 0 : bc == Bc::kNormalY ? 1 : bc == Bc::kNormalZ ? 2 : 3;
-  double* d = q.data();
-  for (int it = 0; it < params_.iterations; ++it)
-    for (size_t z = 0; z < n_[2]; ++z)
-      for (size_t y = 0; y < n_[1]; ++y)
-        for (size_t x = 0; x < n_[0]; ++x) {
-          const size_t i = (z * n_[1] + y) * n_[0] + x;
-          const size_t co[3] = {x, y, z};
-          double s = q0[i];
-          for (size_t a = 0; a < dims_; ++a)
-            s += c[a] * (minus_nb(d, i, co[a], stride[a], a == normal) +
-                         plus_nb(d, i, co[a], n_[a], stride[a], a == normal));
-          d[i] = s / denom;
-        }
+  gauss_seidel(q, std::vector<double>(q), c, denom, normal);
 }
 
 void GridFluid::project() {
   const size_t n = size();
   const std::array<size_t, 3> stride{1, n_[0], n_[0] * n_[1]};
   std::vector<double> div(n), p(n, 0.0);
-  for (size_t z = 0; z < n_[2]; ++z)
-    for (size_t y = 0; y < n_[1]; ++y)
-      for (size_t x = 0; x < n_[0]; ++x) {
-        const size_t i = (z * n_[1] + y) * n_[0] + x;
-        const size_t co[3] = {x, y, z};
-        double s = 0.0;
-        for (size_t a = 0; a < dims_; ++a) {
-          const double* u = velocity[a].data();
-          s += (plus_nb(u, i, co[a], n_[a], stride[a], true) - minus_nb(u, i, co[a], stride[a], true)) / (2.0 * h_[a]);
-        }
-        div[i] = s;
-      }
+  for_each_cell([&](size_t i, const size_t* co) {
+    double s = 0.0;
+    for (size_t a = 0; a < dims_; ++a) {
+      const double* u = velocity[a].data();
+      s += (plus_nb(u, i, co[a], n_[a], stride[a], true) - minus_nb(u, i, co[a], stride[a], true)) / (2.0 * h_[a]);
+    }
+    div[i] = s;
+  });
   // Poisson lap p = div u with zero-flux walls (Stam 1999's projection).
   for (double& v : div) v = -v;
   if (params_.cg_pressure) pressure_cg(std::move(div), p);
   else pressure_gauss_seidel(div, p);
-  for (size_t z = 0; z < n_[2]; ++z)
-    for (size_t y = 0; y < n_[1]; ++y)
-      for (size_t x = 0; x < n_[0]; ++x) {
-        const size_t i = (z * n_[1] + y) * n_[0] + x;
-        const size_t co[3] = {x, y, z};
-        for (size_t a = 0; a < dims_; ++a)
-          velocity[a][i] -= (plus_nb(p.data(), i, co[a], n_[a], stride[a], false) -
-                             minus_nb(p.data(), i, co[a], stride[a], false)) / (2.0 * h_[a]);
-      }
+  for_each_cell([&](size_t i, const size_t* co) {
+    for (size_t a = 0; a < dims_; ++a)
+      velocity[a][i] -= (plus_nb(p.data(), i, co[a], n_[a], stride[a], false) -
+                         minus_nb(p.data(), i, co[a], stride[a], false)) / (2.0 * h_[a]);
+  });
 }
 
 void GridFluid::pressure_gauss_seidel(const std::vector<double>& rhs, std::vector<double>& p) const {
-  const std::array<size_t, 3> stride{1, n_[0], n_[0] * n_[1]};
-  std::array<double, 3> ih2{};
+  std::array<double, 3> c{};
   double denom = 0.0;
   for (size_t a = 0; a < dims_; ++a) {
-    ih2[a] = 1.0 / (h_[a] * h_[a]);
-    denom += 2.0 * ih2[a];
+    c[a] = 1.0 / (h_[a] * h_[a]);
+    denom += 2.0 * c[a];
   }
-  for (int it = 0; it < params_.iterations; ++it)
-    for (size_t z = 0; z < n_[2]; ++z)
-      for (size_t y = 0; y < n_[1]; ++y)
-        for (size_t x = 0; x < n_[0]; ++x) {
-          const size_t i = (z * n_[1] + y) * n_[0] + x;
-          const size_t co[3] = {x, y, z};
-          double s = rhs[i];
-          for (size_t a = 0; a < dims_; ++a)
-            s += ih2[a] * (minus_nb(p.data(), i, co[a], stride[a], false) +
-                           plus_nb(p.data(), i, co[a], n_[a], stride[a], false));
-          p[i] = s / denom;
-        }
+  gauss_seidel(p, rhs, c, denom, 3);
 }
 
 void GridFluid::neg_laplacian(const std::vector<double>& p, std::vector<double>& out) const {
   const std::array<size_t, 3> stride{1, n_[0], n_[0] * n_[1]};
-  for (size_t z = 0; z < n_[2]; ++z)
-    for (size_t y = 0; y < n_[1]; ++y)
-      for (size_t x = 0; x < n_[0]; ++x) {
-        const size_t i = (z * n_[1] + y) * n_[0] + x;
-        const size_t co[3] = {x, y, z};
-        double s = 0.0;
-        for (size_t a = 0; a < dims_; ++a)
-          s += (2.0 * p[i] - minus_nb(p.data(), i, co[a], stride[a], false) -
-                plus_nb(p.data(), i, co[a], n_[a], stride[a], false)) / (h_[a] * h_[a]);
-        out[i] = s;
-      }
+  for_each_cell([&](size_t i, const size_t* co) {
+    double s = 0.0;
+    for (size_t a = 0; a < dims_; ++a)
+      s += (2.0 * p[i] - minus_nb(p.data(), i, co[a], stride[a], false) -
+            plus_nb(p.data(), i, co[a], n_[a], stride[a], false)) / (h_[a] * h_[a]);
+    out[i] = s;
+  });
 }
 
 void GridFluid::pressure_cg(std::vector<double> rhs, std::vector<double>& p) const {

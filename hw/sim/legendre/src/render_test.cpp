@@ -8,16 +8,12 @@
 #include <numbers>
 
 #include "procam/legendre/render.hpp"
+#include "test_util.hpp"
 
 namespace procam::legendre {
 namespace {
 
-Box box2(double x0, double x1, double y0, double y1) {
-  Box b;
-  b.lo = {x0, y0, 0.0};
-  b.hi = {x1, y1, 1.0};
-  return b;
-}
+using testing::box2;
 
 // Homogeneous r, light along +y, camera on the +x face:
 // E^s(y) = beta Omega r E0 e^{-s r (y - y0)} (1 - e^{-s r Lx}) / (s r), T = e^{-s r Lx}.

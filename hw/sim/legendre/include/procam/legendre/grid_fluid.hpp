@@ -58,10 +58,22 @@ class GridFluid {
   enum class Bc { kScalar, kNormalX, kNormalY, kNormalZ };
   void advect(std::vector<double>& q, const std::vector<double>& q0, Bc bc, double dt) const;
   void diffuse(std::vector<double>& q, double coeff_dt, Bc bc) const;
+  void gauss_seidel(std::vector<double>& q, const std::vector<double>& rhs, const std::array<double, 3>& c,
+                    double denom, size_t normal_axis) const;
   // Solves -lap p = rhs (zero-flux walls) into p.
   void pressure_gauss_seidel(const std::vector<double>& rhs, std::vector<double>& p) const;
   void pressure_cg(std::vector<double> rhs, std::vector<double>& p) const;
   void neg_laplacian(const std::vector<double>& p, std::vector<double>& out) const;
+  // fn(i, coords) for every cell in layout order (Gauss-Seidel relies on it).
+  template <class Fn>
+  void for_each_cell(Fn&& fn) const {
+    for (size_t z = 0; z < n_[2]; ++z)
+      for (size_t y = 0; y < n_[1]; ++y)
+        for (size_t x = 0; x < n_[0]; ++x) {
+          const size_t co[3] = {x, y, z};
+          fn((z * n_[1] + y) * n_[0] + x, co);
+        }
+  }
   double sample(const std::vector<double>& q, double fx, double fy, double fz) const;
 
   size_t dims_;
