@@ -34,6 +34,7 @@ LegendreMediumComponent::LegendreMediumComponent(const LegendreMediumSpec& spec,
                                                  const Rigid3& world_from_cam, const Rigid3& world_from_proj)
     : spec_(spec),
       intensity_(projector.irradiance_at_1m * 1e6),
+      projector_k_(projector.intrinsics),
       world_from_cam_(world_from_cam),
       world_from_proj_(world_from_proj) {
   reset();
@@ -92,6 +93,7 @@ int LegendreMediumComponent::set_time_s(double t) {
 
 void LegendreMediumComponent::begin_frame(const FrameContext& frame, int threads) {
   (void)threads;
+  (void)frame;
   if (grid_stale_) {
     const std::vector<double> g = legendre::evaluate_grid(fluid_->density, {kGrid, kGrid, kGrid});
     grid_.resize(g.size());
@@ -100,14 +102,6 @@ void LegendreMediumComponent::begin_frame(const FrameContext& frame, int threads
     for (size_t i = 0; i < g.size(); ++i) grid_[i] = static_cast<float>(std::max(0.0, g[i]));
     grid_stale_ = false;
   }
-  // Mean emitted light of the frame (level 0 has a 1-pixel zero border).
-  const float* p = frame.pattern.level(0);
-  double sum = 0.0;
-  const size_t w = frame.pattern.width(), h = frame.pattern.height(), st = frame.pattern.stride();
-  if (p != nullptr)
-    for (size_t y = 0; y < h; ++y)
-      for (size_t x = 0; x < w; ++x) sum += static_cast<double>(p[(y + 1) * st + x + 1]);
-  mean_emitted_ = w * h > 0 ? sum / static_cast<double>(w * h) : 0.0;
 }
 
 double LegendreMediumComponent::density_at(const Vec3& q) const {
@@ -164,7 +158,23 @@ void LegendreMediumComponent::apply(const FrameContext& frame, uint32_t row_begi
   const Medium box = box_medium(spec_);
   const Vec3 cam = world_from_cam_.translation_mm, proj = world_from_proj_.translation_mm;
   const double sigma = spec_.sigma_t_per_mm, beta = spec_.sigma_s_per_mm;
-  const double light = intensity_ * mean_emitted_;
+  // Emitted light of the projector pixel that lights a point (sharp
+  // pattern, nearest pixel; 0 outside the projector image or behind it).
+  const Rigid3 proj_from_world = world_from_proj_.inverse();
+  const Intrinsics& kp = projector_k_;
+  const float* pattern = frame.pattern.level(0);
+  const size_t pstride = frame.pattern.stride();
+  auto emitted = [&](const Vec3& y) {
+    const Vec3 q = proj_from_world * y;
+    if (!(q.z > 1e-3) || pattern == nullptr) return 0.0;
+    const double xp = kp.fx * q.x / q.z + kp.cx, yp = kp.fy * q.y / q.z + kp.cy;
+    if (!(xp >= -0.5 && xp < kp.width - 0.5 && yp >= -0.5 && yp < kp.height - 0.5)) return 0.0;
+    const size_t ix = static_cast<size_t>(xp + 0.5), iy = static_cast<size_t>(yp + 0.5);
+    return static_cast<double>(pattern[(iy + 1) * pstride + ix + 1]);
+  };
+  // Unpolarized air-light: an analyser passes half of it (surface light gets
+  // the same 1/2 from the renderer).
+  const double analyser = std::isfinite(frame.analyser_deg) ? 0.5 : 1.0;
   for (uint32_t v = row_begin; v < row_end; ++v)
     for (uint32_t u = 0; u < view.width; ++u) {
       const size_t i = size_t{v} * view.width + u;
@@ -187,13 +197,15 @@ void LegendreMediumComponent::apply(const FrameContext& frame, uint32_t row_begi
         const Vec3 ly = y - proj;
         const double d2 = std::max(dot(ly, ly), kMinDistSq);
         const double cos_theta = dot(ly, -dir) / std::sqrt(d2);
-        air += beta * r * hg_phase(spec_.g, cos_theta) * light / d2 * std::exp(-sigma * (tau + 0.5 * r * ds)) * ds;
+        air += beta * r * hg_phase(spec_.g, cos_theta) * intensity_ * emitted(y) / d2 *
+               std::exp(-sigma * (tau + 0.5 * r * ds)) * ds;
         tau += r * ds;
       }
       // Eq. 6.4 on both legs of the surface light.
       double tau_proj = 0.0;
       if (surface) tau_proj = optical_depth(proj, world_from_cam_ * pc, kSteps / 2);
-      radiance[i] = static_cast<float>(static_cast<double>(radiance[i]) * std::exp(-sigma * (tau + tau_proj)) + air);
+      radiance[i] = static_cast<float>(static_cast<double>(radiance[i]) * std::exp(-sigma * (tau + tau_proj)) +
+                                       analyser * air);
     }
 }
 

@@ -12,11 +12,12 @@
 //    optical depths of the camera ray up to the surface and of the projector
 //    ray to that surface point (ambient light gets the same factor);
 //  - air-light (Eq. 6.5, single scattering): sum over the ray of
-//    beta r p_HG(theta) I e_mean / d_LY^2 exp(-sigma tau_cam) ds, lit by the
-//    projector's MEAN emitted value e_mean over the frame (first model: the
-//    pattern's spatial structure, projector-ray occlusion and the projector
-//    leg's attenuation of the air-light are ignored; exact for uniform
-//    frames in an optically thin medium).
+//    beta r p_HG(theta) I e(x_p(Y)) / d_LY^2 exp(-sigma tau_cam) ds, with
+//    e the sharp emitted pattern at the projector pixel that lights the
+//    sample Y (nearest pixel, pinhole projector, 0 outside its image).
+//    Ignored (first model, optically thin): occlusion of the projector ray
+//    by surfaces, the projector leg's attenuation of the air-light, and its
+//    polarization (an analyser passes half of it, as of surface light).
 // Rendering marches a per-frame density grid (kGrid^3 samples of the
 // Legendre field, trilinear), not the Legendre image equations of
 // procam::legendre::LegendreRenderer, because the sim's camera is
@@ -66,12 +67,12 @@ class LegendreMediumComponent final : public TransportComponent {
 
   LegendreMediumSpec spec_;
   double intensity_;  // projector iu*mm^2 per unit emitted
+  Intrinsics projector_k_;
   Rigid3 world_from_cam_, world_from_proj_;
   std::unique_ptr<legendre::LegendreFluid> fluid_;
   double time_s_ = 0.0;
   bool grid_stale_ = true;
   std::vector<float> grid_;  // kGrid^3 density samples (cell centres)
-  double mean_emitted_ = 0.0;
 };
 
 }  // namespace procam::sim

@@ -61,8 +61,9 @@ TEST(LegendreMedium, UniformFogAttenuatesLikeTheClosedForm) {
 }
 
 // Air-light of the centre pixel (uniform density, no surface behind it in
-// the box) against a 4000-step quadrature of the same single-scattering
-// integral: within 1% (~one midpoint sample per density-grid cell).
+// the box, uniform pattern that lights the whole ray) against a 4000-step
+// quadrature of the same single-scattering integral: within 1% (~one
+// midpoint sample per density-grid cell).
 TEST(LegendreMedium, AirLightMatchesFineQuadrature) {
   const SimRigConfig rig = small_rig();
   auto fog = scene_renderer(
@@ -91,6 +92,22 @@ TEST(LegendreMedium, AirLightMatchesFineQuadrature) {
   }
   EXPECT_NEAR(img[v * k.width + u], air, 0.01 * air);
   EXPECT_GT(air, 0.0);
+  // Lit by the pattern: black gives no air-light, a half-lit pattern (left
+  // projector columns only) lies between, and an analyser passes half.
+  PreparedPattern black = emitted_pattern(rig.projector, std::vector<float>(w * h, 0.f));
+  for (double x : render(*fog, black, Renderer::Parts::volume_only)) ASSERT_EQ(x, 0.0);
+  std::vector<float> half(w * h, 0.f);
+  for (size_t y = 0; y < h; ++y)
+    for (size_t x = 0; x < w / 2; ++x) half[y * w + x] = 0.5f;
+  PreparedPattern hp = emitted_pattern(rig.projector, half);
+  const auto hi = render(*fog, hp, Renderer::Parts::volume_only);
+  double sum_full = 0, sum_half = 0;
+  for (size_t i = 0; i < img.size(); ++i) sum_full += img[i], sum_half += hi[i];
+  EXPECT_GT(sum_half, 0.2 * sum_full);
+  EXPECT_LT(sum_half, 0.8 * sum_full);
+  fog->set_polarization(std::nan(""), 0.0);
+  const auto an = render(*fog, p, Renderer::Parts::volume_only);
+  for (size_t i = 0; i < img.size(); ++i) ASSERT_NEAR(an[i], 0.5 * img[i], 1e-6 * img[i] + 1e-12);
 }
 
 // A blob carried by the swirl: the air-light image changes with time, its
