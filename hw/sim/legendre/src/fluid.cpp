@@ -54,6 +54,10 @@ LegendreFluid::LegendreFluid(size_t dims, size_t n, const Box& box, const FluidP
     : dims_(dims), n_(n), box_(box), params_(params) {
   if (dims != 2 && dims != 3) throw std::invalid_argument("LegendreFluid: dims must be 2 or 3");
   if (n < 3 || n > 24) throw std::invalid_argument("LegendreFluid: n must be 3..24 polynomials per axis");
+  if (!(params.viscosity >= 0.0) || !(params.diffusion >= 0.0) || !(params.dissipation >= 0.0))
+    throw std::invalid_argument("LegendreFluid: viscosity, diffusion and dissipation must be finite and >= 0");
+  for (size_t a = 0; a < dims; ++a)
+    if (!(box.hi[a] > box.lo[a])) throw std::invalid_argument("LegendreFluid: box axis " + std::to_string(a) + " is empty");
   const Field zero = zero_field(dims, n, box);
   for (auto& f : velocity) f = zero;
   for (auto& f : force) f = zero;
@@ -251,6 +255,12 @@ StepReport LegendreFluid::step(double dt) {
   const auto unprojected = velocity;
   project();  // the advecting velocity must satisfy the wall/divergence constraints
   r.energy_before = kinetic_energy();
+  if (!std::isfinite(r.energy_before) || !std::isfinite(squared_norm(density))) {
+    r.ok = false;
+    r.error = "LegendreFluid::step: the velocity or density holds NaN/inf; set finite coefficients";
+    velocity = unprojected;
+    return r;
+  }
   r.dt_limit = dt_limit();
   r.substeps = 1;
   if (dt > r.dt_limit) {

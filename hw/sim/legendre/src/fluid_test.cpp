@@ -151,6 +151,14 @@ TEST(LegendreFluid, DissipationIsTheClosedForm) {
   EXPECT_NEAR(f.density.c[0], 2.0 * std::pow(1.05, -10), 1e-14);
   EXPECT_THROW(LegendreFluid(4, 4, Box{}, p), std::invalid_argument);
   EXPECT_THROW(LegendreFluid(2, 2, Box{}, p), std::invalid_argument);
+  FluidParams neg;
+  neg.viscosity = -1.0;
+  EXPECT_THROW(LegendreFluid(2, 4, Box{}, neg), std::invalid_argument);
+  // A non-finite state is refused, not propagated.
+  f.velocity[0].c[1] = std::nan("");
+  const StepReport r = f.step(0.1);
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("NaN"), std::string::npos);
 }
 
 }  // namespace

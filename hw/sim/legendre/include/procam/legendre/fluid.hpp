@@ -59,7 +59,8 @@ struct StepReport {
 class LegendreFluid {
  public:
   // dims 2 or 3, n polynomials per axis (K = n^dims coefficients per field).
-  // Throws std::invalid_argument for dims/n out of range (n >= 3).
+  // Throws std::invalid_argument for dims/n out of range (3 <= n <= 24),
+  // negative or NaN coefficients, or an empty box.
   LegendreFluid(size_t dims, size_t n, const Box& box, const FluidParams& params);
 
   size_t dims() const { return dims_; }
