@@ -56,7 +56,7 @@ class LegendreMediumComponent final : public TransportComponent {
   double time_s() const { return time_s_; }
   const legendre::LegendreFluid& fluid() const { return *fluid_; }
 
-  static constexpr size_t kGrid = 32;   // density samples per box axis per frame
+  static constexpr size_t kGrid = 16;   // density samples per box axis per frame (n <= 8: degree <= 7)
   static constexpr int kSteps = 48;     // at most this many march samples along a ray in the box
 
  private:
