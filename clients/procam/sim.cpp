@@ -12,12 +12,16 @@
 // an image file. Outputs (docs/sim.md "CLI"): image.png (the captured frame),
 // radiance.exr, direct.exr, global.exr (ru), ratio.exr (global/direct under
 // white), depth_mm.exr, proj_col.exr, proj_row.exr, lit.png, info.json.
+// `--frames N` (scenes with a "legendre_medium", docs/legendre.md): also
+// frame_000.png .. frame_N-1.png, the captured frame with the dynamic medium
+// at t = k * frame_period_s (a PNG sequence of the medium's motion).
 // `--pattern gray-errors` prints instead the noise-free binarization error of
 // every Gray bit (pattern vs inverse, thesis Eq. 3.5) on the lit pixels.
 // Errors go to stderr with a non-zero exit status; nothing is thrown.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -212,6 +216,25 @@ int cmd_sim(const Args& a) {
            {"ratio.exr", std::move(parts->global_direct_ratio_white)}}) {
     Status ws = write_image(out + "/" + name, img, attrs);
     if (!ws.ok()) return report(ws);
+  }
+  if (a.has("frames")) {  // the dynamic medium over time (docs/legendre.md)
+    const int frames = std::atoi(a.get("frames").c_str());
+    if (frames < 1 || frames > 1000) return usage_error("sim --frames: give 1..1000 frames");
+    if (!scene->legendre_medium)
+      return report(Error(Code::invalid_argument, "sim --frames: scene '" + scene->name + "' has no legendre_medium",
+                          "use a scene with a \"legendre_medium\" (e.g. legendre-fog), see hw/sim/SCENES.md"));
+    for (int k = 0; k < frames; ++k) {
+      set_legendre_time(r, k * scene->legendre_medium->frame_period_s);
+      Status fs_st = r.render_radiance(*prepared, full.data(), true);
+      if (!fs_st.ok()) return report(fs_st);
+      char name[32];
+      std::snprintf(name, sizeof name, "/frame_%03d.png", k);
+      Status ws = write_image(out + name, expose(full.data(), w, h, cam.sensor, cam.sensor.exposure_us, cam.sensor.gain_db,
+                                                 frame_noise_seed(rig->seed, 0, static_cast<uint64_t>(k)), threads),
+                              attrs);
+      if (!ws.ok()) return report(ws);
+    }
+    set_legendre_time(r, 0.0);
   }
   Status gs = write_ground_truth(ground_truth_from_view(r.view()), out, {{"scene", scene->name}});
   if (!gs.ok()) return report(gs);

@@ -9,6 +9,8 @@
 
 #include <chrono>
 
+#include "legendre_medium.hpp"
+
 namespace procam::sim {
 namespace {
 
@@ -72,6 +74,9 @@ Result<std::unique_ptr<Renderer>> make_scene_renderer(const Scene& scene, const 
   if (glossy_view) r->add_component(std::move(glossy_view));
   if (diff) r->add_component(std::move(diff));
   if (mirror) r->add_component(std::move(mirror));
+  if (scene.legendre_medium)  // dynamic medium (docs/legendre.md); the rig sets its time per frame
+    r->add_component(std::make_unique<LegendreMediumComponent>(*scene.legendre_medium, projector, world_from_cam,
+                                                               world_from_proj));
   if (stats) *stats = st;
   return r;
 }

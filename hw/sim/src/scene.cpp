@@ -265,11 +265,51 @@ Medium parse_medium(FieldReader& root) {
   return m;
 }
 
+// "legendre_medium" (SCENES.md): a dynamic medium in a closed box.
+LegendreMediumSpec parse_legendre_medium(FieldReader& root) {
+  LegendreMediumSpec m;
+  const nlohmann::json* mj = root.object("legendre_medium", false);
+  if (mj == nullptr) return m;
+  FieldReader r(*mj, root.field("legendre_medium"), root.errors());
+  r.only({"box_min_mm", "box_max_mm", "n", "density_uniform", "blobs", "swirl_mm_s", "viscosity_mm2_s",
+          "dissipation_per_s", "sigma_t_per_mm", "sigma_s_per_mm", "g", "frame_period_s", "comment"});
+  m.box_min_mm = r.vec3("box_min_mm", std::nullopt, "mm, world frame");
+  m.box_max_mm = r.vec3("box_max_mm", std::nullopt, "mm, world frame");
+  m.n = static_cast<int>(r.integer("n", 5, 3, 8));
+  m.density_uniform = r.number("density_uniform", 0.0, "dimensionless", 0.0, 100.0);
+  m.swirl_mm_s = r.number("swirl_mm_s", 0.0, "mm/s", -1e4, 1e4);
+  m.viscosity_mm2_s = r.number("viscosity_mm2_s", 0.0, "mm^2/s", 0.0, 1e6);
+  m.dissipation_per_s = r.number("dissipation_per_s", 0.0, "1/s", 0.0, 1e3);
+  m.sigma_t_per_mm = r.number("sigma_t_per_mm", std::nullopt, "extinction at density 1, 1/mm", 0.0, 10.0);
+  m.sigma_s_per_mm = r.number("sigma_s_per_mm", std::nullopt, "scattering at density 1, 1/mm", 0.0, 10.0);
+  m.g = r.number("g", 0.0, "Henyey-Greenstein asymmetry, |g| < 1", -0.999, 0.999);
+  m.frame_period_s = r.number("frame_period_s", 1.0 / 30.0, "s per captured frame", 1e-6, 60.0);
+  if (const nlohmann::json* blobs = r.get("blobs")) {
+    if (!blobs->is_array()) r.fail("blobs", std::string("must be an array, got ") + blobs->type_name());
+    for (size_t i = 0; r.errors().ok() && blobs->is_array() && i < blobs->size(); ++i) {
+      FieldReader b((*blobs)[i], r.field("blobs") + "[" + std::to_string(i) + "]", r.errors());
+      if (!r.errors().ok()) break;
+      b.only({"center_mm", "radius_mm", "peak", "comment"});
+      LegendreMediumSpec::Blob blob;
+      blob.center_mm = b.vec3("center_mm", std::nullopt, "mm, world frame");
+      blob.radius_mm = b.positive("radius_mm", std::nullopt, "mm");
+      blob.peak = b.number("peak", 1.0, "dimensionless", 0.0, 100.0);
+      m.blobs.push_back(blob);
+    }
+  }
+  if (!r.errors().ok()) return m;
+  if (!(m.box_max_mm.x > m.box_min_mm.x && m.box_max_mm.y > m.box_min_mm.y && m.box_max_mm.z > m.box_min_mm.z))
+    r.fail("box_max_mm", "empty box: box_max_mm must exceed box_min_mm on every axis");
+  if (m.sigma_s_per_mm > m.sigma_t_per_mm)
+    r.fail("sigma_s_per_mm", "scattering must not exceed extinction (beta <= sigma)", "sigma_t_per_mm = scattering + absorption");
+  return m;
+}
+
 Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
   try {
     ParseErrors errors{source.empty() ? std::string("scene") : source, {}};
     FieldReader root(j, "", errors);
-    root.only({"name", "description", "comment", "ambient", "objects", "medium"});
+    root.only({"name", "description", "comment", "ambient", "objects", "medium", "legendre_medium"});
     Scene scene;
     scene.source = source;
     scene.name = root.string("name", fs::path(source).stem().string());
@@ -279,6 +319,11 @@ Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
       Medium m = parse_medium(root);
       if (!errors.ok()) return errors.first;
       scene.medium = m;
+    }
+    if (root.has("legendre_medium")) {
+      LegendreMediumSpec m = parse_legendre_medium(root);
+      if (!errors.ok()) return errors.first;
+      scene.legendre_medium = m;
     }
     const nlohmann::json* objs = root.get("objects");
     if (objs == nullptr) {

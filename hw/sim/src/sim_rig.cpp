@@ -272,6 +272,9 @@ Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds timeout) {
   Renderer& ren = *rig_.renderers_[index_];
   ren.set_focus_mm(rig_.current_focus_mm());
   ren.set_polarization(rig_.projector_.polarizer_deg(), polarizer_deg_);
+  // A dynamic medium is rendered at this frame's time: frame id x period.
+  if (rig_.scene_.legendre_medium)
+    set_legendre_time(ren, static_cast<double>(next_frame_id_) * rig_.scene_.legendre_medium->frame_period_s);
   radiance_.resize(ren.view().pixel_count());
   Status st = ren.render_radiance(rig_.pattern_, radiance_.data(), true);
   if (!st.ok()) return st.with_context("sim camera " + info_.id + ": capture");

@@ -246,6 +246,12 @@ private:
   ProjectorModel projector_;
 };
 
+// A scene's dynamic Legendre medium (Scene::legendre_medium, added by
+// make_scene_renderer) at time t_s >= 0 for the following renders (earlier
+// times re-simulate from 0). Returns the fluid sub-steps taken, or -1 when
+// the renderer has no such medium. Rendering thread only.
+int set_legendre_time(Renderer& renderer, double t_s);
+
 // Prepares `scene` for one camera and returns a renderer with the direct
 // component plus the global components `options` enables (those that have
 // anything to do in the scene). `world_from_proj` is camera 0's cam_from_proj.

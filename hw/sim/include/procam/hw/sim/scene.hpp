@@ -148,6 +148,30 @@ struct Medium {
   std::optional<Bulb> bulb;
 };
 
+// Dynamic, non-homogeneous medium simulated in the Legendre domain
+// (SCENES.md "legendre_medium", docs/legendre.md; thesis ch. 6): a closed,
+// axis-aligned box (world frame) of fog whose density is advected by a swirl
+// and rendered per frame at that frame's time. Mono, like Medium. Checked by
+// the parser: box non-empty, 3 <= n <= 8, 0 <= beta <= sigma, |g| < 1.
+struct LegendreMediumSpec {
+  struct Blob {
+    Vec3 center_mm;
+    double radius_mm = 1;  // density peak * exp(-|x - c|^2 / radius^2)
+    double peak = 1;
+  };
+  Vec3 box_min_mm, box_max_mm;
+  int n = 5;                     // Legendre polynomials per axis (K = n^3)
+  double density_uniform = 0;    // added to the blobs (dimensionless)
+  std::vector<Blob> blobs;
+  double swirl_mm_s = 0;         // peak speed of a swirl about the box's z axis
+  double viscosity_mm2_s = 0;
+  double dissipation_per_s = 0;
+  double sigma_t_per_mm = 0;     // extinction at density 1
+  double sigma_s_per_mm = 0;     // scattering at density 1
+  double g = 0;                  // Henyey-Greenstein asymmetry
+  double frame_period_s = 1.0 / 30.0;  // medium time advanced per captured frame
+};
+
 struct Scene {
   std::string name;         // "name" field, else the file stem
   std::string description;  // free text
@@ -155,6 +179,7 @@ struct Scene {
   double ambient = 0;       // ambient irradiance on every surface, iu (unshadowed)
   std::vector<Object> objects;
   std::optional<Medium> medium;  // "medium" field; none = clear air
+  std::optional<LegendreMediumSpec> legendre_medium;  // "legendre_medium"; none = no dynamic medium
 };
 
 // Parse a scene object. `source` prefixes error messages (normally the path).

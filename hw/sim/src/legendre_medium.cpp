@@ -1,0 +1,218 @@
+// SPDX-License-Identifier: MIT
+#include "legendre_medium.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "medium.hpp"
+#include "procam/hw/sim/global.hpp"
+
+namespace procam::sim {
+namespace {
+
+constexpr double kMinDistSq = 1.0;  // mm^2: no 1/d^2 blow-up at the projector centre
+
+legendre::Box box_of(const LegendreMediumSpec& s) {
+  legendre::Box b;
+  b.lo = {s.box_min_mm.x, s.box_min_mm.y, s.box_min_mm.z};
+  b.hi = {s.box_max_mm.x, s.box_max_mm.y, s.box_max_mm.z};
+  return b;
+}
+
+Medium box_medium(const LegendreMediumSpec& s) {  // for medium_interval()
+  Medium m;
+  m.whole_scene = false;
+  m.box_min_mm = s.box_min_mm;
+  m.box_max_mm = s.box_max_mm;
+  return m;
+}
+
+}  // namespace
+
+LegendreMediumComponent::LegendreMediumComponent(const LegendreMediumSpec& spec, const ProjectorModel& projector,
+                                                 const Rigid3& world_from_cam, const Rigid3& world_from_proj)
+    : spec_(spec),
+      intensity_(projector.irradiance_at_1m * 1e6),
+      projector_k_(projector.intrinsics),
+      world_from_cam_(world_from_cam),
+      world_from_proj_(world_from_proj) {
+  reset();
+}
+
+void LegendreMediumComponent::reset() {
+  const legendre::Box box = box_of(spec_);
+  legendre::FluidParams p;
+  p.viscosity = spec_.viscosity_mm2_s;
+  p.dissipation = spec_.dissipation_per_s;
+  const size_t n = static_cast<size_t>(spec_.n);
+  fluid_ = std::make_unique<legendre::LegendreFluid>(3, n, box, p);
+  const size_t nodes = 2 * n + 4;
+  fluid_->density = legendre::project(
+      [&](double x, double y, double z) {
+        double r = spec_.density_uniform;
+        for (const auto& b : spec_.blobs) {
+          const double dx = x - b.center_mm.x, dy = y - b.center_mm.y, dz = z - b.center_mm.z;
+          r += b.peak * std::exp(-(dx * dx + dy * dy + dz * dz) / (b.radius_mm * b.radius_mm));
+        }
+        return r;
+      },
+      fluid_->density.n, box, nodes);
+  // Swirl about z: psi = (1-x'^2)^2 (1-y'^2)^2 in unit coordinates,
+  // u = (psi_y'/hy, -psi_x'/hx, 0): divergence-free, no flow through the walls.
+  const double hx = box.half_width(0), hy = box.half_width(1);
+  auto ux = [&](double xu, double yu) { return (1 - xu * xu) * (1 - xu * xu) * 2 * (1 - yu * yu) * (-2 * yu) / hy; };
+  auto uy = [&](double xu, double yu) { return -(1 - yu * yu) * (1 - yu * yu) * 2 * (1 - xu * xu) * (-2 * xu) / hx; };
+  double peak = 0.0;
+  for (int i = 0; i <= 32; ++i)
+    for (int j = 0; j <= 32; ++j) {
+      const double xu = -1 + i / 16.0, yu = -1 + j / 16.0;
+      peak = std::max(peak, std::hypot(ux(xu, yu), uy(xu, yu)));
+    }
+  const double s = peak > 0 ? spec_.swirl_mm_s / peak : 0.0;
+  fluid_->velocity[0] = legendre::project(
+      [&](double x, double y, double) { return s * ux(box.unit_from_box(0, x), box.unit_from_box(1, y)); },
+      fluid_->velocity[0].n, box, nodes);
+  fluid_->velocity[1] = legendre::project(
+      [&](double x, double y, double) { return s * uy(box.unit_from_box(0, x), box.unit_from_box(1, y)); },
+      fluid_->velocity[1].n, box, nodes);
+  fluid_->project();
+  time_s_ = 0.0;
+  grid_stale_ = true;
+}
+
+int LegendreMediumComponent::set_time_s(double t) {
+  if (!(t >= 0.0) || !std::isfinite(t)) return 0;
+  if (t < time_s_) reset();  // frames asked out of order: re-simulate (deterministic)
+  if (t == time_s_) return 0;
+  const legendre::StepReport r = fluid_->step(t - time_s_);
+  time_s_ = t;
+  grid_stale_ = true;
+  return r.substeps;
+}
+
+void LegendreMediumComponent::begin_frame(const FrameContext& frame, int threads) {
+  (void)threads;
+  (void)frame;
+  if (grid_stale_) {
+    const std::vector<double> g = legendre::evaluate_grid(fluid_->density, {kGrid, kGrid, kGrid});
+    grid_.resize(g.size());
+    // Truncation ringing can dip a smooth density slightly below zero
+    // between lobes; a negative density is unphysical, so it is clamped.
+    for (size_t i = 0; i < g.size(); ++i) grid_[i] = static_cast<float>(std::max(0.0, g[i]));
+    grid_stale_ = false;
+  }
+}
+
+double LegendreMediumComponent::density_at(const Vec3& q) const {
+  double f[3];
+  size_t i0[3], i1[3];
+  double t[3];
+  const double lo[3] = {spec_.box_min_mm.x, spec_.box_min_mm.y, spec_.box_min_mm.z};
+  const double hi[3] = {spec_.box_max_mm.x, spec_.box_max_mm.y, spec_.box_max_mm.z};
+  for (int a = 0; a < 3; ++a) {
+    const double u = (q[a] - lo[a]) / (hi[a] - lo[a]);
+    if (u < 0.0 || u > 1.0) return 0.0;
+    f[a] = std::clamp(u * static_cast<double>(kGrid) - 0.5, 0.0, static_cast<double>(kGrid - 1));
+    const double fl = std::floor(f[a]);
+    i0[a] = static_cast<size_t>(fl);
+    i1[a] = std::min(i0[a] + 1, kGrid - 1);
+    t[a] = f[a] - fl;
+  }
+  auto at = [&](size_t x, size_t y, size_t z) { return static_cast<double>(grid_[(z * kGrid + y) * kGrid + x]); };
+  const double c00 = at(i0[0], i0[1], i0[2]) * (1 - t[0]) + at(i1[0], i0[1], i0[2]) * t[0];
+  const double c10 = at(i0[0], i1[1], i0[2]) * (1 - t[0]) + at(i1[0], i1[1], i0[2]) * t[0];
+  const double c01 = at(i0[0], i0[1], i1[2]) * (1 - t[0]) + at(i1[0], i0[1], i1[2]) * t[0];
+  const double c11 = at(i0[0], i1[1], i1[2]) * (1 - t[0]) + at(i1[0], i1[1], i1[2]) * t[0];
+  return (c00 * (1 - t[1]) + c10 * t[1]) * (1 - t[2]) + (c01 * (1 - t[1]) + c11 * t[1]) * t[2];
+}
+
+int LegendreMediumComponent::march_steps(double length_mm) const {
+  // About one sample per density-grid cell: finer sampling of a trilinear
+  // grid adds cost, not accuracy.
+  const double cell = std::min({spec_.box_max_mm.x - spec_.box_min_mm.x, spec_.box_max_mm.y - spec_.box_min_mm.y,
+                                spec_.box_max_mm.z - spec_.box_min_mm.z}) / static_cast<double>(kGrid);
+  return std::clamp(static_cast<int>(std::ceil(length_mm / cell)), 4, kSteps);
+}
+
+double LegendreMediumComponent::optical_depth(const Vec3& a, const Vec3& b, int steps) const {
+  const Vec3 d = b - a;
+  const double len = norm(d);
+  if (!(len > 0.0)) return 0.0;
+  const Vec3 u = d / len;
+  double t0 = 0, t1 = 0;
+  if (!medium_interval(box_medium(spec_), a, u, t0, t1)) return 0.0;
+  t1 = std::min(t1, len);
+  if (!(t1 > t0)) return 0.0;
+  steps = std::min(steps, march_steps(t1 - t0));
+  const double ds = (t1 - t0) / steps;
+  double tau = 0.0;
+  for (int k = 0; k < steps; ++k) tau += density_at(a + u * (t0 + (k + 0.5) * ds)) * ds;
+  return tau;
+}
+
+void LegendreMediumComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,
+                                    float* radiance) const {
+  const PreparedView& view = frame.view;
+  const Intrinsics& k = view.camera.intrinsics;
+  const Medium box = box_medium(spec_);
+  const Vec3 cam = world_from_cam_.translation_mm, proj = world_from_proj_.translation_mm;
+  const double sigma = spec_.sigma_t_per_mm, beta = spec_.sigma_s_per_mm;
+  // Emitted light of the projector pixel that lights a point (sharp
+  // pattern, nearest pixel; 0 outside the projector image or behind it).
+  const Rigid3 proj_from_world = world_from_proj_.inverse();
+  const Intrinsics& kp = projector_k_;
+  const float* pattern = frame.pattern.level(0);
+  const size_t pstride = frame.pattern.stride();
+  auto emitted = [&](const Vec3& y) {
+    const Vec3 q = proj_from_world * y;
+    if (!(q.z > 1e-3) || pattern == nullptr) return 0.0;
+    const double xp = kp.fx * q.x / q.z + kp.cx, yp = kp.fy * q.y / q.z + kp.cy;
+    if (!(xp >= -0.5 && xp < kp.width - 0.5 && yp >= -0.5 && yp < kp.height - 0.5)) return 0.0;
+    const size_t ix = static_cast<size_t>(xp + 0.5), iy = static_cast<size_t>(yp + 0.5);
+    return static_cast<double>(pattern[(iy + 1) * pstride + ix + 1]);
+  };
+  // Unpolarized air-light: an analyser passes half of it (surface light gets
+  // the same 1/2 from the renderer).
+  const double analyser = std::isfinite(frame.analyser_deg) ? 0.5 : 1.0;
+  for (uint32_t v = row_begin; v < row_end; ++v)
+    for (uint32_t u = 0; u < view.width; ++u) {
+      const size_t i = size_t{v} * view.width + u;
+      const Vec3 dir = world_from_cam_.rotation * normalized(k.ray(u, v));
+      double t0 = 0, t1 = 0;
+      if (!medium_interval(box, cam, dir, t0, t1)) continue;
+      const float* pt = &view.point_mm[3 * i];
+      const bool surface = std::isfinite(pt[0]);
+      const Vec3 pc{static_cast<double>(pt[0]), static_cast<double>(pt[1]), static_cast<double>(pt[2])};
+      if (surface) t1 = std::min(t1, norm(pc));
+      if (!(t1 > t0)) continue;
+      // Eq. 6.5 marched: air-light and the camera leg's optical depth.
+      const int steps = march_steps(t1 - t0);
+      const double ds = (t1 - t0) / steps;
+      double tau = 0.0, air = 0.0;
+      for (int s = 0; s < steps; ++s) {
+        const Vec3 y = cam + dir * (t0 + (s + 0.5) * ds);
+        const double r = density_at(y);
+        if (r <= 0.0) continue;
+        const Vec3 ly = y - proj;
+        const double d2 = std::max(dot(ly, ly), kMinDistSq);
+        const double cos_theta = dot(ly, -dir) / std::sqrt(d2);
+        air += beta * r * hg_phase(spec_.g, cos_theta) * intensity_ * emitted(y) / d2 *
+               std::exp(-sigma * (tau + 0.5 * r * ds)) * ds;
+        tau += r * ds;
+      }
+      // Eq. 6.4 on both legs of the surface light.
+      double tau_proj = 0.0;
+      if (surface) tau_proj = optical_depth(proj, world_from_cam_ * pc, kSteps / 2);
+      radiance[i] = static_cast<float>(static_cast<double>(radiance[i]) * std::exp(-sigma * (tau + tau_proj)) +
+                                       analyser * air);
+    }
+}
+
+int set_legendre_time(Renderer& renderer, double t_s) {
+  for (const auto& c : renderer.components())
+    if (auto* m = dynamic_cast<LegendreMediumComponent*>(c.get())) return m->set_time_s(t_s);
+  return -1;
+}
+
+}  // namespace procam::sim
