@@ -223,8 +223,12 @@ void expect_rounds_pay(const std::string& scene, bool rounds_skipped, bool auto_
   EXPECT_LE(r["ensemble"].gross, r["ensemble-nocorr"].gross + 1e-4) << scene;
   EXPECT_LE(r["auto"].gross, r["ensemble-nocorr"].gross + 1e-4) << scene;
   EXPECT_LE(r["auto"].patterns, r["ensemble"].patterns) << scene;
-  if (auto_near_best) EXPECT_LE(r["auto"].gross, best + 2e-4) << scene;
-  if (rounds_skipped) EXPECT_LE(r["ensemble"].patterns, 47) << scene << ": the probe should have skipped the round";
+  if (auto_near_best) {
+    EXPECT_LE(r["auto"].gross, best + 2e-4) << scene;
+  }
+  if (rounds_skipped) {
+    EXPECT_LE(r["ensemble"].patterns, 47) << scene << ": the probe should have skipped the round";
+  }
 }
 
 // Development scenes (the rules were tuned on these and the library):
