@@ -29,99 +29,36 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <map>
-#include <optional>
 #include <string>
 #include <vector>
 
-#include "procam/engine/rig_json.hpp"
-#include "procam/engine/scan_runner.hpp"
-#include "procam/host/plugin_host.hpp"
-#include "procam/hw/rig.hpp"
+#include "sim_scan.hpp"
 
 namespace procam {
 namespace {
 
-std::string source(const std::string& rel) { return std::string(PROCAM_SOURCE_DIR) + "/" + rel; }
+using testing::ScanRun;
 
-struct ScanRun {
-  std::unique_ptr<hw::Rig> rig;
-  std::optional<host::Session> session;
-  std::vector<host::Output> outputs;
-  hw::GroundTruth truth;
-};
-
-// The shipped sim rig at 1/4 resolution showing `scene`.
-std::unique_ptr<hw::Rig> quarter_rig(const std::string& scene, double exposure_us = 0) {
-  auto cfg = engine::read_json_file(source("configs/rigs/sim.json"));
-  EXPECT_TRUE(cfg.ok()) << cfg.status().message();
-  if (!cfg.ok()) return nullptr;
-  auto shrink = [](nlohmann::json& k) {
-    k["width"] = k["width"].get<int>() / 4;
-    k["height"] = k["height"].get<int>() / 4;
-    k["fx"] = k["fx"].get<double>() / 4.0;
-    k["fy"] = k["fy"].get<double>() / 4.0;
-    k["cx"] = (k["width"].get<double>() - 1.0) / 2.0;
-    k["cy"] = (k["height"].get<double>() - 1.0) / 2.0;
-  };
-  shrink((*cfg)["projector"]["intrinsics"]);
-  for (auto& c : (*cfg)["cameras"]) {
-    shrink(c["intrinsics"]);
-    if (exposure_us > 0) c["exposure_us"] = exposure_us;
-  }
-  auto rig = hw::create_rig(*cfg, {source("configs/rigs"), {source("configs/scenes")}});
-  EXPECT_TRUE(rig.ok()) << rig.status().message();
-  if (!rig.ok()) return nullptr;
-  const Status st = (*rig)->apply_scan_options({{"scene", scene}});
-  EXPECT_TRUE(st.ok()) << st.to_string();
-  return st.ok() ? std::move(*rig) : nullptr;
-}
-
-// One scan of plugin/method with `params` through the real path.
+// One scan of plugin/method with `params` through the real path, on the
+// shipped sim rig at 1/4 resolution (rig_exposure_us > 0: the cameras' exposure).
 bool run(const std::string& plugin, const std::string& method, const std::string& scene, ScanRun& r,
          const nlohmann::json& params = nlohmann::json::object(), double rig_exposure_us = 0) {
-  r.rig = quarter_rig(scene, rig_exposure_us);
-  if (!r.rig) return false;
-  host::PluginHost host;
-  host.load_directories({PROCAM_PLUGIN_DIR});
-  auto session = host.create_session(plugin, method, params.dump(), engine::plugin_rig_json(*r.rig, 2).dump());
-  EXPECT_TRUE(session.ok()) << session.status().to_string();
-  if (!session.ok()) return false;
-  r.session.emplace(std::move(*session));
-  std::atomic<bool> cancel{false};
-  auto outcome = engine::run_scan(*r.rig, *r.session, engine::CaptureOptions{}, nullptr, cancel);
-  EXPECT_TRUE(outcome.ok()) << outcome.status().to_string();
-  if (!outcome.ok()) return false;
-  auto outs = r.session->outputs();
-  EXPECT_TRUE(outs.ok()) << outs.status().to_string();
-  if (!outs.ok()) return false;
-  r.outputs = std::move(*outs);
-  auto truth = r.rig->ground_truth(0);
-  EXPECT_TRUE(truth.ok()) << truth.status().to_string();
-  if (!truth.ok()) return false;
-  r.truth = std::move(*truth);
-  return true;
+  testing::RigChoice choice;
+  choice.scale = 4;
+  choice.exposure_us = rig_exposure_us;
+  return testing::run_scan(plugin, method, scene, choice, params, r);
 }
 
-const float* image(const ScanRun& r, const std::string& name) {
-  for (const auto& o : r.outputs)
-    if (o.kind == PROCAM_OUTPUT_IMAGE && o.name == name && o.image.pixel_type == PROCAM_PIXEL_F32)
-      return static_cast<const float*>(o.image.data);
-  ADD_FAILURE() << "no F32 output " << name;
-  return nullptr;
-}
+const float* image(const ScanRun& r, const std::string& name) { return testing::output_image(r, name); }
 
 double report_number(const ScanRun& r, const char* section, const char* key) {
-  for (const auto& o : r.outputs)
-    if (o.kind == PROCAM_OUTPUT_JSON && o.name == "report") {
-      auto j = nlohmann::json::parse(o.json, nullptr, false);
-      if (j.is_object() && j.contains(section) && j[section].contains(key) && j[section][key].is_number())
-        return j[section][key].get<double>();
-    }
+  const nlohmann::json j = testing::output_report(r);
+  if (j.is_object() && j.contains(section) && j[section].contains(key) && j[section][key].is_number())
+    return j[section][key].get<double>();
   return std::nan("");
 }
 

@@ -13,6 +13,7 @@
 #include "hdr_merge.hpp"
 #include "params.hpp"
 #include "plot.hpp"
+#include "procam/base/medium_regime.hpp"
 
 namespace procam::medium {
 namespace {
@@ -76,6 +77,9 @@ class BracketSession : public sdk::Session {
                           {"bulb_x_px", cfg_.fit.bulb_x_px},
                           {"bulb_y_px", cfg_.fit.bulb_y_px},
                           {"bulb_radius_mm", cfg_.fit.bulb_radius_mm},
+                          {"source_model", cfg_.fit.tank.bulb_radius_mm > 0
+                                               ? "sphere: Lambertian, radius bulb_radius_mm, visible cap sampled (§4.3.3)"
+                                               : "point: isotropic at the bulb centre"},
                           {"mm_per_px", cfg_.fit.mm_per_px}}}};
   }
 
@@ -185,7 +189,29 @@ class MeasureSession final : public BracketSession {
       f["ci_method"] = "95 %: 1.96 sqrt(diag(s^2 (J^T J)^-1)), J the Jacobian of the binned residuals in (sigma, g, "
                        "beta I0), s^2 = sum n res^2 / (bins - 3); I0 taken as exact";
     }
-    if (!fit_.notes.empty()) f["notes"] = fit_.notes;
+    std::vector<std::string> notes = fit_.notes;
+    if (fit_.error.empty() && fit_.beta_absolute && std::isfinite(fit_.beta.value)) {
+      // Where the single-scattering model holds (thesis §4.2.3): the share of
+      // the image's energy it misses at the fitted beta, from the sim's Monte
+      // Carlo regime map (procam/base/medium_regime.hpp).
+      const double depth = cfg_.fit.tank.depth_mm, beta = fit_.beta.value;
+      const double missed = single_scattering_error(beta, depth), ok_beta = max_beta_for_error(cfg_.max_multiple_scattering, depth);
+      f["multiple_scattering"] = {
+          {"missed_energy_fraction", missed},
+          {"max", cfg_.max_multiple_scattering},
+          {"max_beta_per_mm", ok_beta},
+          {"source", "Monte Carlo regime map of a tank of this depth, g ~ 0.9 (docs/media.md 'Regime of validity')"}};
+      if (missed > cfg_.max_multiple_scattering && beta > 0) {
+        char b[320];
+        std::snprintf(b, sizeof b,
+                      "multiple scattering: at beta = %.3g /mm single scattering misses ~%.0f %% of the image's energy "
+                      "(above max_multiple_scattering = %.0f %%), so sigma, beta and g are biased; dilute to %.2g x "
+                      "the current volume (beta <= %.2g /mm) and measure again",
+                      beta, 100.0 * missed, 100.0 * cfg_.max_multiple_scattering, ok_beta / beta, ok_beta);
+        notes.emplace_back(b);
+      }
+    }
+    if (!notes.empty()) f["notes"] = notes;
     r["fit"] = f;
     nlohmann::json meas = nlohmann::json::array(), fit = nlohmann::json::array();
     for (size_t i = 0; i < profile_.bins.size(); ++i) {

@@ -71,6 +71,14 @@ std::vector<ParamSpec> measure_specs() {
       {"mask_radius_px", ParamType::number, 10.0, 0.0, 1e5, {},
        "pixels closer than this to the bulb centre are not fitted: the bulb's own image and its glare; at least the "
        "bulb's image radius R / mm_per_px plus a few pixels"},
+      {"max_multiple_scattering", ParamType::number, 0.10, 0.0, 1.0, {},
+       "warn when single scattering misses more than this fraction of the tank image's energy at the fitted beta "
+       "(the sim's Monte Carlo regime map, scaled to tank_depth_mm; 0.10 = beta ~ 0.001 /mm in a 300 mm tank): "
+       "the fit is then biased, and the report says to which volume to dilute"},
+      {"source_model", ParamType::string, "sphere", -kInf, kInf, {"sphere", "point"},
+       "the bulb in the fit (thesis §4.3.3): sphere = a Lambertian sphere of radius bulb_radius_mm, its visible cap "
+       "sampled near the forward lobe (needed: a 10 mm bulb 150 mm away is as wide as the lobe of g = 0.9); point = "
+       "an isotropic point source at its centre (also used when bulb_radius_mm = 0)"},
       {"roi_x0", ParamType::integer, 0, 0, 1e6, {}, "fitted region, first column (exclude the tank's edges)"},
       {"roi_y0", ParamType::integer, 0, 0, 1e6, {}, "fitted region, first row"},
       {"roi_x1", ParamType::integer, -1, -1, 1e6, {}, "fitted region, last column (inclusive); -1 = the last"},
@@ -185,6 +193,13 @@ sdk::Error parse_config(const std::string& method, const nlohmann::json& params,
   cfg.spot_radius_px = p.get_number("spot_radius_px");
   if (cfg.method == Method::measure) {
     f.mask_radius_px = p.get_number("mask_radius_px");
+    cfg.max_multiple_scattering = p.get_number("max_multiple_scattering");
+    if (p.get_string("source_model") == "sphere") f.tank.bulb_radius_mm = f.bulb_radius_mm;
+    if (f.tank.bulb_radius_mm > 0 && !(f.mask_radius_px * f.mm_per_px > f.bulb_radius_mm))
+      return sdk::invalid_argument("mask_radius_px = " + std::to_string(f.mask_radius_px) + " px (" +
+                                   std::to_string(f.mask_radius_px * f.mm_per_px) +
+                                   " mm) does not clear the bulb (bulb_radius_mm = " + std::to_string(f.bulb_radius_mm) +
+                                   "): lines of sight inside it hit the bulb; give mask_radius_px > bulb_radius_mm / mm_per_px");
     f.roi_x0 = static_cast<int32_t>(p.get_int("roi_x0"));
     f.roi_y0 = static_cast<int32_t>(p.get_int("roi_y0"));
     f.roi_x1 = static_cast<int32_t>(p.get_int("roi_x1"));

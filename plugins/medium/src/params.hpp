@@ -31,6 +31,7 @@ struct Config {
   uint32_t linear_points = 3;           // concentration: volumes the line through the origin is fit on
   double linearity_tolerance = 0.1;     // concentration: sigma-hat below the line by more than this: nonlinear
   double max_sigma_per_mm = 0.04;       // concentration: single-scattering bound (thesis §4.2.3)
+  double max_multiple_scattering = 0.10;  // measure: warn above this share of energy missed (Monte Carlo regime)
   double min_bulb_radiance = 0;         // concentration: SNR floor for the best volume (DN/us); 0 = 1 % of water
   uint32_t threads = 1;
 };

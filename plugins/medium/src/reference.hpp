@@ -59,6 +59,45 @@ inline double eq_4_2(const Medium& m, double rho, double d_mm, double b_mm, int 
   return m.beta * sum * hu / 3.0;
 }
 
+// E(rho) / I0 for a Lambertian sphere of radius r (radiance I0 / (pi r^2)) at
+// depth b_mm instead of a point (thesis §4.3.3), by brute force over the
+// sphere's surface: for each point Y on the line of sight (Simpson in
+// asinh((z - B) / rho), `intervals`), every surface element q facing Y
+// (n . (Y - q) > 0, an n_theta x 2 n_theta grid in the sphere's polar angle
+// and azimuth, polar axis along x, towards the line of sight) contributes
+// L dA cos(theta_q) / |Y - q|^2 exp(-sigma (z + |Y - q|)) P(cos), cos the
+// cosine between the light's direction (Y - q) and the way to the camera
+// (-z). An independent route from ProfileModel's cap rings.
+inline double eq_4_2_sphere(const Medium& m, double rho, double d_mm, double b_mm, double r, int intervals = 400,
+                            int n_theta = 60) {
+  const double pi = std::numbers::pi, radiance = 1.0 / (pi * r * r);
+  const double u0 = std::asinh(-b_mm / rho), u1 = std::asinh((d_mm - b_mm) / rho);
+  const double hu = (u1 - u0) / intervals;
+  const double dth = pi / n_theta, dph = pi / n_theta;  // azimuth over 2 pi in 2 n_theta steps
+  double sum = 0;
+  for (int i = 0; i <= intervals; ++i) {
+    const double u = u0 + hu * i;
+    const double t = rho * std::sinh(u), z = b_mm + t;  // Y = (rho, 0, t) from the centre
+    double cap = 0;
+    for (int a = 0; a < n_theta; ++a) {
+      const double th = (a + 0.5) * dth, st = std::sin(th), ct = std::cos(th);
+      for (int b = 0; b < 2 * n_theta; ++b) {
+        const double ph = (b + 0.5) * dph;
+        const double nx = ct, ny = st * std::cos(ph), nz = st * std::sin(ph);  // outward normal
+        const double vx = rho - r * nx, vy = -r * ny, vz = t - r * nz;        // q -> Y
+        const double l2 = vx * vx + vy * vy + vz * vz, l = std::sqrt(l2);
+        const double cos_q = (nx * vx + ny * vy + nz * vz) / l;
+        if (cos_q <= 0) continue;
+        const double da = r * r * st * dth * dph;
+        cap += radiance * da * cos_q / l2 * std::exp(-m.sigma * l) * phase(m, -vz / l);
+      }
+    }
+    const double f = std::exp(-m.sigma * z) * cap * rho * std::cosh(u);  // dz = rho cosh(u) du
+    sum += f * (i == 0 || i == intervals ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0));
+  }
+  return m.beta * sum * hu / 3.0;
+}
+
 struct Scene {
   uint32_t width = 200, height = 150;
   int bulb_x = 0, bulb_y = 75;

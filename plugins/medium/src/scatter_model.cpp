@@ -49,21 +49,78 @@ double legendre_phase(double g, double cos_angle, int terms) noexcept {
   return kInv4Pi * sum;
 }
 
+namespace {
+
+// 3-point Gauss–Legendre on [-1, 1] (the cap's rings in cos psi).
+constexpr std::array<double, 3> kRingX = {-0.7745966692414834, 0.0, 0.7745966692414834};
+constexpr std::array<double, 3> kRingW = {0.5555555555555556, 0.8888888888888888, 0.5555555555555556};
+// Nodes whose phase may vary across the cap get it sampled (see the header).
+constexpr double kForwardLobeRad = 1.2;
+constexpr double kNearRadii = 4.0;
+
+}  // namespace
+
 ProfileModel::ProfileModel(const TankGeometry& geo, std::vector<double> rho_mm, double max_panel_rad)
     : rho_(std::move(rho_mm)) {
-  const double b = geo.bulb_depth_mm, back = geo.depth_mm - geo.bulb_depth_mm;
+  const double b = geo.bulb_depth_mm, back = geo.depth_mm - geo.bulb_depth_mm, r = geo.bulb_radius_mm;
   if (!(b > 0) || !(back > 0)) throw std::invalid_argument("ProfileModel: needs 0 < bulb depth < tank depth");
-  // Every rho gets the same node count: panel p is split into sub[p] equal
+  if (!(r >= 0) || !(r < b)) throw std::invalid_argument("ProfileModel: needs 0 <= bulb radius < bulb depth");
+  // Every rho gets the same panels: panel p is split into sub[p] equal
   // parts, enough for max_panel_rad at the widest span a1 - a0 < pi.
   std::array<size_t, kEdges.size() - 1> sub{};
-  nodes_per_rho_ = 0;
+  size_t per_rho = 0;
   for (size_t p = 0; p + 1 < kEdges.size(); ++p) {
     sub[p] = max_panel_rad > 0
                  ? std::max<size_t>(1, static_cast<size_t>(std::ceil((kEdges[p + 1] - kEdges[p]) * std::numbers::pi / max_panel_rad)))
                  : 1;
-    nodes_per_rho_ += sub[p] * kGlX.size();
+    per_rho += sub[p] * kGlX.size();
   }
-  nodes_.reserve(rho_.size() * nodes_per_rho_);
+  nodes_.reserve(rho_.size() * per_rho);
+  const double inv_area = r > 0 ? 1.0 / (std::numbers::pi * r * r) : 0.0;
+  auto add_node = [&](double rho, double w, double a) {
+    // z + d = B + rho tan(a/2): source -> scattering point -> front face.
+    const double path = b + rho * std::tan(0.5 * a), ca = std::cos(a);
+    if (r == 0) {
+      nodes_.push_back({w, path, ca, a, 0.0});
+      return;
+    }
+    const double d = rho / std::sin(a), z = path - d;
+    const double cos_alpha = d > r ? std::sqrt(1.0 - (r / d) * (r / d)) : 0.0;  // d <= r: on the bulb (masked)
+    const double half = 0.5 * (1.0 - cos_alpha);                                 // GL scale on [cos alpha, 1]
+    std::array<double, 3> cpsi{}, wpsi{}, len{};
+    for (size_t i = 0; i < kRingX.size(); ++i) {
+      cpsi[i] = cos_alpha + half * (kRingX[i] + 1.0);
+      wpsi[i] = half * kRingW[i];
+      const double s2 = 1.0 - cpsi[i] * cpsi[i];
+      len[i] = d * cpsi[i] - std::sqrt(std::max(0.0, r * r - d * d * s2));  // to the sphere's surface
+    }
+    const double scale = w * d * d * inv_area;  // dz / d^2 weight -> per unit solid angle of the cap
+    if (a < kForwardLobeRad || d < kNearRadii * r) {
+      const double sa = std::sin(a);
+      for (size_t i = 0; i < kRingX.size(); ++i) {
+        const double spsi = std::sqrt(std::max(0.0, 1.0 - cpsi[i] * cpsi[i]));
+        // 8 azimuth midpoints over [0, pi], each standing for its mirror image too.
+        rings_.push_back({scale * wpsi[i] * 2.0 * std::numbers::pi / double(kAzimuths), z + len[i],
+                          static_cast<uint32_t>(ring_cos_.size())});
+        for (size_t k = 0; k < kAzimuths; ++k) {
+          const double phi = (double(k) + 0.5) * std::numbers::pi / double(kAzimuths);
+          const double c = std::clamp(cpsi[i] * ca + spsi * std::cos(phi) * sa, -1.0, 1.0);
+          ring_cos_.push_back(c);
+          ring_angle_.push_back(std::acos(c));
+        }
+      }
+      return;
+    }
+    double wsum = 0, lmean = 0, l2 = 0;
+    for (size_t i = 0; i < kRingX.size(); ++i) {
+      wsum += wpsi[i];
+      lmean += wpsi[i] * len[i];
+      l2 += wpsi[i] * len[i] * len[i];
+    }
+    lmean /= wsum;
+    const double omega = 2.0 * std::numbers::pi * (1.0 - cos_alpha);
+    nodes_.push_back({scale * omega, z + lmean, ca, a, std::max(0.0, l2 / wsum - lmean * lmean)});
+  };
   for (const double rho : rho_) {
     if (!(rho > 0)) throw std::invalid_argument("ProfileModel: every rho must be > 0");
     const double a0 = std::atan2(rho, b), a1 = std::numbers::pi - std::atan2(rho, back);
@@ -73,13 +130,11 @@ ProfileModel::ProfileModel(const TankGeometry& geo, std::vector<double> rho_mm, 
         const double lo = plo + (phi - plo) * double(q) / double(sub[p]);
         const double hi = plo + (phi - plo) * double(q + 1) / double(sub[p]);
         const double half = 0.5 * (hi - lo), mid = 0.5 * (hi + lo);
-        for (size_t k = 0; k < kGlX.size(); ++k) {
-          const double a = mid + half * kGlX[k];
-          // z + d = B + rho tan(a/2): source -> scattering point -> front face.
-          nodes_.push_back({half * kGlW[k] / rho, b + rho * std::tan(0.5 * a), std::cos(a), a});
-        }
+        for (size_t k = 0; k < kGlX.size(); ++k) add_node(rho, half * kGlW[k] / rho, mid + half * kGlX[k]);
       }
     }
+    node_end_.push_back(nodes_.size());
+    ring_end_.push_back(rings_.size());
   }
 }
 
@@ -93,23 +148,39 @@ void ProfileModel::evaluate(double sigma, double g, Phase phase, int legendre_te
     table.resize(kTable);
     for (size_t j = 0; j < kTable; ++j) table[j] = legendre_phase(g, std::cos(double(j) / kTableStep), legendre_terms);
   }
-  const Node* n = nodes_.data();
-  for (size_t i = 0; i < rho_.size(); ++i, n += nodes_per_rho_) {
+  const double num = kInv4Pi * (1.0 - g * g), g2 = 1.0 + g * g, g2x = 2.0 * g, half_s2 = 0.5 * sigma * sigma;
+  auto hg = [&](double c) {
+    const double q = g2 - g2x * c;
+    return num / (q * std::sqrt(q));
+  };
+  auto tab = [&](double angle) {
+    const double t = angle * kTableStep;
+    const auto j = std::min(static_cast<size_t>(t), kTable - 2);
+    const double f = t - double(j);
+    return (1.0 - f) * table[j] + f * table[j + 1];
+  };
+  const bool is_hg = phase == Phase::henyey_greenstein;
+  size_t n0 = 0, r0 = 0;
+  for (size_t i = 0; i < rho_.size(); ++i) {
     double s = 0;
-    if (phase == Phase::henyey_greenstein) {
-      const double num = kInv4Pi * (1.0 - g * g), g2 = 1.0 + g * g, g2x = 2.0 * g;
-      for (size_t k = 0; k < nodes_per_rho_; ++k) {
-        const double q = g2 - g2x * n[k].cos_angle;
-        s += n[k].weight * std::exp(-sigma * n[k].path_mm) * num / (q * std::sqrt(q));
-      }
-    } else {
-      for (size_t k = 0; k < nodes_per_rho_; ++k) {
-        const double t = n[k].angle * kTableStep;
-        const auto j = std::min(static_cast<size_t>(t), kTable - 2);
-        const double f = t - double(j);
-        s += n[k].weight * std::exp(-sigma * n[k].path_mm) * ((1.0 - f) * table[j] + f * table[j + 1]);
-      }
+    for (size_t k = n0; k < node_end_[i]; ++k) {
+      const Node& n = nodes_[k];
+      // exp averaged over the cap's paths to second order: e^{-s l} (1 + s^2 var / 2).
+      const double att = std::exp(-sigma * n.path_mm) * (1.0 + half_s2 * n.path_var);
+      s += n.weight * att * (is_hg ? hg(n.cos_angle) : tab(n.angle));
     }
+    for (size_t k = r0; k < ring_end_[i]; ++k) {
+      const Ring& rg = rings_[k];
+      double p = 0;
+      if (is_hg) {
+        for (size_t j = 0; j < kAzimuths; ++j) p += hg(ring_cos_[rg.first + j]);
+      } else {
+        for (size_t j = 0; j < kAzimuths; ++j) p += tab(ring_angle_[rg.first + j]);
+      }
+      s += rg.weight * std::exp(-sigma * rg.path_mm) * p;
+    }
+    n0 = node_end_[i];
+    r0 = ring_end_[i];
     out[i] = s;
   }
 }

@@ -1,0 +1,213 @@
+// SPDX-License-Identifier: MIT
+// Thesis ch. 4 claims (issue 14) end to end: the `medium` plugin's `measure`
+// bracket captured by the sim's dilution-tank rig (hw/sim tank.*, an
+// independent implementation of Eq. 4.1-4.2 with the area bulb of §4.3.3),
+// merged to HDR, fitted, and compared with the material library's truth.
+//
+// Rig: configs/rigs/sim-tank.json at half its resolution (640x400, 0.8 mm
+// per pixel at the tank's face) to keep the test short. The plugin gets the
+// geometry a user measures on a real rig (bulb centre's pixel, mm per pixel,
+// tank and bulb depth, bulb radius, the face rectangle as ROI) from the
+// sim's tank truth, and I0 in DN (Eq. 4.5's scale) and the bulb's radiance
+// through pure water W (for pure absorbers, Eq. 4.3) from the same record.
+// Scenes: configs/scenes/tank-lowfat-milk.json with the material, volume and
+// colour channel replaced (written into a temporary scene folder).
+//
+// Tolerances (thesis §4.4): sigma and beta within 3 % for highly scattering
+// media (beta/sigma >= 0.5) and 6 % for low-scattering ones, fit RMS below
+// 3 % and 6 %. Pure absorbers (beta/sigma < 0.01): sigma within 3 %, g
+// reported undefined.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+#include "procam/hw/sim/medium_library.hpp"
+#include "sim_scan.hpp"
+
+namespace procam {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ScanRun;
+
+struct Case {
+  std::string material;
+  double volume_ml;   // in the 23 l tank
+  std::string channel;
+};
+
+// A scratch scene folder for this process.
+const fs::path& scene_dir() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / ("procam-medium-claims-" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    return d;
+  }();
+  return dir;
+}
+
+// Writes the tank scene for `c` and returns its name.
+std::string write_scene(const Case& c, size_t index) {
+  auto base = engine::read_json_file(testing::source_path("configs/scenes/tank-lowfat-milk.json"));
+  EXPECT_TRUE(base.ok()) << base.status().message();
+  nlohmann::json s = base.ok() ? *base : nlohmann::json::object();
+  const std::string name = "claims-" + std::to_string(index);
+  s["name"] = name;
+  s["medium"]["material"] = c.material;
+  s["medium"]["volume_ml"] = c.volume_ml;
+  s["medium"]["channel"] = c.channel;
+  std::ofstream(scene_dir() / (name + ".json")) << s.dump(1);
+  return name;
+}
+
+struct Measured {
+  double sigma = std::nan(""), beta = std::nan(""), g = std::nan(""), rms = std::nan("");
+  double true_sigma = std::nan(""), true_beta = std::nan(""), true_g = std::nan("");
+  bool g_defined = true;
+  std::string model;
+};
+
+// Plugin parameters from the sim's tank record (what a user measures on a
+// real rig: docs/medium.md "Real-rig recipe").
+nlohmann::json params_from_tank(const nlohmann::json& t, double mask_mm) {
+  const double mm_px = t.at("mm_per_px_x").get<double>();
+  const auto face = t.at("face_px");
+  // I0 in (DN/us) mm^2: the record's dn_per_ru is at its exposure.
+  const double dn_per_us = t.at("dn_per_ru").get<double>() / t.at("exposure_us").get<double>();
+  const double i0 = t.at("bulb_intensity_iu_mm2").get<double>() * dn_per_us;
+  // W: the bulb's radiance through pure water (recipe step 4), DN/us.
+  const double water = t.at("bulb_radiance_ru").get<double>() * dn_per_us;
+  return {{"tank_depth_mm", t.at("depth_mm")},
+          {"bulb_depth_mm", t.at("bulb_depth_mm")},
+          {"bulb_radius_mm", t.at("bulb_radius_mm")},
+          {"bulb_x_px", t.at("bulb_u_px")},
+          {"bulb_y_px", t.at("bulb_v_px")},
+          {"mm_per_px", mm_px},
+          {"mask_radius_px", mask_mm / mm_px},
+          {"roi_x0", static_cast<int>(std::ceil(face[0].get<double>())) + 1},
+          {"roi_y0", static_cast<int>(std::ceil(face[1].get<double>())) + 1},
+          {"roi_x1", static_cast<int>(std::floor(face[2].get<double>())) - 1},
+          {"roi_y1", static_cast<int>(std::floor(face[3].get<double>())) - 1},
+          {"source_intensity", i0},
+          {"water_radiance", water},
+          // The shortest exposure leaves the bulb's own image at half of full
+          // scale (12-bit camera), as the recipe asks for pure absorbers.
+          {"exposure_min_us", std::min(2000.0, 0.5 * 4095.0 / water)}};
+}
+
+// A number from a report object; NaN when absent or null (NaN is written as null).
+double num(const nlohmann::json& j, const char* key) {
+  return j.is_object() && j.contains(key) && j[key].is_number() ? j[key].get<double>() : std::nan("");
+}
+
+double rel(double est, double truth) { return (est - truth) / truth; }
+
+bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "") {
+  testing::RigChoice choice;
+  choice.rig_file = "sim-tank.json";
+  choice.scale = 2;
+  choice.scene_dirs = {scene_dir().string()};
+  ScanRun r;
+  r.rig = testing::scaled_rig(write_scene(c, index), choice);
+  if (!r.rig) return false;
+  auto truth = r.rig->ground_truth(0);
+  EXPECT_TRUE(truth.ok()) << truth.status().to_string();
+  if (!truth.ok() || !truth->medium.contains("tank")) return false;
+  const nlohmann::json& t = truth->medium["tank"];
+  m.true_sigma = t.at("extinction_per_mm").get<double>();
+  m.true_beta = t.at("scattering_per_mm").get<double>();
+  m.true_g = t.at("hg_g").is_number() ? t.at("hg_g").get<double>() : std::nan("");
+  // Mask 2.5 bulb radii: the plugin models a point source (docs/medium.md
+  // "Limits"); the sim's bulb is a 10 mm sphere.
+  nlohmann::json params = params_from_tank(t, 2.5 * t.at("bulb_radius_mm").get<double>());
+  if (!source_model.empty()) params["source_model"] = source_model;
+  if (!testing::run_on_rig("medium", "measure", params, r)) return false;
+  const nlohmann::json rep = testing::output_report(r);
+  EXPECT_TRUE(rep.is_object() && rep.contains("fit")) << c.material;
+  if (!rep.is_object() || !rep.contains("fit")) return false;
+  const nlohmann::json& f = rep["fit"];
+  EXPECT_FALSE(f.contains("error")) << c.material << ": " << f.value("error", "");
+  if (f.contains("error")) return false;
+  m.sigma = num(f["sigma_per_mm"], "value");
+  m.beta = num(f["beta_per_mm"], "value");
+  m.g = num(f["g"], "value");
+  m.g_defined = f.value("g_defined", true);
+  m.rms = num(f, "rms_percent");
+  m.model = f.value("model", "");
+  if (!std::isfinite(m.sigma)) ADD_FAILURE() << c.material << ": no sigma; the fit said " << f.dump();
+  return true;
+}
+
+// Thesis §4.4: parameters rendered from Table 4.1 at the thesis's dilutions
+// are fitted back within 3 % (sigma, beta) for highly scattering media and
+// 6 % for low-scattering ones, with fit RMS < 3 % and < 6 %.
+TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
+  // Chosen to span the table: strongly scattering milks and a juice, weakly
+  // scattering coffee and juice, and a pure absorber; green channel (the sim
+  // is mono), red for one material to cover a second channel.
+  // At each material's own table dilution (a natural-concentration entry
+  // fills the tank). PROCAM_MEDIUM_CLAIMS_ALL=1 runs every row of the table
+  // (about 40 scans; for the report).
+  std::vector<Case> cases;
+  const char* all = std::getenv("PROCAM_MEDIUM_CLAIMS_ALL");
+  const std::vector<std::string> names =
+      all && std::string(all) == "1"
+          ? std::vector<std::string>{}
+          : std::vector<std::string>{"Lowfat Milk", "Regular Chocolate Milk", "White Grapefruit Juice", "Espresso",
+                                     "Mint Mocha Coffee", "Apple Juice", "Merlot"};
+  for (const sim::LibraryMaterial& lm : sim::material_library()) {
+    if (!names.empty() && std::find(names.begin(), names.end(), lm.name) == names.end()) continue;
+    cases.push_back({lm.name, lm.volume_ml > 0 ? lm.volume_ml : 23000.0, "green"});
+  }
+  cases.push_back({"Lowfat Milk", 16, "red"});
+  std::printf("| material | channel | V (ml) | beta/sigma | sigma err | beta err | g (truth) | fit RMS | model |\n");
+  std::printf("|---|---|---:|---:|---:|---:|---|---:|---|\n");
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const Case& c = cases[i];
+    const sim::LibraryMaterial* lm = sim::find_material(c.material);
+    ASSERT_NE(lm, nullptr) << c.material << " is not in the library";
+    Measured m;
+    ASSERT_TRUE(measure(c, i, m)) << c.material;
+    const double albedo = m.true_beta / m.true_sigma;
+    std::printf("| %s | %s | %g | %.3f | %+.2f %% | %+.2f %% | %.3f (%.3f) | %.2f %% | %s |\n", c.material.c_str(),
+                c.channel.c_str(), c.volume_ml, albedo, 100 * rel(m.sigma, m.true_sigma),
+                m.beta > 0 ? 100 * rel(m.beta, m.true_beta) : std::nan(""), m.g, m.true_g, m.rms, m.model.c_str());
+    if (albedo < 0.01) {  // pure absorber (M5): kappa = sigma by attenuation, g undefined
+      EXPECT_LT(std::abs(rel(m.sigma, m.true_sigma)), 0.03) << c.material;
+      EXPECT_FALSE(m.g_defined) << c.material;
+      continue;
+    }
+    const bool high = albedo >= 0.5;
+    const double tol = high ? 0.03 : 0.06;
+    EXPECT_LT(std::abs(rel(m.sigma, m.true_sigma)), tol) << c.material << " sigma";
+    EXPECT_LT(std::abs(rel(m.beta, m.true_beta)), tol) << c.material << " beta";
+    EXPECT_LT(std::abs(m.g - m.true_g), 0.02) << c.material << " g";
+    EXPECT_LT(m.rms, high ? 3.0 : 6.0) << c.material << " fit RMS %";
+  }
+}
+
+// The model choice is visible and matters: the same lowfat milk fitted with
+// the bulb as a point source (source_model = point) gets g and beta wrong,
+// because the 10 mm bulb 150 mm away is as wide as H-G's forward lobe.
+TEST(MediumClaims, PointSourceModelBiasesGOnTheSimsAreaBulb) {
+  Measured sphere, point;
+  ASSERT_TRUE(measure({"Lowfat Milk", 16, "green"}, 100, sphere));
+  ASSERT_TRUE(measure({"Lowfat Milk", 16, "green"}, 101, point, "point"));
+  std::printf("lowfat milk, sphere model: g %.3f beta %+.2f %%; point model: g %.3f beta %+.2f %% (truth g %.3f)\n",
+              sphere.g, 100 * rel(sphere.beta, sphere.true_beta), point.g, 100 * rel(point.beta, point.true_beta),
+              point.true_g);
+  EXPECT_LT(std::abs(sphere.g - sphere.true_g), 0.01);
+  EXPECT_GT(std::abs(point.g - point.true_g), 0.015);
+  EXPECT_GT(std::abs(rel(point.beta, point.true_beta)), 0.2);
+}
+
+}  // namespace
+}  // namespace procam
