@@ -469,6 +469,12 @@ nlohmann::json SimRig::scan_options() const {
 Status SimRig::apply_scan_options(const nlohmann::json& options) {
   try {
     PROCAM_TRY(check_scan_options(options));
+    // Every scan starts its frame sequence at 1, so a frame's sensor noise
+    // (frame_noise_seed) and a dynamic medium's time depend on the rig's
+    // seed and the frame's index in the scan alone: a scan is reproducible,
+    // and two methods benched on one scene see the same noise on the frames
+    // they share (e.g. ensemble's first round and ensemble-nocorr).
+    for (auto& cam : cameras_) cam->next_frame_id_ = 1;
     if (options.is_null()) return set_scene(config_.scene);
     auto it = options.find("scene");
     if (it == options.end()) return set_scene(config_.scene);
