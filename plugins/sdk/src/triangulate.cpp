@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Column-plane triangulation over a whole column map (procam/sdk/triangulate.hpp):
-// ray table, row kernel (baseline + AVX2 twin), row-ordered point compaction.
+// ray tables, the row kernel (AVX2+FMA intrinsics, and a portable twin for
+// CPUs without them), band-ordered point compaction with streaming stores.
 #include "procam/sdk/triangulate.hpp"
 
 #include <immintrin.h>
@@ -19,61 +20,323 @@
 namespace procam::sdk {
 namespace {
 
+// The ray-plane intersection of the header (thesis eq. 2.x: the camera ray
+// x = s d meets the plane n(c).(x - t) = 0 at s = n(c).t / n(c).d), with
+// d = (dx, dy, 1) and n(c) = a + c b split by what each term depends on:
+//   D = n(c).d = P + c Q,  P = a0 dx + (a1 dy + a2),  Q = b0 dx + (b1 dy + b2)
+//   N = n(c).t = at + c bt
+//   s = N / D;  point (s dx, s dy, s)
+//   z in the projector frame: pz = s Rz - r2t,  Rz = r20 dx + (r21 dy + r22)
+//   parallel test |D| < 1e-12 |n||d|, squared: D^2 < 1e-24 nn dd with
+//   nn = |n(c)|^2 = |n_p(c)|^2 = fx_p^2 + (c - cx_p)^2 (R is a rotation) and
+//   dd = |d|^2 = dx^2 + (dy^2 + 1).
+// The bracketed terms depend on the row only (pinhole camera): computed once
+// per row, so a pixel costs four FMAs for P, Q, Rz, dd, two for D and N, one
+// division, one FMA for pz and two multiplies for x and y.
 struct Coeffs {
-  double a0, a1, a2, b0, b1, b2, at, bt, r20, r21, r22, r2t;
+  double a0, a1, a2, b0, b1, b2, at, bt, r20, r21, r22, r2t, fx2, cx;
+  double smax;  // FLT_MAX / 4 / max(1, |ray x|, |ray y|): s below it cannot overflow x, y
 };
 
-// One camera row: for each pixel, x, y, z of the point as floats; z is NaN
-// where there is no point (rules in the header). Branch-free so the
-// vectoriser turns it into packed double arithmetic; no reductions, so every
-// lane does exactly the scalar operation sequence (bit-identical twins).
-// Doubles throughout, like triangulate_column: the only rounding differences
-// from it are the float ray table (2^-24 relative) and the re-associated
-// plane normal (~1e-16 relative).
-// The pointers never alias (__restrict lets the vectoriser rely on it).
-__attribute__((always_inline)) inline void row_kernel(const Coeffs& k,
-                                                      const float* __restrict col,
-                                                      const float* __restrict rx,
-                                                      const float* __restrict ry, uint32_t w,
-                                                      float* __restrict X, float* __restrict Y,
-                                                      float* __restrict Z) {
+// The per-row terms of a ray with y component dy.
+struct RowTerms {
+  double p, q, rz, dd;
+};
+inline RowTerms row_terms(const Coeffs& k, double dy) {
+  return {k.a1 * dy + k.a2, k.b1 * dy + k.b2, k.r21 * dy + k.r22, dy * dy + 1.0};
+}
+
+// One row's output: depth (w floats, NaN: no point) and the row's points
+// packed as x, y, z, intensity quads; returns the number of points.
+// col, rx: w floats; ry: w floats (per-pixel rays) or null (ry0 for the row);
+// I: w floats or null (intensity 0). depth must hold w floats, quads w*4 + 32.
+using RowFn = uint32_t (*)(const Coeffs&, const float* col, const float* rx, const float* ry,
+                           float ry0, const float* I, uint32_t w, float* depth, float* quads);
+
+// Portable twin: plain double arithmetic (the compiler may contract a*b+c to
+// FMA only where the target has it; the baseline x86-64 target does not).
+uint32_t row_portable(const Coeffs& k, const float* col, const float* rx, const float* ry,
+                      float ry0, const float* I, uint32_t w, float* depth, float* quads) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  RowTerms rt = row_terms(k, static_cast<double>(ry0));
+  float* q = quads;
   for (uint32_t x = 0; x < w; ++x) {
     const double c = static_cast<double>(col[x]);
-    const double dx = static_cast<double>(rx[x]), dy = static_cast<double>(ry[x]);
-    const double nx = k.a0 + c * k.b0, ny = k.a1 + c * k.b1, nz = k.a2 + c * k.b2;
-    const double nd = nx * dx + ny * dy + nz;  // n.d, d = (dx, dy, 1)
-    const double nn = nx * nx + ny * ny + nz * nz;
-    const double dd = dx * dx + dy * dy + 1.0;
-    const double s = (k.at + c * k.bt) / nd;  // ray parameter = z of the point
-    const double pz = s * (k.r20 * dx + k.r21 * dy + k.r22) - k.r2t;  // z in projector frame
-    const float fx = static_cast<float>(dx * s), fy = static_cast<float>(dy * s),
+    const double dx = static_cast<double>(rx[x]);
+    double dy = static_cast<double>(ry0);
+    if (ry != nullptr) {
+      dy = static_cast<double>(ry[x]);
+      rt = row_terms(k, dy);
+    }
+    const double P = k.a0 * dx + rt.p, Q = k.b0 * dx + rt.q;
+    const double D = P + c * Q, N = k.at + c * k.bt;
+    const double s = N / D;
+    const double pz = s * (k.r20 * dx + rt.rz) - k.r2t;
+    const double dd = dx * dx + rt.dd, cm = c - k.cx, nn = cm * cm + k.fx2;
+    const float fx = static_cast<float>(s * dx), fy = static_cast<float>(s * dy),
                 fz = static_cast<float>(s);
-    // |n.d| >= 1e-12 |n| |d|, compared squared (no square roots).
-    const bool not_parallel = !(nd * nd < 1e-24 * nn * dd);
-    const bool ok = (std::abs(c) <= DBL_MAX) & not_parallel & (s > 0.0) & (s <= DBL_MAX) &
-                    (pz > 0.0) & (std::abs(fx) <= FLT_MAX) & (std::abs(fy) <= FLT_MAX) &
-                    (fz <= FLT_MAX);
-    X[x] = fx;
-    Y[x] = fy;
-    Z[x] = ok ? fz : kNaN;
+    const bool ok = (std::abs(col[x]) <= FLT_MAX) & (D * D >= 1e-24 * (nn * dd)) & (s > 0.0) &
+                    (s <= DBL_MAX) & (pz > 0.0) & (std::abs(fx) <= FLT_MAX) &
+                    (std::abs(fy) <= FLT_MAX) & (fz <= FLT_MAX);
+    depth[x] = ok ? fz : kNaN;
+    q[0] = fx;  // branch-free: always write, advance if valid
+    q[1] = fy;
+    q[2] = fz;
+    q[3] = I != nullptr ? I[x] : 0.0f;
+    q += ok ? 4 : 0;
+  }
+  return static_cast<uint32_t>((q - quads) / 4);
+}
+
+// AVX2 + FMA: 8 pixels per step, in two tiers.
+//
+// Fast tier (mixed precision): D = n.d and N = n.t, where all the
+// cancellation happens (|D| << |n||d| for grazing rays, N -> 0 near the
+// epipole), are computed in double as in row_portable, including the
+// parallel test; they are then rounded to float (2^-24 relative each) and the
+// rest is float, 8 lanes: s = N/D, x = s dx, y = s dy, pz = s Rz - r2t. The
+// point's error therefore gains at most ~4 float roundings (4 x 6e-8
+// relative) over the double kernel, whatever the condition |n||d|/|n.d|:
+// rounding D and N after the cancellation costs relative precision only once.
+// Validity: "column finite", "parallel" and "s > 0" are decided exactly as in
+// double (the sign of float(N)/float(D) is that of N/D). "In front of the
+// projector" (pz > 0) is decided in float, so a block where any lane has
+// |pz| <= 1e-5 (|s Rz| + |r2t|) (the float error bound is ~1e-6 of that) is
+// recomputed by the exact tier.
+// Exact tier: every step in double, the same formulas as row_portable (with
+// FMA: they agree to ~1e-16 relative, far below the float outputs).
+
+// The exact tier for 4 pixels (doubles): fx, fy, fz as floats, the validity
+// decisions that need double as a lane mask.
+struct Avx2Consts {
+  __m256d a0, b0, at, bt, r20, r2t, fx2, cx, tiny, zero, dmax;
+};
+
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d avx2_half(
+    const Avx2Consts& K, __m256d c, __m256d dx, __m256d dy, __m256d p, __m256d q, __m256d rz,
+    __m256d ddr, __m128& fx, __m128& fy, __m128& fz) {
+  const __m256d P = _mm256_fmadd_pd(K.a0, dx, p), Q = _mm256_fmadd_pd(K.b0, dx, q);
+  const __m256d D = _mm256_fmadd_pd(c, Q, P), N = _mm256_fmadd_pd(c, K.bt, K.at);
+  const __m256d s = _mm256_div_pd(N, D);
+  const __m256d pz = _mm256_fmsub_pd(s, _mm256_fmadd_pd(K.r20, dx, rz), K.r2t);
+  const __m256d dd = _mm256_fmadd_pd(dx, dx, ddr), cm = _mm256_sub_pd(c, K.cx);
+  const __m256d nn = _mm256_fmadd_pd(cm, cm, K.fx2);
+  const __m256d lim = _mm256_mul_pd(K.tiny, _mm256_mul_pd(nn, dd));
+  __m256d ok = _mm256_cmp_pd(_mm256_mul_pd(D, D), lim, _CMP_GE_OQ);
+  ok = _mm256_and_pd(ok, _mm256_cmp_pd(s, K.zero, _CMP_GT_OQ));
+  ok = _mm256_and_pd(ok, _mm256_cmp_pd(s, K.dmax, _CMP_LE_OQ));
+  ok = _mm256_and_pd(ok, _mm256_cmp_pd(pz, K.zero, _CMP_GT_OQ));
+  fx = _mm256_cvtpd_ps(_mm256_mul_pd(s, dx));
+  fy = _mm256_cvtpd_ps(_mm256_mul_pd(s, dy));
+  fz = _mm256_cvtpd_ps(s);
+  return ok;
+}
+
+// Everything a step needs besides the pixels, broadcast once per row.
+struct Avx2Row {
+  Avx2Consts K;
+  __m256d dy0, p0, q0, rz0, dd0;          // separable rays: this row's terms
+  __m256d a1, a2, b1, b2, r21, r22, one;  // per-pixel rays: the row terms' coefficients
+  __m256d e12, cxe12, fx2e24;             // 1e-12 (c - cx_p) and 1e-24 fx_p^2
+  __m256 r20f, rz0f, r21f, r22f, r2tf, tol, tol_r2t, dy0f;  // float tier
+  __m256 smax, abs_mask, fmax, zerof, nan;
+};
+
+template <bool kPerPixel>
+__attribute__((target("avx2,fma"), always_inline)) inline void avx2_row_terms(
+    const Avx2Row& r, __m256d dy, __m256d& p, __m256d& q, __m256d& rz, __m256d& dd) {
+  if constexpr (kPerPixel) {
+    p = _mm256_fmadd_pd(r.a1, dy, r.a2);
+    q = _mm256_fmadd_pd(r.b1, dy, r.b2);
+    rz = _mm256_fmadd_pd(r.r21, dy, r.r22);
+    dd = _mm256_fmadd_pd(dy, dy, r.one);
+  } else {
+    p = r.p0, q = r.q0, rz = r.rz0, dd = r.dd0;
   }
 }
 
-void row_baseline(const Coeffs& k, const float* col, const float* rx, const float* ry, uint32_t w,
-                  float* X, float* Y, float* Z) {
-  row_kernel(k, col, rx, ry, w, X, Y, Z);
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d avx2_widen(__m256 v, int h) {
+  return _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(v) : _mm256_extractf128_ps(v, 1));
 }
 
-// Same source for AVX2 (no FMA: contraction would change the rounding).
-__attribute__((target("avx2"))) void row_avx2(const Coeffs& k, const float* col, const float* rx,
-                                              const float* ry, uint32_t w, float* X, float* Y,
-                                              float* Z) {
-  row_kernel(k, col, rx, ry, w, X, Y, Z);
+// Two lane masks of 4 doubles as one of 8 floats, in the sign bits (what
+// blendv and movemask read): an all-ones double is a negative NaN, which
+// converts to a negative NaN float; zero converts to zero.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 avx2_narrow_mask(__m256d lo,
+                                                                                  __m256d hi) {
+  return _mm256_set_m128(_mm256_cvtpd_ps(hi), _mm256_cvtpd_ps(lo));
 }
 
-using RowFn = void (*)(const Coeffs&, const float*, const float*, const float*, uint32_t, float*,
-                       float*, float*);
+// Fast tier for 8 pixels: X, Y, Z and the valid lanes (sign bits of ok);
+// false when a lane's decision is uncertain in float (then nothing is to be
+// used).
+template <bool kPerPixel>
+__attribute__((target("avx2,fma"), always_inline)) inline bool avx2_fast(
+    const Avx2Row& r, __m256 c8, __m256 dx8, __m256 dy8, __m256& X, __m256& Y, __m256& Z,
+    __m256& okv) {
+  __m128 Df[2], Nf[2];
+  __m256d not_parallel[2];
+  for (int h = 0; h < 2; ++h) {
+    const __m256d c = avx2_widen(c8, h), dx = avx2_widen(dx8, h);
+    __m256d p, q, rz, dd;
+    avx2_row_terms<kPerPixel>(r, kPerPixel ? avx2_widen(dy8, h) : r.dy0, p, q, rz, dd);
+    const __m256d P = _mm256_fmadd_pd(r.K.a0, dx, p), Q = _mm256_fmadd_pd(r.K.b0, dx, q);
+    const __m256d D = _mm256_fmadd_pd(c, Q, P), N = _mm256_fmadd_pd(c, r.K.bt, r.K.at);
+    // |D| >= 1e-12 |n||d|, squared, with the 1e-24 folded into nn.
+    const __m256d cm = _mm256_fmsub_pd(c, r.e12, r.cxe12);
+    const __m256d nn = _mm256_fmadd_pd(cm, cm, r.fx2e24);
+    const __m256d lim = _mm256_mul_pd(nn, _mm256_fmadd_pd(dx, dx, dd));
+    not_parallel[h] = _mm256_cmp_pd(_mm256_mul_pd(D, D), lim, _CMP_GE_OQ);
+    Df[h] = _mm256_cvtpd_ps(D);
+    Nf[h] = _mm256_cvtpd_ps(N);
+  }
+  const __m256 s = _mm256_div_ps(_mm256_set_m128(Nf[1], Nf[0]), _mm256_set_m128(Df[1], Df[0]));
+  const __m256 Rz = kPerPixel ? _mm256_fmadd_ps(r.r20f, dx8, _mm256_fmadd_ps(r.r21f, dy8, r.r22f))
+                              : _mm256_fmadd_ps(r.r20f, dx8, r.rz0f);
+  const __m256 m = _mm256_mul_ps(s, Rz), pz = _mm256_sub_ps(m, r.r2tf);
+  const __m256 bound = _mm256_fmadd_ps(r.tol, _mm256_and_ps(m, r.abs_mask), r.tol_r2t);
+  // Also uncertain: s >= smax, below which s dx and s dy cannot overflow a
+  // float (the exact tier then checks them). s is NaN or <= 0 where the
+  // column is not finite (N or D is then inf or NaN), so "s > 0" rejects it.
+  const __m256 uncertain =
+      _mm256_or_ps(_mm256_cmp_ps(_mm256_and_ps(pz, r.abs_mask), bound, _CMP_LE_OQ),
+                   _mm256_cmp_ps(s, r.smax, _CMP_GE_OQ));
+  if (_mm256_movemask_ps(uncertain) != 0) return false;
+  X = _mm256_mul_ps(s, dx8);
+  Y = _mm256_mul_ps(s, dy8);
+  Z = s;
+  const __m256 ok = _mm256_and_ps(_mm256_cmp_ps(s, r.zerof, _CMP_GT_OQ),
+                                  _mm256_cmp_ps(pz, r.zerof, _CMP_GT_OQ));
+  okv = _mm256_and_ps(ok, avx2_narrow_mask(not_parallel[0], not_parallel[1]));
+  return true;
+}
+
+// Exact tier for 8 pixels (same outputs as avx2_fast).
+template <bool kPerPixel>
+__attribute__((target("avx2,fma"), always_inline)) inline void avx2_exact(
+    const Avx2Row& r, __m256 c8, __m256 dx8, __m256 dy8, __m256& X, __m256& Y, __m256& Z,
+    __m256& okv) {
+  __m128 fx[2], fy[2], fz[2];
+  __m256d ok[2];
+  for (int h = 0; h < 2; ++h) {
+    const __m256d dy = kPerPixel ? avx2_widen(dy8, h) : r.dy0;
+    __m256d p, q, rz, dd;
+    avx2_row_terms<kPerPixel>(r, dy, p, q, rz, dd);
+    ok[h] = avx2_half(r.K, avx2_widen(c8, h), avx2_widen(dx8, h), dy, p, q, rz, dd, fx[h], fy[h],
+                      fz[h]);
+  }
+  X = _mm256_set_m128(fx[1], fx[0]);
+  Y = _mm256_set_m128(fy[1], fy[0]);
+  Z = _mm256_set_m128(fz[1], fz[0]);
+  __m256 okf = _mm256_cmp_ps(_mm256_and_ps(c8, r.abs_mask), r.fmax, _CMP_LE_OQ);
+  okf = _mm256_and_ps(okf, _mm256_cmp_ps(_mm256_and_ps(X, r.abs_mask), r.fmax, _CMP_LE_OQ));
+  okf = _mm256_and_ps(okf, _mm256_cmp_ps(_mm256_and_ps(Y, r.abs_mask), r.fmax, _CMP_LE_OQ));
+  okf = _mm256_and_ps(okf, _mm256_cmp_ps(Z, r.fmax, _CMP_LE_OQ));
+  okv = _mm256_and_ps(okf, avx2_narrow_mask(ok[0], ok[1]));
+}
+
+// Left-pack permutations: for the valid-lane bits b, idx[b][e] is the
+// source lane of element e, where element e of the permuted vector is
+// packed point 2e (e < 4) or 2(e - 4) + 1 (e >= 4); unused elements read 0.
+struct LeftPackTable {
+  alignas(32) int32_t idx[256][8];
+};
+constexpr LeftPackTable make_left_pack() {
+  LeftPackTable t{};
+  for (int b = 0; b < 256; ++b) {
+    int sel[8] = {0, 0, 0, 0, 0, 0, 0, 0}, n = 0;
+    for (int lane = 0; lane < 8; ++lane)
+      if ((b >> lane & 1) != 0) sel[n++] = lane;
+    for (int e = 0; e < 8; ++e) t.idx[b][e] = sel[e < 4 ? 2 * e : 2 * (e - 4) + 1];
+  }
+  return t;
+}
+constexpr LeftPackTable kLeftPack = make_left_pack();
+
+// 8 pixels: depth to dp (8 floats), valid points left-packed at q (advanced).
+// kPerPixel: the rays' y comes per pixel (yp), else from the row.
+template <bool kPerPixel>
+__attribute__((target("avx2,fma"), always_inline)) inline void avx2_step(
+    const Avx2Row& r, const float* cp, const float* xp, const float* yp, const float* ip,
+    float* dp, float*& q) {
+  const __m256 c8 = _mm256_loadu_ps(cp), dx8 = _mm256_loadu_ps(xp);
+  const __m256 dy8 = kPerPixel ? _mm256_loadu_ps(yp) : r.dy0f;
+  __m256 X, Y, Z, okv;
+  if (!avx2_fast<kPerPixel>(r, c8, dx8, dy8, X, Y, Z, okv)) [[unlikely]]
+    avx2_exact<kPerPixel>(r, c8, dx8, dy8, X, Y, Z, okv);
+  const auto b = static_cast<unsigned>(_mm256_movemask_ps(okv));
+  _mm256_storeu_ps(dp, _mm256_blendv_ps(r.nan, Z, okv));
+  const __m256 In = ip != nullptr ? _mm256_loadu_ps(ip) : _mm256_setzero_ps();
+  // Left-pack the valid lanes (one permutation from the table), then 4 x 8 ->
+  // 8 quads (x, y, z, intensity): the table's lane order makes v0 hold the
+  // packed points 0 and 1, v1 2 and 3, ... (the unpacks pair lane i with
+  // lane i + 4). All 8 quads are stored; q moves past the valid ones.
+  const __m256i idx = _mm256_load_si256(reinterpret_cast<const __m256i*>(kLeftPack.idx[b]));
+  const __m256 Xp = _mm256_permutevar8x32_ps(X, idx), Yp = _mm256_permutevar8x32_ps(Y, idx);
+  const __m256 Zp = _mm256_permutevar8x32_ps(Z, idx), Ip = _mm256_permutevar8x32_ps(In, idx);
+  const __m256 t0 = _mm256_unpacklo_ps(Xp, Yp), t1 = _mm256_unpackhi_ps(Xp, Yp);
+  const __m256 t2 = _mm256_unpacklo_ps(Zp, Ip), t3 = _mm256_unpackhi_ps(Zp, Ip);
+  _mm256_storeu_ps(q, _mm256_shuffle_ps(t0, t2, 0x44));
+  _mm256_storeu_ps(q + 8, _mm256_shuffle_ps(t0, t2, 0xEE));
+  _mm256_storeu_ps(q + 16, _mm256_shuffle_ps(t1, t3, 0x44));
+  _mm256_storeu_ps(q + 24, _mm256_shuffle_ps(t1, t3, 0xEE));
+  q += 4 * __builtin_popcount(b);
+}
+
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d d(double v) {
+  return _mm256_set1_pd(v);
+}
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 f(double v) {
+  return _mm256_set1_ps(static_cast<float>(v));
+}
+
+template <bool kPerPixel>
+__attribute__((target("avx2,fma"))) uint32_t row_avx2_t(const Coeffs& k, const float* col,
+                                                        const float* rx, const float* ry,
+                                                        float ry0, const float* I, uint32_t w,
+                                                        float* depth, float* quads) {
+  const RowTerms rt = row_terms(k, static_cast<double>(ry0));
+  constexpr double kTol = 1e-5;  // relative bound of the float tier's pz test
+  const Avx2Row r{{d(k.a0), d(k.b0), d(k.at), d(k.bt), d(k.r20), d(k.r2t), d(k.fx2), d(k.cx),
+                   d(1e-24), d(0.0), d(DBL_MAX)},
+                  d(static_cast<double>(ry0)), d(rt.p), d(rt.q), d(rt.rz), d(rt.dd),
+                  d(k.a1), d(k.a2), d(k.b1), d(k.b2), d(k.r21), d(k.r22), d(1.0),
+                  d(1e-12), d(1e-12 * k.cx), d(1e-24 * k.fx2),
+                  f(k.r20), f(rt.rz), f(k.r21), f(k.r22), f(k.r2t), f(kTol),
+                  f(kTol * std::abs(k.r2t)), _mm256_set1_ps(ry0), f(k.smax),
+                  _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff)), _mm256_set1_ps(FLT_MAX),
+                  _mm256_setzero_ps(), _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN())};
+  float* q = quads;
+  uint32_t x = 0;
+  if (I != nullptr) {
+    for (; x + 8 <= w; x += 8)
+      avx2_step<kPerPixel>(r, col + x, rx + x, kPerPixel ? ry + x : nullptr, I + x, depth + x, q);
+  } else {
+    for (; x + 8 <= w; x += 8)
+      avx2_step<kPerPixel>(r, col + x, rx + x, kPerPixel ? ry + x : nullptr, nullptr, depth + x, q);
+  }
+  if (x < w) {  // the last w % 8 pixels, padded with invalid (NaN) columns
+    float c[8], xs[8], ys[8], is[8], dp[8];
+    const uint32_t n = w - x;
+    for (uint32_t i = 0; i < 8; ++i) {
+      c[i] = i < n ? col[x + i] : std::numeric_limits<float>::quiet_NaN();
+      xs[i] = i < n ? rx[x + i] : 0.0f;
+      ys[i] = i < n && kPerPixel ? ry[x + i] : 0.0f;
+      is[i] = i < n && I != nullptr ? I[x + i] : 0.0f;
+    }
+    avx2_step<kPerPixel>(r, c, xs, ys, is, dp, q);
+    std::memcpy(depth + x, dp, n * sizeof(float));
+  }
+  return static_cast<uint32_t>((q - quads) / 4);
+}
+
+__attribute__((target("avx2,fma"))) uint32_t row_avx2(const Coeffs& k, const float* col,
+                                                      const float* rx, const float* ry, float ry0,
+                                                      const float* I, uint32_t w, float* depth,
+                                                      float* quads) {
+  return ry != nullptr ? row_avx2_t<true>(k, col, rx, ry, ry0, I, w, depth, quads)
+                       : row_avx2_t<false>(k, col, rx, ry, ry0, I, w, depth, quads);
+}
 
 // Copies n floats to dst with non-temporal (streaming) stores where dst is
 // 16-byte aligned: the maps are written once and read later by someone else,
@@ -93,14 +356,29 @@ void stream_floats(float* __restrict dst, const float* __restrict src, size_t n)
 // Orders this thread's streaming stores before what follows (the pool's join).
 void stream_fence() { _mm_sfence(); }
 
+// Finite entries of v[0, n) (the upper bound of the points they can make).
+uint64_t count_finite(const float* v, size_t n) {
+  uint64_t m = 0;
+  for (size_t i = 0; i < n; ++i) m += std::abs(v[i]) <= FLT_MAX ? 1u : 0u;
+  return m;
+}
+
 bool same(const Intrinsics& a, const Intrinsics& b) {
   return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
          a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion;
 }
 
+bool cpu_has_avx2_fma() noexcept {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0 && __builtin_cpu_supports("fma") != 0;
+  }();
+  return has;
+}
+
 }  // namespace
 
-bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2") != 0; }
+bool cpu_has_avx2() noexcept { return cpu_has_avx2_fma(); }
 
 ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intrinsics& projector,
                                        uint32_t width, uint32_t height)
@@ -118,9 +396,9 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
   r2t_ = dot(r2, t);
   // Pinhole camera: the ray of pixel (x, y) is ((x - cx) / fx, (y - cy) / fy,
   // 1), so its x depends on the column only and its y on the row only: two
-  // short tables (the same floats a per-pixel table held) instead of 2 x
-  // width x height floats to stream through memory on every call. A camera
-  // with lens distortion needs the undistorted ray of every pixel: full tables.
+  // short tables instead of 2 x width x height floats to stream through
+  // memory on every call. A camera with lens distortion needs the
+  // undistorted ray of every pixel: full tables.
   const Intrinsics& k = cam.intrinsics;
   per_pixel_rays_ = k.distorted();
   if (per_pixel_rays_) {
@@ -139,6 +417,8 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
     for (uint32_t x = 0; x < width; ++x) ray_x_[x] = static_cast<float>(k.ray(x, 0).x);
     for (uint32_t y = 0; y < height; ++y) ray_y_[y] = static_cast<float>(k.ray(0, y).y);
   }
+  for (const float v : ray_x_) ray_max_ = std::max(ray_max_, std::abs(v));
+  for (const float v : ray_y_) ray_max_ = std::max(ray_max_, std::abs(v));
 }
 
 bool ColumnTriangulator::matches(const CameraCalibration& cam, const Intrinsics& projector,
@@ -156,81 +436,74 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   if (map.col == nullptr) throw std::invalid_argument("triangulate: no column map");
   const uint32_t w = width_, h = height_;
   const size_t n = size_t{w} * h;
-  const Coeffs k{a_[0], a_[1], a_[2], b_[0], b_[1], b_[2], at_, bt_, r2_[0], r2_[1], r2_[2], r2t_};
+  const Coeffs k{a_[0], a_[1],  a_[2],  b_[0],  b_[1],  b_[2], at_, bt_, r2_[0], r2_[1], r2_[2],
+                 r2t_,  projector_.fx * projector_.fx, projector_.cx,
+                 static_cast<double>(FLT_MAX) / 4.0 / std::max(1.0, static_cast<double>(ray_max_))};
   const bool avx2 = isa == TriangulateIsa::avx2 ||
-                    (isa == TriangulateIsa::automatic && cpu_has_avx2());
-  const RowFn row = avx2 ? row_avx2 : row_baseline;
+                    (isa == TriangulateIsa::automatic && cpu_has_avx2_fma());
+  const RowFn row = avx2 ? row_avx2 : row_portable;
   // A distorted projector's column is not a plane; with the decoded row the
   // pixel's ideal (undistorted) column is known and its plane is exact.
   const bool correct_projector = projector_.distorted() && map.row != nullptr;
   out.depth_mm.resize(n);
-  // Pass 1: an upper bound on each row's points (its finite columns), so each
-  // row knows where its points go before they exist: no growing vectors.
-  std::vector<uint64_t> first(size_t{h} + 1, 0);  // first[y]: row y's first slot
-  std::vector<uint32_t> count(h, 0);              // points row y actually made
-  parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
-    for (uint32_t y = y0; y < y1; ++y) {
-      const float* c = map.col + size_t{y} * w;
-      uint32_t m = 0;
-      for (uint32_t x = 0; x < w; ++x) m += std::abs(c[x]) <= FLT_MAX ? 1u : 0u;
-      first[size_t{y} + 1] = m;
-    }
+  // Bands of contiguous rows, one per thread; band b's points follow those of
+  // bands 0..b-1 in row-major order.
+  const uint32_t bands = std::clamp<uint32_t>(threads, 1u, std::max(h, 1u));
+  const auto band_row = [&](uint32_t b) { return static_cast<uint32_t>(uint64_t{h} * b / bands); };
+  // Pass 1: an upper bound on each band's points (its finite columns), so
+  // each band knows where its points go before they exist: no growing vectors.
+  std::vector<uint64_t> first(size_t{bands} + 1, 0);  // first[b]: band b's first slot
+  std::vector<uint64_t> made(bands, 0);                // points band b actually made
+  parallel_rows(bands, bands, [&](uint32_t b0, uint32_t b1) {
+    for (uint32_t b = b0; b < b1; ++b)
+      first[size_t{b} + 1] = count_finite(map.col + size_t{band_row(b)} * w,
+                                          size_t{band_row(b + 1) - band_row(b)} * w);
   });
-  for (uint32_t y = 0; y < h; ++y) first[size_t{y} + 1] += first[y];
-  out.points.resize(first[h] * 4);
+  for (uint32_t b = 0; b < bands; ++b) first[size_t{b} + 1] += first[b];
+  out.points.resize(first[bands] * 4);
   float* const pts = out.points.data();
-  // Pass 2: rays meet planes row by row; each row's points are compacted in
-  // L1 scratch, then copied to the row's slots.
-  parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
-    std::vector<float> X(w), Y(w), Z(w), ry(w), cu(correct_projector ? w : 0), quad(size_t{w} * 4 + 4);
-    for (uint32_t y = y0; y < y1; ++y) {
-      const size_t i0 = size_t{y} * w;
-      const float* rx_row = ray_x_.data();
-      const float* ry_row = ry.data();
-      if (per_pixel_rays_) {
-        rx_row += i0;
-        ry_row = ray_y_.data() + i0;
-      } else {
-        std::fill(ry.begin(), ry.end(), ray_y_[y]);  // this row's ray y (L1)
-      }
-      const float* col_row = map.col + i0;
-      if (correct_projector) {  // the ideal column of each decoded (column, row)
-        for (uint32_t x = 0; x < w; ++x) {
-          const float c = col_row[x], r = map.row[i0 + x];
-          if (!(std::abs(c) <= FLT_MAX) || !(std::abs(r) <= FLT_MAX)) {
-            cu[x] = c;  // NaN stays invalid; a missing row keeps the column as decoded
-            continue;
+  // Pass 2: rays meet planes row by row; each row's depth and packed points
+  // go to L1 scratch, then stream to their places.
+  parallel_rows(bands, bands, [&](uint32_t b0, uint32_t b1) {
+    std::vector<float> depth(w), quads(size_t{w} * 4 + 32), cu(correct_projector ? w : 0);
+    for (uint32_t b = b0; b < b1; ++b) {
+      uint64_t m = 0;
+      for (uint32_t y = band_row(b); y < band_row(b + 1); ++y) {
+        const size_t i0 = size_t{y} * w;
+        const float* rx = ray_x_.data() + (per_pixel_rays_ ? i0 : 0);
+        const float* ry = per_pixel_rays_ ? ray_y_.data() + i0 : nullptr;
+        const float ry0 = per_pixel_rays_ ? 0.0f : ray_y_[y];
+        const float* col_row = map.col + i0;
+        if (correct_projector) {  // the ideal column of each decoded (column, row)
+          for (uint32_t x = 0; x < w; ++x) {
+            const float c = col_row[x], r = map.row[i0 + x];
+            if (!(std::abs(c) <= FLT_MAX) || !(std::abs(r) <= FLT_MAX)) {
+              cu[x] = c;  // NaN stays invalid; a missing row keeps the column as decoded
+              continue;
+            }
+            double xn, yn;
+            projector_.undistort(c, r, xn, yn);
+            cu[x] = static_cast<float>(projector_.fx * xn + projector_.cx);
           }
-          double xn, yn;
-          projector_.undistort(c, r, xn, yn);
-          cu[x] = static_cast<float>(projector_.fx * xn + projector_.cx);
+          col_row = cu.data();
         }
-        col_row = cu.data();
+        const float* I = map.intensity != nullptr ? map.intensity + i0 : nullptr;
+        const uint32_t got = row(k, col_row, rx, ry, ry0, I, w, depth.data(), quads.data());
+        stream_floats(out.depth_mm.data() + i0, depth.data(), w);
+        stream_floats(pts + (first[b] + m) * 4, quads.data(), size_t{got} * 4);
+        m += got;
       }
-      row(k, col_row, rx_row, ry_row, w, X.data(), Y.data(), Z.data());
-      stream_floats(out.depth_mm.data() + i0, Z.data(), w);
-      const float* I = map.intensity != nullptr ? map.intensity + i0 : nullptr;
-      float* q = quad.data();
-      for (uint32_t x = 0; x < w; ++x) {  // branch-free: always write, advance if valid
-        q[0] = X[x];
-        q[1] = Y[x];
-        q[2] = Z[x];
-        q[3] = I != nullptr ? I[x] : 0.0f;
-        q += std::isnan(Z[x]) ? 0 : 4;
-      }
-      const auto m = static_cast<size_t>(q - quad.data());
-      stream_floats(pts + first[y] * 4, quad.data(), m);
-      count[y] = static_cast<uint32_t>(m / 4);
+      made[b] = m;
     }
     stream_fence();
   });
   // Close the gaps of finite columns that made no point (rare: behind a
   // device, parallel rays); a no-op when every finite column made one.
   uint64_t total = 0;
-  for (uint32_t y = 0; y < h; ++y) {
-    if (total != first[y] && count[y] > 0)
-      std::memmove(pts + total * 4, pts + first[y] * 4, size_t{count[y]} * 4 * sizeof(float));
-    total += count[y];
+  for (uint32_t b = 0; b < bands; ++b) {
+    if (total != first[b] && made[b] > 0)
+      std::memmove(pts + total * 4, pts + first[b] * 4, made[b] * 4 * sizeof(float));
+    total += made[b];
   }
   out.points.resize(total * 4);
   out.point_count = total;

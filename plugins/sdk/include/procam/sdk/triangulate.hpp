@@ -96,6 +96,7 @@ class ColumnTriangulator {
   // tables (per_pixel_rays_), passed to the same row kernel row by row.
   std::vector<float> ray_x_, ray_y_;
   bool per_pixel_rays_ = false;
+  float ray_max_ = 0;  // largest |x| or |y| of any ray (bounds the point's x, y by s)
   // Plane coefficients n(c) = a + c b, n(c).t = at + c bt; r2 = R_2 (the
   // projector's z axis in the camera frame) and r2t = R_2.t for the
   // behind-the-projector test.
