@@ -36,6 +36,11 @@ namespace {
 struct Coeffs {
   double a0, a1, a2, b0, b1, b2, at, bt, r20, r21, r22, r2t, fx2, cx;
   double smax;  // FLT_MAX / 4 / max(1, |ray x|, |ray y|): s below it cannot overflow x, y
+  // Pinhole camera: the rays' x by column in double (the reference's exact
+  // rays, so n.d and the parallel test match it to ~1e-16); null with
+  // per-pixel (lens-distortion) rays, which are float tables.
+  const double* ray_x;
+  const float* ray_x_lo;  // ray_x - float(ray_x), as floats (pinhole; else null)
 };
 
 // The per-row terms of a ray with y component dy.
@@ -48,22 +53,23 @@ inline RowTerms row_terms(const Coeffs& k, double dy) {
 
 // One row's output: depth (w floats, NaN: no point) and the row's points
 // packed as x, y, z, intensity quads; returns the number of points.
-// col, rx: w floats; ry: w floats (per-pixel rays) or null (ry0 for the row);
+// col, rx: w floats (rx: the rays' x as floats; k.ray_x, when set, the same
+// in double); ry: w floats (per-pixel rays) or null (ry0 for the row);
 // I: w floats or null (intensity 0). depth must hold w floats, quads w*4 + 32.
 using RowFn = uint32_t (*)(const Coeffs&, const float* col, const float* rx, const float* ry,
-                           float ry0, const float* I, uint32_t w, float* depth, float* quads);
+                           double ry0, const float* I, uint32_t w, float* depth, float* quads);
 
 // Portable twin: plain double arithmetic (the compiler may contract a*b+c to
 // FMA only where the target has it; the baseline x86-64 target does not).
 uint32_t row_portable(const Coeffs& k, const float* col, const float* rx, const float* ry,
-                      float ry0, const float* I, uint32_t w, float* depth, float* quads) {
+                      double ry0, const float* I, uint32_t w, float* depth, float* quads) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-  RowTerms rt = row_terms(k, static_cast<double>(ry0));
+  RowTerms rt = row_terms(k, ry0);
   float* q = quads;
   for (uint32_t x = 0; x < w; ++x) {
     const double c = static_cast<double>(col[x]);
-    const double dx = static_cast<double>(rx[x]);
-    double dy = static_cast<double>(ry0);
+    const double dx = k.ray_x != nullptr ? k.ray_x[x] : static_cast<double>(rx[x]);
+    double dy = ry0;
     if (ry != nullptr) {
       dy = static_cast<double>(ry[x]);
       rt = row_terms(k, dy);
@@ -138,7 +144,7 @@ struct Avx2Row {
   __m256d dy0, p0, q0, rz0, dd0;          // separable rays: this row's terms
   __m256d a1, a2, b1, b2, r21, r22, one;  // per-pixel rays: the row terms' coefficients
   __m256d e12, cxe12, fx2e24;             // 1e-12 (c - cx_p) and 1e-24 fx_p^2
-  __m256 r20f, rz0f, r21f, r22f, r2tf, tol, tol_r2t, dy0f;  // float tier
+  __m256 r20f, rz0f, r21f, r22f, r2tf, tol, tol_r2t, dy0f, dy0l;  // float tier
   __m256 smax, abs_mask, fmax, zerof, nan;
 };
 
@@ -164,7 +170,19 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256d avx2_widen(__m
 // converts to a negative NaN float; zero converts to zero.
 __attribute__((target("avx2,fma"), always_inline)) inline __m256 avx2_narrow_mask(__m256d lo,
                                                                                   __m256d hi) {
-  return _mm256_set_m128(_mm256_cvtpd_ps(hi), _mm256_cvtpd_ps(lo));
+  const __m256 m = _mm256_shuffle_ps(_mm256_castpd_ps(lo), _mm256_castpd_ps(hi), 0x88);
+  return _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(m), 0xD8));
+}
+
+// round((s + s_lo)(d + d_lo)) for float pairs (s_lo, d_lo: the small parts):
+// the exact product s d (two_prod: p + its rounding error) plus the cross
+// terms, rounded once at the end. Error before that rounding ~2^-46 relative.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 avx2_product(__m256 s,
+                                                                             __m256 s_lo,
+                                                                             __m256 d,
+                                                                             __m256 d_lo) {
+  const __m256 p = _mm256_mul_ps(s, d), err = _mm256_fmsub_ps(s, d, p);
+  return _mm256_add_ps(p, _mm256_fmadd_ps(s, d_lo, _mm256_fmadd_ps(s_lo, d, err)));
 }
 
 // Fast tier for 8 pixels: X, Y, Z and the valid lanes (sign bits of ok);
@@ -172,12 +190,12 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 avx2_narrow_mas
 // used).
 template <bool kPerPixel>
 __attribute__((target("avx2,fma"), always_inline)) inline bool avx2_fast(
-    const Avx2Row& r, __m256 c8, __m256 dx8, __m256 dy8, __m256& X, __m256& Y, __m256& Z,
-    __m256& okv) {
+    const Avx2Row& r, __m256 c8, const __m256d* dxd, __m256 dx8, __m256 dxl8, __m256 dy8,
+    __m256 dyl8, __m256& X, __m256& Y, __m256& Z, __m256& okv) {
   __m128 Df[2], Nf[2];
-  __m256d not_parallel[2];
+  __m256d not_parallel[2], Dd[2], Nd[2];
   for (int h = 0; h < 2; ++h) {
-    const __m256d c = avx2_widen(c8, h), dx = avx2_widen(dx8, h);
+    const __m256d c = avx2_widen(c8, h), dx = dxd[h];
     __m256d p, q, rz, dd;
     avx2_row_terms<kPerPixel>(r, kPerPixel ? avx2_widen(dy8, h) : r.dy0, p, q, rz, dd);
     const __m256d P = _mm256_fmadd_pd(r.K.a0, dx, p), Q = _mm256_fmadd_pd(r.K.b0, dx, q);
@@ -187,10 +205,13 @@ __attribute__((target("avx2,fma"), always_inline)) inline bool avx2_fast(
     const __m256d nn = _mm256_fmadd_pd(cm, cm, r.fx2e24);
     const __m256d lim = _mm256_mul_pd(nn, _mm256_fmadd_pd(dx, dx, dd));
     not_parallel[h] = _mm256_cmp_pd(_mm256_mul_pd(D, D), lim, _CMP_GE_OQ);
+    Dd[h] = D;
+    Nd[h] = N;
     Df[h] = _mm256_cvtpd_ps(D);
     Nf[h] = _mm256_cvtpd_ps(N);
   }
-  const __m256 s = _mm256_div_ps(_mm256_set_m128(Nf[1], Nf[0]), _mm256_set_m128(Df[1], Df[0]));
+  const __m256 D8 = _mm256_set_m128(Df[1], Df[0]);
+  const __m256 s = _mm256_div_ps(_mm256_set_m128(Nf[1], Nf[0]), D8);
   const __m256 Rz = kPerPixel ? _mm256_fmadd_ps(r.r20f, dx8, _mm256_fmadd_ps(r.r21f, dy8, r.r22f))
                               : _mm256_fmadd_ps(r.r20f, dx8, r.rz0f);
   const __m256 m = _mm256_mul_ps(s, Rz), pz = _mm256_sub_ps(m, r.r2tf);
@@ -202,9 +223,19 @@ __attribute__((target("avx2,fma"), always_inline)) inline bool avx2_fast(
       _mm256_or_ps(_mm256_cmp_ps(_mm256_and_ps(pz, r.abs_mask), bound, _CMP_LE_OQ),
                    _mm256_cmp_ps(s, r.smax, _CMP_GE_OQ));
   if (_mm256_movemask_ps(uncertain) != 0) return false;
-  X = _mm256_mul_ps(s, dx8);
-  Y = _mm256_mul_ps(s, dy8);
-  Z = s;
+  // s to ~2^-47: s + s_lo, s_lo = (N - s D) / D with the residual in
+  // double and its quotient in float; then x = (s + s_lo)(dx + dx_lo) as an
+  // exact float product plus the cross terms (dx_lo: the float ray's
+  // remainder from the double one), so x, y, z are the correctly rounded
+  // floats of the double results: identical to the double kernel's but for
+  // values within ~2^-46 of a rounding boundary.
+  __m128 ef[2];
+  for (int h = 0; h < 2; ++h)
+    ef[h] = _mm256_cvtpd_ps(_mm256_fnmadd_pd(avx2_widen(s, h), Dd[h], Nd[h]));
+  const __m256 s_lo = _mm256_div_ps(_mm256_set_m128(ef[1], ef[0]), D8);
+  X = avx2_product(s, s_lo, dx8, dxl8);
+  Y = avx2_product(s, s_lo, dy8, dyl8);
+  Z = _mm256_add_ps(s, s_lo);
   const __m256 ok = _mm256_and_ps(_mm256_cmp_ps(s, r.zerof, _CMP_GT_OQ),
                                   _mm256_cmp_ps(pz, r.zerof, _CMP_GT_OQ));
   okv = _mm256_and_ps(ok, avx2_narrow_mask(not_parallel[0], not_parallel[1]));
@@ -214,15 +245,15 @@ __attribute__((target("avx2,fma"), always_inline)) inline bool avx2_fast(
 // Exact tier for 8 pixels (same outputs as avx2_fast).
 template <bool kPerPixel>
 __attribute__((target("avx2,fma"), always_inline)) inline void avx2_exact(
-    const Avx2Row& r, __m256 c8, __m256 dx8, __m256 dy8, __m256& X, __m256& Y, __m256& Z,
-    __m256& okv) {
+    const Avx2Row& r, __m256 c8, const __m256d* dxd, __m256 dy8, __m256& X, __m256& Y,
+    __m256& Z, __m256& okv) {
   __m128 fx[2], fy[2], fz[2];
   __m256d ok[2];
   for (int h = 0; h < 2; ++h) {
     const __m256d dy = kPerPixel ? avx2_widen(dy8, h) : r.dy0;
     __m256d p, q, rz, dd;
     avx2_row_terms<kPerPixel>(r, dy, p, q, rz, dd);
-    ok[h] = avx2_half(r.K, avx2_widen(c8, h), avx2_widen(dx8, h), dy, p, q, rz, dd, fx[h], fy[h],
+    ok[h] = avx2_half(r.K, avx2_widen(c8, h), dxd[h], dy, p, q, rz, dd, fx[h], fy[h],
                       fz[h]);
   }
   X = _mm256_set_m128(fx[1], fx[0]);
@@ -253,27 +284,51 @@ constexpr LeftPackTable make_left_pack() {
 }
 constexpr LeftPackTable kLeftPack = make_left_pack();
 
-// 8 pixels: depth to dp (8 floats), valid points left-packed at q (advanced).
-// kPerPixel: the rays' y comes per pixel (yp), else from the row.
+// 8 pixels: depth to dp, and x, y, z, the valid-lane mask to the chunk
+// scratch at sx, sy, sz, sm (8 floats each).
+// kPerPixel: the rays' y comes per pixel (yp), else from the row; their x
+// in double from xdp (pinhole), else widened from xp.
 template <bool kPerPixel>
-__attribute__((target("avx2,fma"), always_inline)) inline void avx2_step(
-    const Avx2Row& r, const float* cp, const float* xp, const float* yp, const float* ip,
-    float* dp, float*& q) {
+__attribute__((target("avx2,fma"), always_inline)) inline void avx2_compute(
+    const Avx2Row& r, const float* cp, const float* xp, const double* xdp, const float* xlp,
+    const float* yp, float* dp, float* sx, float* sy, float* sz, float* sm) {
   const __m256 c8 = _mm256_loadu_ps(cp), dx8 = _mm256_loadu_ps(xp);
   const __m256 dy8 = kPerPixel ? _mm256_loadu_ps(yp) : r.dy0f;
+  __m256d dxd[2];
+  if constexpr (kPerPixel) {
+    dxd[0] = avx2_widen(dx8, 0);
+    dxd[1] = avx2_widen(dx8, 1);
+  } else {
+    dxd[0] = _mm256_loadu_pd(xdp);
+    dxd[1] = _mm256_loadu_pd(xdp + 4);
+  }
+  const __m256 dxl8 = kPerPixel ? _mm256_setzero_ps() : _mm256_loadu_ps(xlp);
+  const __m256 dyl8 = kPerPixel ? _mm256_setzero_ps() : r.dy0l;
   __m256 X, Y, Z, okv;
-  if (!avx2_fast<kPerPixel>(r, c8, dx8, dy8, X, Y, Z, okv)) [[unlikely]]
-    avx2_exact<kPerPixel>(r, c8, dx8, dy8, X, Y, Z, okv);
-  const auto b = static_cast<unsigned>(_mm256_movemask_ps(okv));
+  if (!avx2_fast<kPerPixel>(r, c8, dxd, dx8, dxl8, dy8, dyl8, X, Y, Z, okv)) [[unlikely]]
+    avx2_exact<kPerPixel>(r, c8, dxd, dy8, X, Y, Z, okv);
   _mm256_storeu_ps(dp, _mm256_blendv_ps(r.nan, Z, okv));
+  _mm256_store_ps(sx, X);
+  _mm256_store_ps(sy, Y);
+  _mm256_store_ps(sz, Z);
+  _mm256_store_ps(sm, okv);
+}
+
+// The valid points of 8 computed pixels, left-packed at q (advanced): one
+// permutation from the table, then 4 x 8 -> 8 quads (x, y, z, intensity);
+// the table's lane order makes the first shuffle hold the packed points 0
+// and 1, the next 2 and 3, ... (the unpacks pair lane i with lane i + 4).
+// All 8 quads are stored; q moves past the valid ones.
+__attribute__((target("avx2,fma"), always_inline)) inline void avx2_pack(
+    const float* sx, const float* sy, const float* sz, const float* sm, const float* ip,
+    float*& q) {
+  const auto b = static_cast<unsigned>(_mm256_movemask_ps(_mm256_load_ps(sm)));
   const __m256 In = ip != nullptr ? _mm256_loadu_ps(ip) : _mm256_setzero_ps();
-  // Left-pack the valid lanes (one permutation from the table), then 4 x 8 ->
-  // 8 quads (x, y, z, intensity): the table's lane order makes v0 hold the
-  // packed points 0 and 1, v1 2 and 3, ... (the unpacks pair lane i with
-  // lane i + 4). All 8 quads are stored; q moves past the valid ones.
   const __m256i idx = _mm256_load_si256(reinterpret_cast<const __m256i*>(kLeftPack.idx[b]));
-  const __m256 Xp = _mm256_permutevar8x32_ps(X, idx), Yp = _mm256_permutevar8x32_ps(Y, idx);
-  const __m256 Zp = _mm256_permutevar8x32_ps(Z, idx), Ip = _mm256_permutevar8x32_ps(In, idx);
+  const __m256 Xp = _mm256_permutevar8x32_ps(_mm256_load_ps(sx), idx);
+  const __m256 Yp = _mm256_permutevar8x32_ps(_mm256_load_ps(sy), idx);
+  const __m256 Zp = _mm256_permutevar8x32_ps(_mm256_load_ps(sz), idx);
+  const __m256 Ip = _mm256_permutevar8x32_ps(In, idx);
   const __m256 t0 = _mm256_unpacklo_ps(Xp, Yp), t1 = _mm256_unpackhi_ps(Xp, Yp);
   const __m256 t2 = _mm256_unpacklo_ps(Zp, Ip), t3 = _mm256_unpackhi_ps(Zp, Ip);
   _mm256_storeu_ps(q, _mm256_shuffle_ps(t0, t2, 0x44));
@@ -293,45 +348,59 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 f(double v) {
 template <bool kPerPixel>
 __attribute__((target("avx2,fma"))) uint32_t row_avx2_t(const Coeffs& k, const float* col,
                                                         const float* rx, const float* ry,
-                                                        float ry0, const float* I, uint32_t w,
+                                                        double ry0, const float* I, uint32_t w,
                                                         float* depth, float* quads) {
-  const RowTerms rt = row_terms(k, static_cast<double>(ry0));
+  const RowTerms rt = row_terms(k, ry0);
   constexpr double kTol = 1e-5;  // relative bound of the float tier's pz test
   const Avx2Row r{{d(k.a0), d(k.b0), d(k.at), d(k.bt), d(k.r20), d(k.r2t), d(k.fx2), d(k.cx),
                    d(1e-24), d(0.0), d(DBL_MAX)},
-                  d(static_cast<double>(ry0)), d(rt.p), d(rt.q), d(rt.rz), d(rt.dd),
+                  d(ry0), d(rt.p), d(rt.q), d(rt.rz), d(rt.dd),
                   d(k.a1), d(k.a2), d(k.b1), d(k.b2), d(k.r21), d(k.r22), d(1.0),
                   d(1e-12), d(1e-12 * k.cx), d(1e-24 * k.fx2),
                   f(k.r20), f(rt.rz), f(k.r21), f(k.r22), f(k.r2t), f(kTol),
-                  f(kTol * std::abs(k.r2t)), _mm256_set1_ps(ry0), f(k.smax),
+                  f(kTol * std::abs(k.r2t)), f(ry0),
+                  f(ry0 - static_cast<double>(static_cast<float>(ry0))), f(k.smax),
                   _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff)), _mm256_set1_ps(FLT_MAX),
                   _mm256_setzero_ps(), _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN())};
+  // Chunks of the row: all blocks computed into L1 scratch, then packed. Two
+  // short dependency chains instead of one long one per block, so more
+  // blocks overlap in the out-of-order window.
+  constexpr uint32_t kChunk = 128;
+  alignas(32) float sx[kChunk], sy[kChunk], sz[kChunk], sm[kChunk];
   float* q = quads;
-  uint32_t x = 0;
-  if (I != nullptr) {
-    for (; x + 8 <= w; x += 8)
-      avx2_step<kPerPixel>(r, col + x, rx + x, kPerPixel ? ry + x : nullptr, I + x, depth + x, q);
-  } else {
-    for (; x + 8 <= w; x += 8)
-      avx2_step<kPerPixel>(r, col + x, rx + x, kPerPixel ? ry + x : nullptr, nullptr, depth + x, q);
-  }
-  if (x < w) {  // the last w % 8 pixels, padded with invalid (NaN) columns
-    float c[8], xs[8], ys[8], is[8], dp[8];
-    const uint32_t n = w - x;
-    for (uint32_t i = 0; i < 8; ++i) {
-      c[i] = i < n ? col[x + i] : std::numeric_limits<float>::quiet_NaN();
-      xs[i] = i < n ? rx[x + i] : 0.0f;
-      ys[i] = i < n && kPerPixel ? ry[x + i] : 0.0f;
-      is[i] = i < n && I != nullptr ? I[x + i] : 0.0f;
+  for (uint32_t x0 = 0; x0 < w; x0 += kChunk) {
+    const uint32_t n = std::min(kChunk, w - x0), full = n / 8 * 8;
+    for (uint32_t i = 0; i < full; i += 8) {
+      const uint32_t x = x0 + i;
+      avx2_compute<kPerPixel>(r, col + x, rx + x, kPerPixel ? nullptr : k.ray_x + x,
+                              kPerPixel ? nullptr : k.ray_x_lo + x, kPerPixel ? ry + x : nullptr, depth + x, sx + i, sy + i, sz + i,
+                              sm + i);
     }
-    avx2_step<kPerPixel>(r, c, xs, ys, is, dp, q);
-    std::memcpy(depth + x, dp, n * sizeof(float));
+    float is[8] = {};
+    if (full < n) {  // the last n % 8 pixels, padded with invalid (NaN) columns
+      float c[8], xs[8], xls[8], ys[8], dp[8];
+      double xds[8];
+      const uint32_t x = x0 + full, m = n - full;
+      for (uint32_t i = 0; i < 8; ++i) {
+        c[i] = i < m ? col[x + i] : std::numeric_limits<float>::quiet_NaN();
+        xs[i] = i < m ? rx[x + i] : 0.0f;
+        xds[i] = i < m && !kPerPixel ? k.ray_x[x + i] : 0.0;
+        xls[i] = i < m && !kPerPixel ? k.ray_x_lo[x + i] : 0.0f;
+        ys[i] = i < m && kPerPixel ? ry[x + i] : 0.0f;
+        is[i] = i < m && I != nullptr ? I[x + i] : 0.0f;
+      }
+      avx2_compute<kPerPixel>(r, c, xs, xds, xls, ys, dp, sx + full, sy + full, sz + full, sm + full);
+      std::memcpy(depth + x, dp, m * sizeof(float));
+    }
+    for (uint32_t i = 0; i < full; i += 8)
+      avx2_pack(sx + i, sy + i, sz + i, sm + i, I != nullptr ? I + x0 + i : nullptr, q);
+    if (full < n) avx2_pack(sx + full, sy + full, sz + full, sm + full, is, q);
   }
   return static_cast<uint32_t>((q - quads) / 4);
 }
 
 __attribute__((target("avx2,fma"))) uint32_t row_avx2(const Coeffs& k, const float* col,
-                                                      const float* rx, const float* ry, float ry0,
+                                                      const float* rx, const float* ry, double ry0,
                                                       const float* I, uint32_t w, float* depth,
                                                       float* quads) {
   return ry != nullptr ? row_avx2_t<true>(k, col, rx, ry, ry0, I, w, depth, quads)
@@ -412,10 +481,20 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
         ray_y_[size_t{y} * width + x] = static_cast<float>(d.y);
       }
   } else {
+    ray_xd_.resize(width);
+    ray_x_lo_.resize(width);
+    ray_yd_.resize(height);
     ray_x_.resize(width);
     ray_y_.resize(height);
-    for (uint32_t x = 0; x < width; ++x) ray_x_[x] = static_cast<float>(k.ray(x, 0).x);
-    for (uint32_t y = 0; y < height; ++y) ray_y_[y] = static_cast<float>(k.ray(0, y).y);
+    for (uint32_t x = 0; x < width; ++x) {
+      ray_xd_[x] = k.ray(x, 0).x;
+      ray_x_[x] = static_cast<float>(ray_xd_[x]);
+      ray_x_lo_[x] = static_cast<float>(ray_xd_[x] - static_cast<double>(ray_x_[x]));
+    }
+    for (uint32_t y = 0; y < height; ++y) {
+      ray_yd_[y] = k.ray(0, y).y;
+      ray_y_[y] = static_cast<float>(ray_yd_[y]);
+    }
   }
   for (const float v : ray_x_) ray_max_ = std::max(ray_max_, std::abs(v));
   for (const float v : ray_y_) ray_max_ = std::max(ray_max_, std::abs(v));
@@ -438,7 +517,9 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   const size_t n = size_t{w} * h;
   const Coeffs k{a_[0], a_[1],  a_[2],  b_[0],  b_[1],  b_[2], at_, bt_, r2_[0], r2_[1], r2_[2],
                  r2t_,  projector_.fx * projector_.fx, projector_.cx,
-                 static_cast<double>(FLT_MAX) / 4.0 / std::max(1.0, static_cast<double>(ray_max_))};
+                 static_cast<double>(FLT_MAX) / 4.0 / std::max(1.0, static_cast<double>(ray_max_)),
+                 per_pixel_rays_ ? nullptr : ray_xd_.data(),
+                 per_pixel_rays_ ? nullptr : ray_x_lo_.data()};
   const bool avx2 = isa == TriangulateIsa::avx2 ||
                     (isa == TriangulateIsa::automatic && cpu_has_avx2_fma());
   const RowFn row = avx2 ? row_avx2 : row_portable;
@@ -472,7 +553,7 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
         const size_t i0 = size_t{y} * w;
         const float* rx = ray_x_.data() + (per_pixel_rays_ ? i0 : 0);
         const float* ry = per_pixel_rays_ ? ray_y_.data() + i0 : nullptr;
-        const float ry0 = per_pixel_rays_ ? 0.0f : ray_y_[y];
+        const double ry0 = per_pixel_rays_ ? 0.0 : ray_yd_[y];
         const float* col_row = map.col + i0;
         if (correct_projector) {  // the ideal column of each decoded (column, row)
           for (uint32_t x = 0; x < w; ++x) {

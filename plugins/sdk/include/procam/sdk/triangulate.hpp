@@ -95,6 +95,11 @@ class ColumnTriangulator {
   // With lens distortion the undistorted ray depends on both: per-pixel
   // tables (per_pixel_rays_), passed to the same row kernel row by row.
   std::vector<float> ray_x_, ray_y_;
+  // Pinhole: the same rays in double (exact: the reference's rays), which
+  // n.d, n.t and the parallel test use; the float tables serve the float
+  // products x = s dx, y = s dy.
+  std::vector<double> ray_xd_, ray_yd_;
+  std::vector<float> ray_x_lo_;  // ray_xd_ - ray_x_ (the float x's remainder)
   bool per_pixel_rays_ = false;
   float ray_max_ = 0;  // largest |x| or |y| of any ray (bounds the point's x, y by s)
   // Plane coefficients n(c) = a + c b, n(c).t = at + c bt; r2 = R_2 (the
