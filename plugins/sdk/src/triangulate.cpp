@@ -20,8 +20,10 @@
 namespace procam::sdk {
 namespace {
 
-// The ray-plane intersection of the header (thesis eq. 2.x: the camera ray
-// x = s d meets the plane n(c).(x - t) = 0 at s = n(c).t / n(c).d), with
+// The ray-plane intersection of the header (the camera ray x = s d meets the
+// plane n(c).(x - t) = 0 at s = n(c).t / n(c).d; the thesis takes this
+// column-plane triangulation as given, e.g. the light-plane geometry of its
+// Fig. 5.7a, and has no equation number for it), with
 // d = (dx, dy, 1) and n(c) = a + c b split by what each term depends on:
 //   D = n(c).d = P + c Q,  P = a0 dx + (a1 dy + a2),  Q = b0 dx + (b1 dy + b2)
 //   N = n(c).t = at + c bt
@@ -61,19 +63,22 @@ using RowFn = uint32_t (*)(const Coeffs&, const float* col, const float* rx, con
 
 // Portable twin: plain double arithmetic (the compiler may contract a*b+c to
 // FMA only where the target has it; the baseline x86-64 target does not).
-uint32_t row_portable(const Coeffs& k, const float* col, const float* rx, const float* ry,
-                      double ry0, const float* I, uint32_t w, float* depth, float* quads) {
+// The math loop is branch-free with no loop-carried state, so the vectoriser
+// turns it into packed double arithmetic; the compaction is a second loop.
+// kPerPixel: ry holds each pixel's ray y, else ry0 is the row's; dx comes
+// from k.ray_x (pinhole, double) or rx (per-pixel, float).
+template <bool kPerPixel>
+void row_portable_math(const Coeffs& k, const float* __restrict col, const float* __restrict rx,
+                       const float* __restrict ry, double ry0, uint32_t w, float* __restrict X,
+                       float* __restrict Y, float* __restrict depth) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-  RowTerms rt = row_terms(k, ry0);
-  float* q = quads;
+  const RowTerms r0 = row_terms(k, ry0);
+  const double* __restrict rxd = k.ray_x;
   for (uint32_t x = 0; x < w; ++x) {
     const double c = static_cast<double>(col[x]);
-    const double dx = k.ray_x != nullptr ? k.ray_x[x] : static_cast<double>(rx[x]);
-    double dy = ry0;
-    if (ry != nullptr) {
-      dy = static_cast<double>(ry[x]);
-      rt = row_terms(k, dy);
-    }
+    const double dx = kPerPixel ? static_cast<double>(rx[x]) : rxd[x];
+    const double dy = kPerPixel ? static_cast<double>(ry[x]) : ry0;
+    const RowTerms rt = kPerPixel ? row_terms(k, dy) : r0;
     const double P = k.a0 * dx + rt.p, Q = k.b0 * dx + rt.q;
     const double D = P + c * Q, N = k.at + c * k.bt;
     const double s = N / D;
@@ -84,12 +89,28 @@ uint32_t row_portable(const Coeffs& k, const float* col, const float* rx, const 
     const bool ok = (std::abs(col[x]) <= FLT_MAX) & (D * D >= 1e-24 * (nn * dd)) & (s > 0.0) &
                     (s <= DBL_MAX) & (pz > 0.0) & (std::abs(fx) <= FLT_MAX) &
                     (std::abs(fy) <= FLT_MAX) & (fz <= FLT_MAX);
+    X[x] = fx;
+    Y[x] = fy;
     depth[x] = ok ? fz : kNaN;
-    q[0] = fx;  // branch-free: always write, advance if valid
-    q[1] = fy;
-    q[2] = fz;
+  }
+}
+
+uint32_t row_portable(const Coeffs& k, const float* col, const float* rx, const float* ry,
+                      double ry0, const float* I, uint32_t w, float* depth, float* quads) {
+  thread_local std::vector<float> X, Y;  // this thread's row scratch
+  X.resize(w);
+  Y.resize(w);
+  if (ry != nullptr)
+    row_portable_math<true>(k, col, rx, ry, ry0, w, X.data(), Y.data(), depth);
+  else
+    row_portable_math<false>(k, col, rx, ry, ry0, w, X.data(), Y.data(), depth);
+  float* q = quads;
+  for (uint32_t x = 0; x < w; ++x) {  // branch-free: always write, advance if valid
+    q[0] = X[x];
+    q[1] = Y[x];
+    q[2] = depth[x];
     q[3] = I != nullptr ? I[x] : 0.0f;
-    q += ok ? 4 : 0;
+    q += std::isnan(depth[x]) ? 0 : 4;
   }
   return static_cast<uint32_t>((q - quads) / 4);
 }
@@ -426,10 +447,30 @@ void stream_floats(float* __restrict dst, const float* __restrict src, size_t n)
 void stream_fence() { _mm_sfence(); }
 
 // Finite entries of v[0, n) (the upper bound of the points they can make).
-uint64_t count_finite(const float* v, size_t n) {
+uint64_t count_finite_portable(const float* v, size_t n) {
   uint64_t m = 0;
   for (size_t i = 0; i < n; ++i) m += std::abs(v[i]) <= FLT_MAX ? 1u : 0u;
   return m;
+}
+// The same, 8 lanes (32-bit lane counts, summed every 2^20 steps).
+__attribute__((target("avx2"))) uint64_t count_finite_avx2(const float* v, size_t n) {
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 fmax = _mm256_set1_ps(FLT_MAX);
+  uint64_t m = 0;
+  size_t i = 0;
+  while (i + 8 <= n) {
+    __m256i acc = _mm256_setzero_si256();
+    const size_t end = std::min(n & ~size_t{7}, i + (size_t{8} << 20));
+    for (; i < end; i += 8) {  // a true compare is -1 in every bit: subtract it
+      const __m256 ok = _mm256_cmp_ps(_mm256_and_ps(_mm256_loadu_ps(v + i), abs_mask), fmax,
+                                      _CMP_LE_OQ);
+      acc = _mm256_sub_epi32(acc, _mm256_castps_si256(ok));
+    }
+    alignas(32) uint32_t lanes[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), acc);
+    for (const uint32_t l : lanes) m += l;
+  }
+  return m + count_finite_portable(v + i, n - i);
 }
 
 bool same(const Intrinsics& a, const Intrinsics& b) {
@@ -537,8 +578,8 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   std::vector<uint64_t> made(bands, 0);                // points band b actually made
   parallel_rows(bands, bands, [&](uint32_t b0, uint32_t b1) {
     for (uint32_t b = b0; b < b1; ++b)
-      first[size_t{b} + 1] = count_finite(map.col + size_t{band_row(b)} * w,
-                                          size_t{band_row(b + 1) - band_row(b)} * w);
+      first[size_t{b} + 1] = (avx2 ? count_finite_avx2 : count_finite_portable)(
+          map.col + size_t{band_row(b)} * w, size_t{band_row(b + 1) - band_row(b)} * w);
   });
   for (uint32_t b = 0; b < bands; ++b) first[size_t{b} + 1] += first[b];
   out.points.resize(first[bands] * 4);

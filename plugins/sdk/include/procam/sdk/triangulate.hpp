@@ -56,19 +56,23 @@ struct ColumnMap {
   const float* row = nullptr;
 };
 
-// Which row kernel run() uses: the compiler-vectorised baseline (SSE2), or the
-// same source compiled for AVX2 (chosen at run time when the CPU has it). Both
-// do the same IEEE operations in the same order (no FMA contraction), so they
-// give bit-identical results (tested).
+// Which row kernel run() uses: the portable double-precision twin (baseline
+// x86-64), or the AVX2+FMA kernel (chosen at run time when the CPU has both;
+// `avx2` forces it: only where cpu_has_avx2()). The AVX2 kernel divides in
+// float and refines the quotient in float pairs (~2^-47 relative), so both
+// give the same points as procam::triangulate_column (a coordinate may differ
+// by 1 ulp only where the double value lies within ~2^-46 of a float rounding
+// boundary) and the same validity decisions (tested against it).
 enum class TriangulateIsa { automatic, baseline, avx2 };
 
-// True when this CPU can run the AVX2 kernel.
+// True when this CPU can run the AVX2 kernel (AVX2 and FMA).
 bool cpu_has_avx2() noexcept;
 
 class ColumnTriangulator {
  public:
-  // Builds the per-pixel camera-ray table (pinhole: d = ((u-cx)/fx,
-  // (v-cy)/fy, 1), stored as float x/y) and the column-plane coefficients.
+  // Builds the camera-ray tables (pinhole: d = ((u-cx)/fx, (v-cy)/fy, 1),
+  // x by column and y by row, in double and float; lens distortion: the
+  // undistorted ray per pixel, float) and the column-plane coefficients.
   // width/height: the camera image the maps come from.
   ColumnTriangulator(const CameraCalibration& cam, const Intrinsics& projector, uint32_t width,
                      uint32_t height);
