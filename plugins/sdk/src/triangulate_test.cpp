@@ -119,6 +119,27 @@ void expect_matches_reference(const Geometry& g, uint32_t w, uint32_t h,
   }
 }
 
+// The kernels this CPU can run: the portable twin, and AVX2 where present.
+std::vector<TriangulateIsa> kernels_here() {
+  std::vector<TriangulateIsa> k{TriangulateIsa::baseline};
+  if (cpu_has_avx2()) k.push_back(TriangulateIsa::avx2);
+  return k;
+}
+
+// n random columns uniform in [lo, hi), a fraction `invalid` of them NaN, and
+// random intensities in [0, 1).
+void random_columns(size_t n, uint32_t seed, float lo, float hi, float invalid,
+                    std::vector<float>& col, std::vector<float>& intensity) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> cols(lo, hi), pick(0.0f, 1.0f);
+  col.resize(n);
+  intensity.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    col[i] = pick(rng) < invalid ? kNaN : cols(rng);
+    intensity[i] = pick(rng);
+  }
+}
+
 TEST(Triangulate, PlaneAtKnownDepthExactColumns) {
   const Geometry g = make_geometry();
   const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
@@ -286,8 +307,7 @@ TEST(Triangulate, BehindTheProjectorGivesNoPoint) {
   // Projector at z 400: the z = 400 point lies on its z = 0 plane (z_p = 0,
   // the float tier's undecidable case): no point, as in the reference.
   g.cam.cam_from_proj.translation_mm.z = 400.0;
-  for (const TriangulateIsa isa : {TriangulateIsa::baseline, TriangulateIsa::avx2}) {
-    if (isa == TriangulateIsa::avx2 && !cpu_has_avx2()) continue;
+  for (const TriangulateIsa isa : kernels_here()) {
     DepthResult r3;
     ColumnTriangulator(g.cam, g.proj, 3, 1).run(ColumnMap{col.data(), nullptr}, 1, r3, isa);
     EXPECT_TRUE(std::isnan(r3.depth_mm[1]));
@@ -364,16 +384,10 @@ TEST(Triangulate, MatchesPerPixelReferenceOnHardMaps) {
 TEST(Triangulate, BothKernelsMatchReference) {
   const Geometry g = make_geometry();
   const uint32_t w = g.cam.intrinsics.width, h = g.cam.intrinsics.height;
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> wide(-1000.0f, 1700.0f), pick(0.0f, 1.0f);
-  std::vector<float> col(size_t{w} * h), intensity(col.size());
-  for (size_t i = 0; i < col.size(); ++i) {
-    col[i] = pick(rng) < 0.1f ? kNaN : wide(rng);
-    intensity[i] = pick(rng);
-  }
+  std::vector<float> col, intensity;
+  random_columns(size_t{w} * h, 11, -1000.0f, 1700.0f, 0.1f, col, intensity);
   const ColumnTriangulator t(g.cam, g.proj, w, h);
-  for (const TriangulateIsa isa : {TriangulateIsa::baseline, TriangulateIsa::avx2}) {
-    if (isa == TriangulateIsa::avx2 && !cpu_has_avx2()) continue;
+  for (const TriangulateIsa isa : kernels_here()) {
     DepthResult got;
     t.run(ColumnMap{col.data(), intensity.data()}, 2, got, isa);
     ASSERT_GT(got.point_count, 10000u);
@@ -432,8 +446,7 @@ TEST(Triangulate, GrazingFarAnd16BitColumnsMatchReference) {
     }
   ASSERT_GT(grazing, 5000u);  // the grazing cases are really there
   const ColumnTriangulator t(g.cam, g.proj, w, h);
-  for (const TriangulateIsa isa : {TriangulateIsa::baseline, TriangulateIsa::avx2}) {
-    if (isa == TriangulateIsa::avx2 && !cpu_has_avx2()) continue;
+  for (const TriangulateIsa isa : kernels_here()) {
     DepthResult got;
     t.run(ColumnMap{col.data(), nullptr}, 2, got, isa);
     ASSERT_GT(got.point_count, 5000u);
@@ -455,16 +468,10 @@ TEST(Triangulate, OddWidthsMatchReference) {
       const uint32_t h = 5;
       g.cam.intrinsics.width = w;
       g.cam.intrinsics.height = h;
-      std::mt19937 rng(w);
-      std::uniform_real_distribution<float> cols(-200.0f, 900.0f), pick(0.0f, 1.0f);
-      std::vector<float> col(size_t{w} * h), intensity(col.size());
-      for (size_t i = 0; i < col.size(); ++i) {
-        col[i] = pick(rng) < 0.2f ? kNaN : cols(rng);
-        intensity[i] = pick(rng);
-      }
+      std::vector<float> col, intensity;
+      random_columns(size_t{w} * h, w, -200.0f, 900.0f, 0.2f, col, intensity);
       const ColumnTriangulator t(g.cam, g.proj, w, h);
-      for (const TriangulateIsa isa : {TriangulateIsa::baseline, TriangulateIsa::avx2}) {
-        if (isa == TriangulateIsa::avx2 && !cpu_has_avx2()) continue;
+      for (const TriangulateIsa isa : kernels_here()) {
         DepthResult got;
         t.run(ColumnMap{col.data(), intensity.data()}, 2, got, isa);
         expect_matches_reference(g, w, h, col, intensity.data(), got,
