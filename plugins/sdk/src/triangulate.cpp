@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Column-plane triangulation over a whole column map (procam/sdk/triangulate.hpp):
-// ray table, row kernel (baseline + AVX2 twin), row-ordered point compaction.
+// ray tables, the portable row kernel (the AVX2 one: triangulate_avx2.cpp),
+// band-ordered point slots, streaming stores.
 #include "procam/sdk/triangulate.hpp"
 
 #include <immintrin.h>
@@ -15,65 +16,85 @@
 #include <stdexcept>
 
 #include "procam/sdk/parallel.hpp"
+#include "triangulate_kernels.hpp"
 
 namespace procam::sdk {
+namespace detail {
+
+// Portable twin: plain double arithmetic (the compiler may contract a*b+c to
+// FMA only where the target has it; the baseline x86-64 target does not).
+// The math loop is branch-free with no loop-carried state, so the vectoriser
+// turns it into packed double arithmetic; the compaction is a second loop.
+// kPerPixel: ry holds each pixel's ray y, else ry0 is the row's; dx comes
+// from k.ray_x (pinhole, double) or rx (per-pixel, float).
 namespace {
-
-struct Coeffs {
-  double a0, a1, a2, b0, b1, b2, at, bt, r20, r21, r22, r2t;
-};
-
-// One camera row: for each pixel, x, y, z of the point as floats; z is NaN
-// where there is no point (rules in the header). Branch-free so the
-// vectoriser turns it into packed double arithmetic; no reductions, so every
-// lane does exactly the scalar operation sequence (bit-identical twins).
-// Doubles throughout, like triangulate_column: the only rounding differences
-// from it are the float ray table (2^-24 relative) and the re-associated
-// plane normal (~1e-16 relative).
-// The pointers never alias (__restrict lets the vectoriser rely on it).
-__attribute__((always_inline)) inline void row_kernel(const Coeffs& k,
-                                                      const float* __restrict col,
-                                                      const float* __restrict rx,
-                                                      const float* __restrict ry, uint32_t w,
-                                                      float* __restrict X, float* __restrict Y,
-                                                      float* __restrict Z) {
+template <bool kPerPixel>
+void row_portable_math(const Coeffs& k, const float* __restrict col, const float* __restrict rx,
+                       const float* __restrict ry, double ry0, uint32_t w, float* __restrict X,
+                       float* __restrict Y, float* __restrict depth) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  const RowTerms r0 = row_terms(k, ry0);
+  const double* __restrict rxd = k.ray_x;
   for (uint32_t x = 0; x < w; ++x) {
     const double c = static_cast<double>(col[x]);
-    const double dx = static_cast<double>(rx[x]), dy = static_cast<double>(ry[x]);
-    const double nx = k.a0 + c * k.b0, ny = k.a1 + c * k.b1, nz = k.a2 + c * k.b2;
-    const double nd = nx * dx + ny * dy + nz;  // n.d, d = (dx, dy, 1)
-    const double nn = nx * nx + ny * ny + nz * nz;
-    const double dd = dx * dx + dy * dy + 1.0;
-    const double s = (k.at + c * k.bt) / nd;  // ray parameter = z of the point
-    const double pz = s * (k.r20 * dx + k.r21 * dy + k.r22) - k.r2t;  // z in projector frame
-    const float fx = static_cast<float>(dx * s), fy = static_cast<float>(dy * s),
+    const double dx = kPerPixel ? static_cast<double>(rx[x]) : rxd[x];
+    const double dy = kPerPixel ? static_cast<double>(ry[x]) : ry0;
+    const RowTerms rt = kPerPixel ? row_terms(k, dy) : r0;
+    const double P = k.a0 * dx + rt.p, Q = k.b0 * dx + rt.q;
+    const double D = P + c * Q, N = k.at + c * k.bt;
+    const double s = N / D;
+    const double pz = s * (k.r20 * dx + rt.rz) - k.r2t;
+    const double dd = dx * dx + rt.dd, cm = c - k.cx, nn = cm * cm + k.fx2;
+    const float fx = static_cast<float>(s * dx), fy = static_cast<float>(s * dy),
                 fz = static_cast<float>(s);
-    // |n.d| >= 1e-12 |n| |d|, compared squared (no square roots).
-    const bool not_parallel = !(nd * nd < 1e-24 * nn * dd);
-    const bool ok = (std::abs(c) <= DBL_MAX) & not_parallel & (s > 0.0) & (s <= DBL_MAX) &
-                    (pz > 0.0) & (std::abs(fx) <= FLT_MAX) & (std::abs(fy) <= FLT_MAX) &
-                    (fz <= FLT_MAX);
+    const bool ok = (std::abs(col[x]) <= FLT_MAX) & (D * D >= 1e-24 * (nn * dd)) & (s > 0.0) &
+                    (s <= DBL_MAX) & (pz > 0.0) & (std::abs(fx) <= FLT_MAX) &
+                    (std::abs(fy) <= FLT_MAX) & (fz <= FLT_MAX);
     X[x] = fx;
     Y[x] = fy;
-    Z[x] = ok ? fz : kNaN;
+    depth[x] = ok ? fz : kNaN;
   }
 }
 
-void row_baseline(const Coeffs& k, const float* col, const float* rx, const float* ry, uint32_t w,
-                  float* X, float* Y, float* Z) {
-  row_kernel(k, col, rx, ry, w, X, Y, Z);
+}  // namespace
+
+uint32_t row_portable(const Coeffs& k, const float* col, const float* rx, const float* ry,
+                      double ry0, const float* I, uint32_t w, float* depth, float* quads) {
+  thread_local std::vector<float> X, Y;  // this thread's row scratch
+  X.resize(w);
+  Y.resize(w);
+  if (ry != nullptr)
+    row_portable_math<true>(k, col, rx, ry, ry0, w, X.data(), Y.data(), depth);
+  else
+    row_portable_math<false>(k, col, rx, ry, ry0, w, X.data(), Y.data(), depth);
+  float* q = quads;
+  for (uint32_t x = 0; x < w; ++x) {  // branch-free: always write, advance if valid
+    q[0] = X[x];
+    q[1] = Y[x];
+    q[2] = depth[x];
+    q[3] = I != nullptr ? I[x] : 0.0f;
+    q += std::isnan(depth[x]) ? 0 : 4;
+  }
+  return static_cast<uint32_t>((q - quads) / 4);
 }
 
-// Same source for AVX2 (no FMA: contraction would change the rounding).
-__attribute__((target("avx2"))) void row_avx2(const Coeffs& k, const float* col, const float* rx,
-                                              const float* ry, uint32_t w, float* X, float* Y,
-                                              float* Z) {
-  row_kernel(k, col, rx, ry, w, X, Y, Z);
+// Finite entries of v[0, n) (the upper bound of the points they can make).
+uint64_t count_finite_portable(const float* v, size_t n) {
+  uint64_t m = 0;
+  for (size_t i = 0; i < n; ++i) m += std::abs(v[i]) <= FLT_MAX ? 1u : 0u;
+  return m;
 }
 
-using RowFn = void (*)(const Coeffs&, const float*, const float*, const float*, uint32_t, float*,
-                       float*, float*);
+}  // namespace detail
+
+namespace {
+
+using detail::Coeffs;
+using detail::count_finite_avx2;
+using detail::count_finite_portable;
+using detail::row_avx2;
+using detail::row_portable;
+using detail::RowFn;
 
 // Copies n floats to dst with non-temporal (streaming) stores where dst is
 // 16-byte aligned: the maps are written once and read later by someone else,
@@ -98,9 +119,17 @@ bool same(const Intrinsics& a, const Intrinsics& b) {
          a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion;
 }
 
+bool cpu_has_avx2_fma() noexcept {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0 && __builtin_cpu_supports("fma") != 0;
+  }();
+  return has;
+}
+
 }  // namespace
 
-bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2") != 0; }
+bool cpu_has_avx2() noexcept { return cpu_has_avx2_fma(); }
 
 ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intrinsics& projector,
                                        uint32_t width, uint32_t height)
@@ -118,9 +147,9 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
   r2t_ = dot(r2, t);
   // Pinhole camera: the ray of pixel (x, y) is ((x - cx) / fx, (y - cy) / fy,
   // 1), so its x depends on the column only and its y on the row only: two
-  // short tables (the same floats a per-pixel table held) instead of 2 x
-  // width x height floats to stream through memory on every call. A camera
-  // with lens distortion needs the undistorted ray of every pixel: full tables.
+  // short tables instead of 2 x width x height floats to stream through
+  // memory on every call. A camera with lens distortion needs the
+  // undistorted ray of every pixel: full tables.
   const Intrinsics& k = cam.intrinsics;
   per_pixel_rays_ = k.distorted();
   if (per_pixel_rays_) {
@@ -134,11 +163,23 @@ ColumnTriangulator::ColumnTriangulator(const CameraCalibration& cam, const Intri
         ray_y_[size_t{y} * width + x] = static_cast<float>(d.y);
       }
   } else {
+    ray_xd_.resize(width);
+    ray_x_lo_.resize(width);
+    ray_yd_.resize(height);
     ray_x_.resize(width);
     ray_y_.resize(height);
-    for (uint32_t x = 0; x < width; ++x) ray_x_[x] = static_cast<float>(k.ray(x, 0).x);
-    for (uint32_t y = 0; y < height; ++y) ray_y_[y] = static_cast<float>(k.ray(0, y).y);
+    for (uint32_t x = 0; x < width; ++x) {
+      ray_xd_[x] = k.ray(x, 0).x;
+      ray_x_[x] = static_cast<float>(ray_xd_[x]);
+      ray_x_lo_[x] = static_cast<float>(ray_xd_[x] - static_cast<double>(ray_x_[x]));
+    }
+    for (uint32_t y = 0; y < height; ++y) {
+      ray_yd_[y] = k.ray(0, y).y;
+      ray_y_[y] = static_cast<float>(ray_yd_[y]);
+    }
   }
+  for (const float v : ray_x_) ray_max_ = std::max(ray_max_, std::abs(v));
+  for (const float v : ray_y_) ray_max_ = std::max(ray_max_, std::abs(v));
 }
 
 bool ColumnTriangulator::matches(const CameraCalibration& cam, const Intrinsics& projector,
@@ -156,81 +197,76 @@ void ColumnTriangulator::run(const ColumnMap& map, uint32_t threads, DepthResult
   if (map.col == nullptr) throw std::invalid_argument("triangulate: no column map");
   const uint32_t w = width_, h = height_;
   const size_t n = size_t{w} * h;
-  const Coeffs k{a_[0], a_[1], a_[2], b_[0], b_[1], b_[2], at_, bt_, r2_[0], r2_[1], r2_[2], r2t_};
+  const Coeffs k{a_[0], a_[1],  a_[2],  b_[0],  b_[1],  b_[2], at_, bt_, r2_[0], r2_[1], r2_[2],
+                 r2t_,  projector_.fx * projector_.fx, projector_.cx,
+                 static_cast<double>(FLT_MAX) / 4.0 / std::max(1.0, static_cast<double>(ray_max_)),
+                 per_pixel_rays_ ? nullptr : ray_xd_.data(),
+                 per_pixel_rays_ ? nullptr : ray_x_lo_.data()};
   const bool avx2 = isa == TriangulateIsa::avx2 ||
-                    (isa == TriangulateIsa::automatic && cpu_has_avx2());
-  const RowFn row = avx2 ? row_avx2 : row_baseline;
+                    (isa == TriangulateIsa::automatic && cpu_has_avx2_fma());
+  const RowFn row = avx2 ? row_avx2 : row_portable;
   // A distorted projector's column is not a plane; with the decoded row the
   // pixel's ideal (undistorted) column is known and its plane is exact.
   const bool correct_projector = projector_.distorted() && map.row != nullptr;
   out.depth_mm.resize(n);
-  // Pass 1: an upper bound on each row's points (its finite columns), so each
-  // row knows where its points go before they exist: no growing vectors.
-  std::vector<uint64_t> first(size_t{h} + 1, 0);  // first[y]: row y's first slot
-  std::vector<uint32_t> count(h, 0);              // points row y actually made
-  parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
-    for (uint32_t y = y0; y < y1; ++y) {
-      const float* c = map.col + size_t{y} * w;
-      uint32_t m = 0;
-      for (uint32_t x = 0; x < w; ++x) m += std::abs(c[x]) <= FLT_MAX ? 1u : 0u;
-      first[size_t{y} + 1] = m;
-    }
+  // Bands of contiguous rows, one per thread; band b's points follow those of
+  // bands 0..b-1 in row-major order.
+  const uint32_t bands = std::clamp<uint32_t>(threads, 1u, std::max(h, 1u));
+  const auto band_row = [&](uint32_t b) { return static_cast<uint32_t>(uint64_t{h} * b / bands); };
+  // Pass 1: an upper bound on each band's points (its finite columns), so
+  // each band knows where its points go before they exist: no growing vectors.
+  std::vector<uint64_t> first(size_t{bands} + 1, 0);  // first[b]: band b's first slot
+  std::vector<uint64_t> made(bands, 0);                // points band b actually made
+  parallel_rows(bands, bands, [&](uint32_t b0, uint32_t b1) {
+    for (uint32_t b = b0; b < b1; ++b)
+      first[size_t{b} + 1] = (avx2 ? count_finite_avx2 : count_finite_portable)(
+          map.col + size_t{band_row(b)} * w, size_t{band_row(b + 1) - band_row(b)} * w);
   });
-  for (uint32_t y = 0; y < h; ++y) first[size_t{y} + 1] += first[y];
-  out.points.resize(first[h] * 4);
+  for (uint32_t b = 0; b < bands; ++b) first[size_t{b} + 1] += first[b];
+  out.points.resize(first[bands] * 4);
   float* const pts = out.points.data();
-  // Pass 2: rays meet planes row by row; each row's points are compacted in
-  // L1 scratch, then copied to the row's slots.
-  parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
-    std::vector<float> X(w), Y(w), Z(w), ry(w), cu(correct_projector ? w : 0), quad(size_t{w} * 4 + 4);
-    for (uint32_t y = y0; y < y1; ++y) {
-      const size_t i0 = size_t{y} * w;
-      const float* rx_row = ray_x_.data();
-      const float* ry_row = ry.data();
-      if (per_pixel_rays_) {
-        rx_row += i0;
-        ry_row = ray_y_.data() + i0;
-      } else {
-        std::fill(ry.begin(), ry.end(), ray_y_[y]);  // this row's ray y (L1)
-      }
-      const float* col_row = map.col + i0;
-      if (correct_projector) {  // the ideal column of each decoded (column, row)
-        for (uint32_t x = 0; x < w; ++x) {
-          const float c = col_row[x], r = map.row[i0 + x];
-          if (!(std::abs(c) <= FLT_MAX) || !(std::abs(r) <= FLT_MAX)) {
-            cu[x] = c;  // NaN stays invalid; a missing row keeps the column as decoded
-            continue;
+  // Pass 2: rays meet planes row by row; each row's depth and packed points
+  // go to L1 scratch, then stream to their places.
+  parallel_rows(bands, bands, [&](uint32_t b0, uint32_t b1) {
+    std::vector<float> depth(w), quads(size_t{w} * 4 + 32), cu(correct_projector ? w : 0);
+    for (uint32_t b = b0; b < b1; ++b) {
+      uint64_t m = 0;
+      for (uint32_t y = band_row(b); y < band_row(b + 1); ++y) {
+        const size_t i0 = size_t{y} * w;
+        const float* rx = ray_x_.data() + (per_pixel_rays_ ? i0 : 0);
+        const float* ry = per_pixel_rays_ ? ray_y_.data() + i0 : nullptr;
+        const double ry0 = per_pixel_rays_ ? 0.0 : ray_yd_[y];
+        const float* col_row = map.col + i0;
+        if (correct_projector) {  // the ideal column of each decoded (column, row)
+          for (uint32_t x = 0; x < w; ++x) {
+            const float c = col_row[x], r = map.row[i0 + x];
+            if (!(std::abs(c) <= FLT_MAX) || !(std::abs(r) <= FLT_MAX)) {
+              cu[x] = c;  // NaN stays invalid; a missing row keeps the column as decoded
+              continue;
+            }
+            double xn, yn;
+            projector_.undistort(c, r, xn, yn);
+            cu[x] = static_cast<float>(projector_.fx * xn + projector_.cx);
           }
-          double xn, yn;
-          projector_.undistort(c, r, xn, yn);
-          cu[x] = static_cast<float>(projector_.fx * xn + projector_.cx);
+          col_row = cu.data();
         }
-        col_row = cu.data();
+        const float* I = map.intensity != nullptr ? map.intensity + i0 : nullptr;
+        const uint32_t got = row(k, col_row, rx, ry, ry0, I, w, depth.data(), quads.data());
+        stream_floats(out.depth_mm.data() + i0, depth.data(), w);
+        stream_floats(pts + (first[b] + m) * 4, quads.data(), size_t{got} * 4);
+        m += got;
       }
-      row(k, col_row, rx_row, ry_row, w, X.data(), Y.data(), Z.data());
-      stream_floats(out.depth_mm.data() + i0, Z.data(), w);
-      const float* I = map.intensity != nullptr ? map.intensity + i0 : nullptr;
-      float* q = quad.data();
-      for (uint32_t x = 0; x < w; ++x) {  // branch-free: always write, advance if valid
-        q[0] = X[x];
-        q[1] = Y[x];
-        q[2] = Z[x];
-        q[3] = I != nullptr ? I[x] : 0.0f;
-        q += std::isnan(Z[x]) ? 0 : 4;
-      }
-      const auto m = static_cast<size_t>(q - quad.data());
-      stream_floats(pts + first[y] * 4, quad.data(), m);
-      count[y] = static_cast<uint32_t>(m / 4);
+      made[b] = m;
     }
     stream_fence();
   });
   // Close the gaps of finite columns that made no point (rare: behind a
   // device, parallel rays); a no-op when every finite column made one.
   uint64_t total = 0;
-  for (uint32_t y = 0; y < h; ++y) {
-    if (total != first[y] && count[y] > 0)
-      std::memmove(pts + total * 4, pts + first[y] * 4, size_t{count[y]} * 4 * sizeof(float));
-    total += count[y];
+  for (uint32_t b = 0; b < bands; ++b) {
+    if (total != first[b] && made[b] > 0)
+      std::memmove(pts + total * 4, pts + first[b] * 4, made[b] * 4 * sizeof(float));
+    total += made[b];
   }
   out.points.resize(total * 4);
   out.point_count = total;

@@ -5,9 +5,12 @@
 // vectors, kept here only as the baseline) against procam::sdk's.
 // Times are wall clock (UseRealTime) and CPU of all threads together
 // (MeasureProcessCPUTime): on a loaded machine the CPU column is the steadier.
-// Run: build/plugins/procam_sdk_triangulate_bench
+// BM_TriangulateNewReused reports `mismatch`: output floats not identical to
+// the per-pixel path's (0: identical points).
+// Run: build/plugins/sdk/procam_sdk_triangulate_bench
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -99,6 +102,24 @@ DepthResult old_triangulate(const CameraCalibration& cam, const Intrinsics& proj
   return r;
 }
 
+// Floats of the depth map and points that are not identical to the
+// per-pixel path's (procam::triangulate_column, computed once), plus any
+// difference in the point count: 0 means identical points.
+size_t mismatch(const DepthResult& got) {
+  static const DepthResult want = old_triangulate(data().cam, data().proj, kW, kH, data().col.data(),
+                                                  data().intensity.data(), 2);
+  if (got.point_count != want.point_count || got.depth_mm.size() != want.depth_mm.size())
+    return std::max(got.points.size(), want.points.size()) + 1;
+  size_t n = 0;
+  for (size_t i = 0; i < want.points.size(); ++i) n += got.points[i] != want.points[i] ? 1u : 0u;
+  for (size_t i = 0; i < want.depth_mm.size(); ++i)
+    n += got.depth_mm[i] != want.depth_mm[i] &&
+                 !(std::isnan(got.depth_mm[i]) && std::isnan(want.depth_mm[i]))
+             ? 1u
+             : 0u;
+  return n;
+}
+
 void set_counters(benchmark::State& state) {
   state.counters["valid_fraction"] = data().valid_fraction;
   state.counters["Mpx/s"] = benchmark::Counter(static_cast<double>(kW) * kH / 1e6,
@@ -142,6 +163,7 @@ void BM_TriangulateNewReused(benchmark::State& state) {
     benchmark::DoNotOptimize(out.points.data());
   }
   set_counters(state);
+  state.counters["mismatch"] = static_cast<double>(mismatch(out));
 }
 BENCHMARK(BM_TriangulateNewReused)
     ->ArgNames({"threads", "avx2"})

@@ -56,19 +56,23 @@ struct ColumnMap {
   const float* row = nullptr;
 };
 
-// Which row kernel run() uses: the compiler-vectorised baseline (SSE2), or the
-// same source compiled for AVX2 (chosen at run time when the CPU has it). Both
-// do the same IEEE operations in the same order (no FMA contraction), so they
-// give bit-identical results (tested).
+// Which row kernel run() uses: the portable double-precision twin (baseline
+// x86-64), or the AVX2+FMA kernel (chosen at run time when the CPU has both;
+// `avx2` forces it: only where cpu_has_avx2()). The AVX2 kernel divides in
+// float and refines the quotient in float pairs (~2^-47 relative), so both
+// give the same points as procam::triangulate_column (a coordinate may differ
+// by 1 ulp only where the double value lies within ~2^-46 of a float rounding
+// boundary) and the same validity decisions (tested against it).
 enum class TriangulateIsa { automatic, baseline, avx2 };
 
-// True when this CPU can run the AVX2 kernel.
+// True when this CPU can run the AVX2 kernel (AVX2 and FMA).
 bool cpu_has_avx2() noexcept;
 
 class ColumnTriangulator {
  public:
-  // Builds the per-pixel camera-ray table (pinhole: d = ((u-cx)/fx,
-  // (v-cy)/fy, 1), stored as float x/y) and the column-plane coefficients.
+  // Builds the camera-ray tables (pinhole: d = ((u-cx)/fx, (v-cy)/fy, 1),
+  // x by column and y by row, in double and float; lens distortion: the
+  // undistorted ray per pixel, float) and the column-plane coefficients.
   // width/height: the camera image the maps come from.
   ColumnTriangulator(const CameraCalibration& cam, const Intrinsics& projector, uint32_t width,
                      uint32_t height);
@@ -95,7 +99,13 @@ class ColumnTriangulator {
   // With lens distortion the undistorted ray depends on both: per-pixel
   // tables (per_pixel_rays_), passed to the same row kernel row by row.
   std::vector<float> ray_x_, ray_y_;
+  // Pinhole: the same rays in double (exact: the reference's rays), which
+  // n.d, n.t and the parallel test use; the float tables serve the float
+  // products x = s dx, y = s dy.
+  std::vector<double> ray_xd_, ray_yd_;
+  std::vector<float> ray_x_lo_;  // ray_xd_ - ray_x_ (the float x's remainder)
   bool per_pixel_rays_ = false;
+  float ray_max_ = 0;  // largest |x| or |y| of any ray (bounds the point's x, y by s)
   // Plane coefficients n(c) = a + c b, n(c).t = at + c bt; r2 = R_2 (the
   // projector's z axis in the camera frame) and r2t = R_2.t for the
   // behind-the-projector test.
