@@ -60,11 +60,15 @@ int cmd_decode(const Args& a) {
   auto t0 = std::chrono::steady_clock::now();
   engine::OfflineOptions offline;
   if (a.has("layout")) offline.layout = a.get("layout");
+  if (const auto* pl = host.find(a.get("plugin")))
+    for (const auto& m : pl->methods)
+      if (m.name == a.get("method")) offline.multi_round = m.describe.value("rounds", nlohmann::json(1)) != nlohmann::json(1);
   auto outcome = engine::run_offline(*session, a.get("frames"), [](const engine::Progress& p) {
     std::fprintf(stderr, "\r  decode round %d %zu/%zu %-24.24s", p.round, p.done, p.total, p.message.c_str());
   }, offline);
   std::fprintf(stderr, "\n");
   if (!outcome) return report(outcome.status());
+  if (!outcome->rounds_skipped.empty()) std::fprintf(stderr, "note: %s\n", outcome->rounds_skipped.c_str());
   auto outs = session->outputs();
   if (!outs) return report(outs.status());
   const std::string out = a.get("out");
@@ -76,7 +80,9 @@ int cmd_decode(const Args& a) {
                       {"method", a.get("method")}, {"params", *params}, {"frames_dir", a.get("frames")},
                       {"layout", offline.layout}, {"inputs", a.list("input")},
                       {"created_utc", engine::utc_now()}, {"finished_utc", engine::utc_now()},
-                      {"plan", {{"rounds", rounds}, {"patterns", outcome->patterns}}},
+                      {"plan", {{"rounds", rounds}, {"patterns", outcome->patterns},
+                                {"rounds_skipped", outcome->rounds_skipped.empty() ? nlohmann::json(nullptr)
+                                                                                   : nlohmann::json(outcome->rounds_skipped)}}},
                       {"timing_ms", {{"decode", outcome->decode_ms},
                                      {"total", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count()}}},
                       {"outputs", written->outputs}, {"previews", written->previews}, {"error", nullptr}};

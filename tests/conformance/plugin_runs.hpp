@@ -110,9 +110,11 @@ struct SimRun {
   std::string skip_reason;
 };
 
-// Runs plugin/method with default parameters on `scene`; ADD_FAILUREs and
-// returns false when any step fails.
-inline bool run_on_sim(const std::string& plugin, const std::string& method, const std::string& scene, SimRun& run) {
+// Runs plugin/method with parameters `params` (JSON; default: the
+// method's defaults) on `scene`; ADD_FAILUREs and returns false when any
+// step fails.
+inline bool run_on_sim(const std::string& plugin, const std::string& method, const std::string& scene, SimRun& run,
+                       const std::string& params = "{}") {
   run.rig = sim_rig(scene);
   if (!run.rig) return false;
   host::PluginHost host;
@@ -124,7 +126,7 @@ inline bool run_on_sim(const std::string& plugin, const std::string& method, con
       if (m.name == method) describe = m.describe;
   std::vector<std::vector<float>> storage;
   const std::vector<host::InputImage> inputs = required_inputs(describe, *run.rig, storage);
-  auto session = host.create_session(plugin, method, "{}", run.rig_json.dump(), inputs);
+  auto session = host.create_session(plugin, method, params, run.rig_json.dump(), inputs);
   if (!session.ok() && session.status().code() == Code::failed_precondition &&
       !session.status().message().empty()) {
     run.skip_reason = session.status().message();

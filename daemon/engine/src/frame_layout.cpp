@@ -42,10 +42,36 @@ std::string expected_order(const std::vector<std::string>& labels, const std::ve
   return s;
 }
 
+// The plan's column and row bit planes (labels "col bit N" / "row bit N",
+// inverses not counted): what the rig's projector size asks for.
+void count_planes(const std::vector<std::string>& labels, size_t& cols, size_t& rows) {
+  cols = rows = 0;
+  const std::string inv = kInverseSuffix;
+  for (const auto& l : labels) {
+    if (l.size() >= inv.size() && l.compare(l.size() - inv.size(), inv.size(), inv) == 0) continue;
+    cols += l.rfind("col bit ", 0) == 0 ? 1u : 0u;
+    rows += l.rfind("row bit ", 0) == 0 ? 1u : 0u;
+  }
+}
+
 Status count_error(const std::string& layout, const std::vector<std::string>& labels,
                   const std::vector<size_t>& order, const std::vector<std::string>& files) {
-  const std::string head = "layout " + layout + ": the plan needs " + std::to_string(order.size()) +
-                           " files but the folder has " + std::to_string(files.size());
+  size_t cols = 0, rows = 0;
+  count_planes(labels, cols, rows);
+  std::string head = "layout " + layout + ": the plan needs " + std::to_string(order.size()) +
+                     " files but the folder has " + std::to_string(files.size());
+  // Pair layouts: each plane is a pattern/inverse pair, so the count says
+  // how many planes the capture holds against the rig's projector size.
+  if ((layout == "opencv-graycode" || layout == "gupta-pairs") && cols + rows > 0) {
+    const size_t extra = layout == "opencv-graycode" ? 2 : 0;  // white, black
+    const size_t pairs = files.size() >= extra ? (files.size() - extra) / 2 : 0;
+    head += " — the rig's projector gives " + std::to_string(cols) + " column" +
+            (rows > 0 ? " + " + std::to_string(rows) + " row" : std::string()) + " planes (" +
+            std::to_string(cols + rows) + " pattern/inverse pairs; a projector " +
+            std::to_string(cols > 0 ? (size_t{1} << (cols - 1)) + 1 : 0) + ".." +
+            std::to_string(cols > 0 ? size_t{1} << cols : 0) + " columns wide has " + std::to_string(cols) +
+            " column planes), the capture holds " + std::to_string(pairs) + " pairs";
+  }
   std::string which;
   if (files.size() > order.size())
     which = "; file " + base_name(files[order.size()]) + " has no frame";

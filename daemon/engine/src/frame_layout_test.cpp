@@ -65,6 +65,14 @@ TEST(FrameLayout, CountMismatchNamesTheFileAndTheFrame) {
   EXPECT_NE(fewer.status().message().find("frame 1 'black' (file #7) is missing"), std::string::npos)
       << fewer.status().to_string();
   EXPECT_NE(fewer.status().hint().find("--rig"), std::string::npos);
+  // A capture for a projector with one more column plane (9 pairs + 2)
+  // against this 4x2 plan (2 column + 1 row planes): both counts named.
+  auto wider = assign_frames("opencv-graycode", kLabels, files(2 * 4 + 2));
+  ASSERT_FALSE(wider.ok());
+  const std::string msg = wider.status().message();
+  EXPECT_NE(msg.find("2 column + 1 row planes"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("3..4 columns wide"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("the capture holds 4 pairs"), std::string::npos) << msg;
 }
 
 TEST(FrameLayout, PairLayoutsNeedInverses) {

@@ -8,7 +8,8 @@
 // Targets (issue 16): the default decode keeps >= 97 % of the pixels the
 // plain decode keeps, with fewer outliers (column more than 3 from both its
 // left and its right neighbour in the row). The outlier target is met by a
-// factor > 100; coverage is 85-95 % (asserted >= 85 %, see below).
+// factor > 100; coverage is 85-95 % with the defaults and 88-97 % with
+// tie_intervals (asserted: those floors, see below).
 // Skipped (GTEST_SKIP, with the reason) when the data folder shared/data
 // beside the repository (or $PROCAM_DATA_DIR) is absent.
 #include <gtest/gtest.h>
@@ -92,10 +93,18 @@ TEST(OfflineRealCapture, OpencvGraycodeLayoutKeepsPlainCoverageWithFewerOutliers
   ASSERT_TRUE(rig_json.ok()) << rig_json.status().to_string();
   host::PluginHost host(host::LoadOptions{.probe_in_child = false});
   host.load_directories({PROCAM_PLUGIN_DIR});
+  // The defaults, and the real-capture setting tie_intervals (exact ties on
+  // an uncertain plane enumerated too; off by default because it raises the
+  // sim metal lamp's gross errors, docs/report/real.md).
+  struct Setting {
+    const char* params;
+    double min_coverage;
+  };
+  for (const Setting& set : {Setting{R"({"rows":true})", 0.85}, Setting{R"({"rows":true,"tie_intervals":true})", 0.88}})
   for (int cap = 0; cap < 5; ++cap) {
     const fs::path dir = kSample / ("capture_" + std::to_string(cap));
-    SCOPED_TRACE(dir.string());
-    auto session = host.create_session("structured-light", "gray", R"({"rows":true})", rig_json->dump());
+    SCOPED_TRACE(dir.string() + " " + set.params);
+    auto session = host.create_session("structured-light", "gray", set.params, rig_json->dump());
     ASSERT_TRUE(session.ok()) << session.status().to_string();
     auto outcome = run_offline(*session, dir.string(), nullptr, OfflineOptions{"opencv-graycode"});
     ASSERT_TRUE(outcome.ok()) << outcome.status().to_string();
@@ -140,16 +149,20 @@ TEST(OfflineRealCapture, OpencvGraycodeLayoutKeepsPlainCoverageWithFewerOutliers
       std::printf("  lost %zu, of which plain column jumps > 2 from a row neighbour: %zu\n", lost, rough);
     }
     const double coverage = static_cast<double>(both) / static_cast<double>(sp.kept);
-    std::printf("capture_%d: plain %zu px (%zu outliers), default %zu px (%zu outliers), coverage %.2f%%, "
+    std::printf("capture_%d %s: plain %zu px (%zu outliers), ours %zu px (%zu outliers), coverage %.2f%%, "
                 "agreement %.2f%%\n",
-                cap, sp.kept, sp.outliers, so.kept, so.outliers, 100 * coverage,
+                cap, set.params, sp.kept, sp.outliers, so.kept, so.outliers, 100 * coverage,
                 100.0 * static_cast<double>(agree) / static_cast<double>(both));
     EXPECT_GT(sp.kept, size_t{kW} * kH / 2) << "the plain decode itself should light most pixels";
-    // Issue 16's target is >= 97 %; measured 85.4-95.1 % (docs/report/real.md:
-    // most lost pixels are ones where the plain column jumps by > 2 from a row
-    // neighbour, i.e. where the plain decode guessed). Asserted: the measured
-    // floor, and far fewer outliers than the plain decode.
-    EXPECT_GE(coverage, 0.85);
+    // Issue 16's target is >= 97 %, not met: 85.4-95.1 % with the defaults,
+    // 88.1-96.6 % with tie_intervals (docs/report/real.md: most lost pixels
+    // have a plain column that jumps by > 2 from a row neighbour, i.e. the
+    // plain decode guessed, or more uncertain planes than a narrow interval
+    // allows; wider intervals cost outliers). Asserted: the measured floor of
+    // each setting, every interval holding the plain column (agreement),
+    // and far fewer outliers than the plain decode.
+    EXPECT_GE(coverage, set.min_coverage);
+    EXPECT_EQ(agree, both) << "every decoded column (or its interval) holds the plain column +- 0.5";
     EXPECT_LT(so.outliers * 100, sp.outliers) << "at least 100x fewer outliers than the plain decode";
   }
 }

@@ -164,11 +164,24 @@ Result<ScanOutcome> run_offline(host::Session& session, const std::string& frame
   std::error_code ec;
   const bool recorded = fs::is_regular_file(fs::path(frames_dir) / recorded_frame_name(1, 0), ec);
   for (int round = 1;; ++round) {
+    std::string dir = round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
+    // A capture with fewer rounds than the method may plan: stop before
+    // planning one that has no frames (a planned round cannot be abandoned).
+    if (round > 1 && (recorded ? !fs::is_regular_file(fs::path(frames_dir) / recorded_frame_name(round, 0), ec)
+                               : !fs::is_directory(dir, ec))) {
+      if (Status s = session.stop(); !s) return s.with_context("stopping after round " + std::to_string(round - 1));
+      if (options.multi_round)
+        out.rounds_skipped = "round " + std::to_string(round) + " and later not run: the capture has " +
+                             (recorded ? "no recorded " + recorded_frame_name(round, 0)
+                                       : "no folder '" + dir + "'") +
+                             "; decoded the " + std::to_string(round - 1) +
+                             " round(s) it has (the method may plan more: capture them there to run them)";
+      break;
+    }
     auto plan = session.next_plan();
     if (!plan) return plan.status().with_context("planning round " + std::to_string(round));
     if (!plan->has_value()) break;
     const host::Plan& p = **plan;
-    std::string dir = round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
     std::vector<std::string> files;
     if (recorded) {
       dir = frames_dir;

@@ -200,6 +200,16 @@ Status Session::end_round() {
   return {};
 }
 
+Status Session::stop() {
+  if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
+  if (in_round_) return Error(Code::failed_precondition, "stop called during a round: call end_round first");
+  if (rounds_ == 0) return Error(Code::failed_precondition, "stop called before any round was decoded");
+  if (proxy_)
+    if (Status s = proxy_->stop(); !s) return s;
+  finished_ = true;
+  return {};
+}
+
 Result<std::vector<Output>> Session::outputs() {
   if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (!finished_)

@@ -396,6 +396,11 @@ Status WorkerProxy::end_round(size_t frames) {
   return m ? Status::Ok() : m.status();
 }
 
+Status WorkerProxy::stop() {
+  auto m = call(wire::Msg::stop, "stop", {}, -1, options_.call_timeout);
+  return m ? Status::Ok() : m.status();
+}
+
 Result<std::vector<Output>> WorkerProxy::outputs() {
   auto m = call(wire::Msg::get_outputs, "get_outputs", {}, -1, round_deadline(last_round_frames_));
   if (!m) return m.status();

@@ -75,6 +75,7 @@ public:
   Status add_frame(uint32_t index, const procam_image& frame);
   Status end_round(size_t frames);
   Result<std::vector<Output>> outputs();
+  Status stop();  // the worker's Session::stop
 
   pid_t pid() const { return pid_; }
 

@@ -24,6 +24,7 @@ const char* msg_name(uint16_t type) {
     case Msg::add_frame: return "add_frame";
     case Msg::end_round: return "end_round";
     case Msg::get_outputs: return "get_outputs";
+    case Msg::stop: return "stop";
     case Msg::hello: return "hello";
     case Msg::ok: return "ok";
     case Msg::error: return "error";

@@ -41,6 +41,7 @@ enum class Msg : uint16_t {
   add_frame = 4,
   end_round = 5,
   get_outputs = 6,
+  stop = 7,  // no more rounds (host::Session::stop)
   // worker -> daemon
   hello = 64,
   ok = 65,

@@ -191,6 +191,12 @@ int serve(const worker::SandboxReport& sandbox) {
         else reply_ok();
         break;
       }
+      case wire::Msg::stop: {
+        Status st = s.session->stop();
+        if (!st) reply_error(st);
+        else reply_ok();
+        break;
+      }
       case wire::Msg::get_outputs: {
         auto outs = s.session->outputs();
         if (!outs) reply_error(outs.status());

@@ -245,28 +245,59 @@ inline uint8_t abs_margin_u8(const uint8_t* L, const uint8_t* R, const uint8_t* 
   return static_cast<uint8_t>(a0 > 255 ? 255 : a0);
 }
 
-// The update for one row once the margins `a` are known: branch-free so the
-// vectoriser turns it into byte min/max/blend (the branches on `synthetic`
-// and `first` are hoisted out by the caller).
-inline void track_row(const uint8_t* __restrict a, size_t n, uint8_t plane, uint8_t* __restrict m1,
-                      uint8_t* __restrict m2, uint8_t* __restrict p1) {
-  for (size_t i = 0; i < n; ++i) {
-    const uint8_t o = m1[i], v = a[i];
-    const uint8_t hi = o > v ? o : v;
-    m2[i] = m2[i] < hi ? m2[i] : hi;
-    p1[i] = v < o ? plane : p1[i];
-    m1[i] = v < o ? v : o;
+// Sorted insertion of margin v (plane q) into pixel i's kTrackedPlanes + 1
+// smallest, branch-free (selects on the old values) so the vectoriser turns
+// it into min/max/blend; a NaN v compares false everywhere and changes nothing.
+template <class T>
+inline void track_insert(const TrackRow<T>& t, size_t i, T v, uint8_t q) {
+  static_assert(kTrackedPlanes == 3, "the insertion below is unrolled for 3 planes");
+  const T m0 = t.m[0][i], m1 = t.m[1][i], m2 = t.m[2][i], m3 = t.m[3][i];
+  const uint8_t p0 = t.p[0][i], p1 = t.p[1][i], p2 = t.p[2][i];
+  const bool l0 = v < m0, l1 = v < m1, l2 = v < m2;
+  const T h0 = v > m0 ? v : m0, h1 = v > m1 ? v : m1, h2 = v > m2 ? v : m2;
+  t.m[3][i] = h2 < m3 ? h2 : m3;
+  t.m[2][i] = h1 < m2 ? h1 : m2;
+  t.m[1][i] = h0 < m1 ? h0 : m1;
+  t.m[0][i] = l0 ? v : m0;
+  t.p[2][i] = l2 ? (l1 ? p1 : q) : p2;
+  t.p[1][i] = l1 ? (l0 ? p0 : q) : p1;
+  t.p[0][i] = l0 ? q : p0;
+}
+
+// The update for one row once the margins `a` are known: track_insert with
+// the row's pointers as restrict parameters, so the loop vectorises (through
+// the struct, or restrict locals, GCC must assume they alias: 8x slower).
+void track_row_ptrs(const uint8_t* __restrict a, size_t n, uint8_t q, uint8_t* __restrict m0p,
+                    uint8_t* __restrict m1p, uint8_t* __restrict m2p, uint8_t* __restrict m3p,
+                    uint8_t* __restrict p0p, uint8_t* __restrict p1p, uint8_t* __restrict p2p) {
+  for (size_t i = 0; i < n; ++i) {  // byte masks and min/max only: vectorises
+    const uint8_t v = a[i], m0 = m0p[i], m1 = m1p[i], m2 = m2p[i], m3 = m3p[i];
+    const uint8_t p0 = p0p[i], p1 = p1p[i], p2 = p2p[i];
+    const auto k0 = static_cast<uint8_t>(v < m0 ? 0xFF : 0), k1 = static_cast<uint8_t>(v < m1 ? 0xFF : 0),
+               k2 = static_cast<uint8_t>(v < m2 ? 0xFF : 0);
+    const uint8_t h0 = v > m0 ? v : m0, h1 = v > m1 ? v : m1, h2 = v > m2 ? v : m2;
+    m3p[i] = h2 < m3 ? h2 : m3;
+    m2p[i] = h1 < m2 ? h1 : m2;
+    m1p[i] = h0 < m1 ? h0 : m1;
+    m0p[i] = v < m0 ? v : m0;
+    const auto t1 = static_cast<uint8_t>((k0 & p0) | (~k0 & q));  // plane that moves to slot 1
+    const auto t2 = static_cast<uint8_t>((k1 & p1) | (~k1 & q));  // to slot 2
+    p2p[i] = static_cast<uint8_t>((k2 & t2) | (~k2 & p2));
+    p1p[i] = static_cast<uint8_t>((k1 & t1) | (~k1 & p1));
+    p0p[i] = static_cast<uint8_t>((k0 & q) | (~k0 & p0));
   }
+}
+inline void track_row(const uint8_t* a, size_t n, uint8_t q, const TrackRow<uint8_t>& t) {
+  track_row_ptrs(a, n, q, t.m[0], t.m[1], t.m[2], t.m[3], t.p[0], t.p[1], t.p[2]);
 }
 }  // namespace
 
 void track_u8(const uint8_t* __restrict L, const uint8_t* __restrict R, const uint8_t* __restrict B,
-              bool synthetic, size_t n, uint8_t plane, bool first, uint8_t* __restrict m1,
-              uint8_t* __restrict m2, uint8_t* __restrict p1) {
+              bool synthetic, size_t n, uint8_t plane, bool first, const TrackRow<uint8_t>& t) {
   if (first) {
-    for (size_t i = 0; i < n; ++i) m1[i] = abs_margin_u8(L, R, B, synthetic, i);
-    std::memset(m2, 255, n);
-    std::memset(p1, plane, n);
+    for (size_t i = 0; i < n; ++i) t.m[0][i] = abs_margin_u8(L, R, B, synthetic, i);
+    for (int j = 1; j <= kTrackedPlanes; ++j) std::memset(t.m[j], 255, n);
+    for (int j = 0; j < kTrackedPlanes; ++j) std::memset(t.p[j], plane, n);
     return;
   }
   // Margins of a chunk first (u8 |L - R| is max - min: no widening), then the
@@ -285,26 +316,25 @@ void track_u8(const uint8_t* __restrict L, const uint8_t* __restrict R, const ui
     } else {
       for (size_t i = 0; i < m; ++i) a[i] = abs_margin_u8(L, R, B, true, x0 + i);
     }
-    track_row(a, m, plane, m1 + x0, m2 + x0, p1 + x0);
+    TrackRow<uint8_t> c = t;
+    for (auto*& p : c.m) p += x0;
+    for (auto*& p : c.p) p += x0;
+    track_row(a, m, plane, c);
   }
 }
 
 void track_f(const float* __restrict L, const float* __restrict L_bar, size_t n, uint8_t plane,
-             bool first, float* __restrict m1, float* __restrict m2, uint8_t* __restrict p1) {
+             bool first, const TrackRow<float>& t) {
   const float inf = std::numeric_limits<float>::infinity();
   for (size_t i = 0; i < n; ++i) {
     const float a = std::fabs(L[i] - L_bar[i]);  // NaN: every comparison false, nothing lowered
     if (first) {
-      m1[i] = a == a ? a : inf;
-      m2[i] = inf;
-      p1[i] = plane;
+      t.m[0][i] = a == a ? a : inf;
+      for (int j = 1; j <= kTrackedPlanes; ++j) t.m[j][i] = inf;
+      for (int j = 0; j < kTrackedPlanes; ++j) t.p[j][i] = plane;
       continue;
     }
-    const float o = m1[i];
-    const float hi = a > o ? a : o;  // max(o, a); o if a is NaN
-    m2[i] = hi < m2[i] ? hi : m2[i];
-    p1[i] = a < o ? plane : p1[i];
-    m1[i] = a < o ? a : o;
+    track_insert<float>(t, i, a, plane);
   }
 }
 

@@ -93,18 +93,33 @@ void set_avx512_enabled(bool enabled);
 // identical results.
 void intensity_u8(const uint8_t* src, size_t n, float inv_scale, float* out);
 
-// Single-uncertain-plane tracking (decode.hpp, decode_uncertain): per pixel
-// the smallest margin m1 over a code's strict planes, the plane p1 it came
-// from and the second smallest m2 (so "only plane p1 is uncertain" is
-// m1 <= thr < m2). 8-bit: margins saturated at 255 as above, d = L - L̄
-// (inverse) or 2L - W - B (synthetic, B may be null); float: a NaN margin
-// never lowers them. `first`: the first strict plane of the code (stored,
-// m2 = max). Plain loops without branches (the vectorizer compiles them);
-// no intrinsics, so there is no SIMD twin to keep identical.
+// Uncertain-plane tracking (decode.hpp, decode_uncertain): per pixel the
+// kTrackedPlanes smallest margins over a code's strict planes in ascending
+// order, m[0] <= m[1] <= m[2], the planes p[0..2] they came from, and the
+// next smallest m[3] — so "exactly planes p[0..j-1] are uncertain" is
+// m[j-1] <= thr < m[j], j <= 3. 8-bit: margins saturated at 255 as above,
+// d = L - L̄ (inverse) or 2L - W - B (synthetic, B may be null); float: a NaN
+// margin never lowers them. `first`: the first strict plane of the code
+// (stored, the others = max). Plain loops without branches (the vectorizer
+// compiles them); no intrinsics, so there is no SIMD twin to keep identical.
+inline constexpr int kTrackedPlanes = 3;
+template <class T>
+struct TrackRow {
+  T* m[kTrackedPlanes + 1];      // ascending margins, then the next smallest
+  uint8_t* p[kTrackedPlanes];    // plane of m[j]
+  // The row at pixel offset `off` of per-pixel arrays (anything with get()).
+  template <class A, class P>
+  static TrackRow at(A (&m)[kTrackedPlanes + 1], P (&p)[kTrackedPlanes], size_t off) {
+    TrackRow r{};
+    for (int j = 0; j <= kTrackedPlanes; ++j) r.m[j] = m[j].get() + off;
+    for (int j = 0; j < kTrackedPlanes; ++j) r.p[j] = p[j].get() + off;
+    return r;
+  }
+};
 void track_u8(const uint8_t* L, const uint8_t* R, const uint8_t* B, bool synthetic, size_t n,
-              uint8_t plane, bool first, uint8_t* m1, uint8_t* m2, uint8_t* p1);
-void track_f(const float* L, const float* L_bar, size_t n, uint8_t plane, bool first, float* m1,
-             float* m2, uint8_t* p1);
+              uint8_t plane, bool first, const TrackRow<uint8_t>& t);
+void track_f(const float* L, const float* L_bar, size_t n, uint8_t plane, bool first,
+             const TrackRow<float>& t);
 
 // L̄ = W + B - L for n pixels (synthetic inverse, see above; B may be null = 0).
 void synthesize_inverse(const float* L, const float* white, const float* black, size_t n,

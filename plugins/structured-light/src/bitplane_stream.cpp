@@ -157,8 +157,8 @@ void BitPlaneStream::set_format(const procam_image& frame) {
     const int margins = s.has_weak ? 2 : 1;
     s.tracked = track_;
     if (track_) {
-      s.t_plane = make_pixel_array<uint8_t>(n);
-      for (int k = 0; k < 2; ++k) {
+      for (auto& p : s.t_plane) p = make_pixel_array<uint8_t>(n);
+      for (int k = 0; k <= CodeState::kTracked; ++k) {
         if (u8_)
           s.t8[k] = make_pixel_array<uint8_t>(n);
         else
@@ -283,7 +283,7 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
         if (track)
           track_u8(sdk::row_bytes(plane, y), inverse != nullptr ? sdk::row_bytes(*inverse, y) : white + off,
                    inverse != nullptr || black == nullptr ? nullptr : black + off, inverse == nullptr, w,
-                   plane_index, first, s.t8[0].get() + off, s.t8[1].get() + off, s.t_plane.get() + off);
+                   plane_index, first, TrackRow<uint8_t>::at(s.t8, s.t_plane, off));
       }
     });
   } else {
@@ -306,8 +306,7 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
         fold_plane(row_l.data(), row_lb.data(), w, position, full_scale_, word + off,
                    margin + off, flags + off);
         if (track)
-          track_f(row_l.data(), row_lb.data(), w, plane_index, first, s.tf[0].get() + off,
-                  s.tf[1].get() + off, s.t_plane.get() + off);
+          track_f(row_l.data(), row_lb.data(), w, plane_index, first, TrackRow<float>::at(s.tf, s.t_plane, off));
       }
     });
   }

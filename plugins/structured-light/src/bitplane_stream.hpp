@@ -135,11 +135,13 @@ struct CodeState {
   PixelArray<uint8_t> flags;
   uint32_t folded[2] = {0, 0};      // planes folded into margin [0] / [1]
   uint32_t bytes_folded[2] = {0, 0};  // planes folded into wbyte[0] / [1] (or word)
-  // Single-uncertain-plane tracking over the strict planes (binarize.hpp
-  // track_u8 / track_f; only with BitPlaneStream::track_single_planes):
-  // smallest margin, its plane (0 = most significant), second smallest.
-  PixelArray<uint8_t> t8[2], t_plane;  // 8-bit: m1, m2
-  PixelArray<float> tf[2];             // float: m1, m2
+  // Uncertain-plane tracking over the strict planes (binarize.hpp track_u8 /
+  // track_f; only with BitPlaneStream::track_single_planes): the kTracked
+  // smallest margins in ascending order with their planes (0 = most
+  // significant), and the next smallest margin t8/tf[kTracked].
+  static constexpr int kTracked = kTrackedPlanes;
+  PixelArray<uint8_t> t8[kTracked + 1], t_plane[kTracked];  // 8-bit margins
+  PixelArray<float> tf[kTracked + 1];                        // float margins
   bool tracked = false;
 };
 
@@ -200,9 +202,9 @@ class BitPlaneStream {
   const uint8_t* black8() const { return layout_.black >= 0 ? black8_.get() : nullptr; }
   const float* white_f() const { return white_f_.get(); }
   const float* black_f() const { return layout_.black >= 0 ? black_f_.get() : nullptr; }
-  // Track, per pixel and code, the smallest and second smallest strict
-  // margin and the smallest's plane (CodeState::t8 / tf / t_plane); call
-  // before the first frame.
+  // Track, per pixel and code, the CodeState::kTracked smallest strict
+  // margins, their planes and the next margin (CodeState::t8 / tf /
+  // t_plane); call before the first frame.
   void track_single_planes(bool on) { track_ = on; }
   // The noise model of this capture (see above); call when complete.
   NoiseFit fit_noise() const;

@@ -531,101 +531,95 @@ size_t decode_code_maps(const DecodeContext& ctx, size_t c, const WordMap& map, 
   return weak;
 }
 
-CoarseMap coarse_map(const StripeCode& code, const std::vector<uint8_t>& tolerable) {
-  CoarseMap m;
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  m.centre.assign(code.lut.size(), nan);
-  m.half.assign(code.lut.size(), nan);
+uint32_t tolerable_mask(const std::vector<uint8_t>& tolerable, uint32_t bits) {
   uint32_t mask = 0;
-  for (uint32_t p = 0; p < code.bits && p < tolerable.size(); ++p)
-    if (tolerable[p] != 0) mask |= 1u << (code.bits - 1 - p);
-  for (size_t w = 0; w < code.lut.size(); ++w) {
-    uint32_t lo = StripeCode::kInvalid, hi = 0;
-    // Every subset of the mask (including the empty one).
-    for (uint32_t sub = mask;; sub = (sub - 1) & mask) {
-      const uint32_t c = code.lut[w ^ sub];
-      if (c != StripeCode::kInvalid) {
-        lo = std::min(lo, c);
-        hi = std::max(hi, c);
-      }
-      if (sub == 0) break;
-    }
-    if (lo == StripeCode::kInvalid) continue;
-    m.centre[w] = 0.5f * (static_cast<float>(lo) + static_cast<float>(hi));
-    m.half[w] = 0.5f * static_cast<float>(hi - lo);
-  }
-  return m;
+  for (uint32_t p = 0; p < bits && p < tolerable.size(); ++p)
+    if (tolerable[p] != 0) mask |= 1u << (bits - 1 - p);
+  return mask;
 }
 
 size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
-                        const CoarseMap& map, size_t b, size_t e, const BaseRow& row, float* coord,
-                        uint8_t* valid, float* uncertainty) {
+                        const UncertainRule& rule, size_t b, size_t e, const BaseRow& row,
+                        float* coord, uint8_t* valid, float* uncertainty) {
   const BitPlaneStream& s = ctx.s;
   const CodeState& st = s.code(c);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const bool strict_any = st.folded[0] > 0;
-  const bool single = st.tracked && strict_any;
+  const bool tracked = st.tracked && strict_any;
   const uint8_t* lo = st.wbyte[0].get();
   const uint8_t* hi = st.wbyte[1].get();
   const int32_t* table = words.table.data();
-  const bool have_coarse = !map.centre.empty();
+  const float fs = s.full_scale();
+  const int32_t scale = std::max(words.scale, 1);  // table value per coordinate unit
+  constexpr int kT = CodeState::kTracked;
   size_t used = 0;
   for (size_t i = b; i < e; ++i) {
     const size_t k = i - b;
-    // signed_*: the uncertain plane's margin is > 0 — an exact tie or a
-    // clipped pair (8-bit: L = L-bar = 255) says nothing, not even that a
-    // stripe edge is near, so it never gets an interval.
-    bool strict_ok = false, weak_ok = true, clean = true, only_one = false;
-    bool signed_weak = false, signed_single = false;
+    // Margins against the pixel's threshold, as the kernels compare them
+    // (8-bit: integer margin m is uncertain when m <= gate).
+    int n_strict = kT + 1;  // uncertain strict planes (kT + 1: more than tracked)
+    bool weak_unc = false, tie = false, clean = true;
     uint32_t word = 0;
-    if (s.u8()) {  // integer margins against the gate, as the kernels compare them
-      strict_ok = !strict_any || st.m8[0][i] > row.gate[k];
-      if (st.has_weak) weak_ok = st.m8[1][i] > row.gate[k];
-      if (single) only_one = st.t8[1][i] > row.gate[k];
-      signed_weak = st.has_weak && st.m8[1][i] > 0;
-      signed_single = single && st.t8[0][i] > 0;
+    if (!strict_any) n_strict = 0;
+    if (strict_any && !tracked)  // no tracking: certain strict planes, or too many to say
+      n_strict = (s.u8() ? st.m8[0][i] > row.gate[k] : st.mf[0][i] > row.thr[k]) ? 0 : kT + 1;
+    if (s.u8()) {
+      const uint8_t g = row.gate[k];
+      if (tracked)
+        for (int j = 0; j <= kT; ++j)
+          if (st.t8[j][i] > g) {
+            n_strict = j;
+            break;
+          }
+      weak_unc = st.has_weak && st.m8[1][i] <= g;
+      tie = (n_strict > 0 && st.m8[0][i] == 0) || (weak_unc && st.m8[1][i] == 0);
       word = lo[i] | (hi != nullptr ? uint32_t{hi[i]} << 8 : 0u);
     } else {
+      const float t = row.thr[k];
       clean = st.flags[i] == 0;
-      strict_ok = !strict_any || st.mf[0][i] > row.thr[k];
-      if (st.has_weak) weak_ok = st.mf[1][i] > row.thr[k];
-      if (single) only_one = st.tf[1][i] > row.thr[k];
-      signed_weak = st.has_weak && st.mf[1][i] > 0.0f;
-      signed_single = single && st.tf[0][i] > 0.0f;
+      if (tracked)
+        for (int j = 0; j <= kT; ++j)
+          if (st.tf[j][i] > t) {
+            n_strict = j;
+            break;
+          }
+      weak_unc = st.has_weak && !(st.mf[1][i] > t);
+      tie = (n_strict > 0 && !(st.mf[0][i] > 0.0f)) || (weak_unc && !(st.mf[1][i] > 0.0f));
       word = st.word[i];
     }
-    // The candidate set's interval [lo_c, hi_c] per word: the weak planes'
-    // block where they are uncertain, else the word's own value.
-    auto interval = [&](uint32_t w, float& l, float& h) {
-      if (!weak_ok && have_coarse) {
-        l = map.centre[w] - map.half[w];
-        h = map.centre[w] + map.half[w];
-      } else {
-        l = h = table[w] >= 0 ? static_cast<float>(table[w]) : nan;
-      }
-    };
     bool take = false;
     float centre = nan, half = nan;
-    if (row.base_ok[k] != 0 && clean) {
-      if (strict_ok && !weak_ok && signed_weak && have_coarse && std::isfinite(map.centre[word])) {
-        take = true;  // only tolerable planes uncertain
-        centre = map.centre[word];
-        half = map.half[word];
-      } else if (!strict_ok && only_one && signed_single && (weak_ok || signed_weak)) {
-        // Exactly one strict plane uncertain: the word or the word with that
-        // bit flipped. Taken only where their intervals touch (a stripe edge
-        // of that plane runs through the pixel); elsewhere the flip would be
-        // a jump and the pixel stays invalid.
-        const uint32_t w2 = word ^ (1u << (st.bits - 1 - st.t_plane[i]));
-        float l1, h1, l2, h2;
-        interval(word, l1, h1);
-        interval(w2, l2, h2);
-        if (std::isfinite(l1) && std::isfinite(l2) && l2 <= h1 + 1.0f && l1 <= h2 + 1.0f) {
-          take = true;
-          const float l = std::min(l1, l2), h = std::max(h1, h2);
-          centre = 0.5f * (l + h);
-          half = 0.5f * (h - l);
+    // An exact tie carries no sign: with rule.ties it is enumerated like any
+    // uncertain plane, but only where the white is not clipped — a clipped
+    // pair (L = L-bar = full scale) ties too, and there no plane can be
+    // trusted. Off by default: on the sim's metal lamp (specular) ties are
+    // mostly wrong elsewhere too (docs/report/real.md).
+    const float white = s.u8() ? static_cast<float>(s.white8()[i]) : s.white_f()[i];
+    const bool tie_ok = !tie || (rule.ties && white < fs);
+    if (row.base_ok[k] != 0 && clean && tie_ok && (n_strict > 0 || weak_unc) && n_strict <= kT) {
+      uint32_t mask = weak_unc ? rule.weak_mask : 0u;
+      for (int j = 0; j < n_strict; ++j) mask |= 1u << (st.bits - 1 - st.t_plane[j][i]);
+      int32_t vlo = std::numeric_limits<int32_t>::max(), vhi = -1, count = 0;
+      for (uint32_t sub = mask;; sub = (sub - 1) & mask) {  // every subset, the empty one last
+        const int32_t v = table[word ^ sub];
+        if (v >= 0) {
+          vlo = std::min(vlo, v);
+          vhi = std::max(vhi, v);
+          ++count;
         }
+        if (sub == 0) break;
+      }
+      // Every candidate a code word (a flip beyond the code's length is no
+      // evidence for the others; the one-plane rule before required it of
+      // the flipped word too), and contiguous (a flip that jumps is no
+      // stripe edge; without it the sim's shower curtain had 8x the gross
+      // errors): distinct words have distinct values, so
+      // the candidates fill [lo, hi] exactly when there are
+      // (hi - lo) / scale + 1 of them.
+      if (vhi >= 0 && count == (int32_t{1} << __builtin_popcount(mask)) && (vhi - vlo) / scale + 1 == count) {
+        half = 0.5f * static_cast<float>(vhi - vlo) / static_cast<float>(scale);
+        centre = 0.5f * static_cast<float>(vlo + vhi) / static_cast<float>(scale);
+        take = half <= rule.max_half;
       }
     }
     if (take) {
@@ -633,6 +627,10 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
       if (valid != nullptr) valid[k] = 255;
       uncertainty[k] = half;
       ++used;
+    } else if (n_strict > 0 || weak_unc) {  // uncertain and not resolved: invalid
+      coord[k] = nan;
+      if (valid != nullptr) valid[k] = 0;
+      uncertainty[k] = nan;
     } else {
       uncertainty[k] = std::isnan(coord[k]) ? nan : 0.0f;
     }

@@ -161,40 +161,41 @@ size_t decode_code_maps(const DecodeContext& ctx, size_t c, const WordMap& map, 
                         size_t e, const BaseRow& row, int32_t* scratch, float* coord,
                         uint8_t* valid, float* confidence);
 
-// Uncertain finest planes (issue 16): instead of rejecting a pixel whose
-// strict planes pass rule 3 but some tolerable plane does not (margin <= thr,
-// or an exact tie), report the interval of coordinates that the tolerable
-// planes allow. Per word w: the set of coordinates coord(w XOR m) over every
-// subset m of the tolerable planes' bits that is a code word; `centre` =
-// (min + max) / 2 and `half` = (max - min) / 2 of that set (NaN where the set
-// is empty). For the Gray code with the k finest planes tolerable the set is
-// the aligned block of 2^k columns around the decoded one (half = (2^k - 1) / 2:
-// 0.5 for one plane, 1.5 for two). Word-indexed like WordMap::table.
-struct CoarseMap {
-  std::vector<float> centre, half;
+// Uncertain planes (issue 16): instead of rejecting a pixel whose bits are
+// not all certain, report the interval of coordinates its uncertain planes
+// allow, when that interval is narrow. A plane is uncertain when its margin
+// is not above the pixel's threshold (rule 3; a tolerable plane too, even
+// when decode_code tolerated it). With at most CodeState::kTracked uncertain
+// strict planes (tracked by BitPlaneStream::track_single_planes) the
+// candidate words are the word with every subset of the uncertain planes'
+// bits flipped (every tolerable plane's bit, when the tolerable margin is
+// uncertain): at most 2^(kTracked + tolerable planes) words. Their code
+// words' coordinates span [lo, hi]; when (hi - lo) / 2 <= max_half the pixel
+// gets coord = (lo + hi) / 2, uncertainty = (hi - lo) / 2 and valid, so the
+// interval holds every candidate — the true coordinate whenever the certain
+// planes are right. For the Gray code at a stripe edge of plane k blurred
+// with the finest plane the candidates are the 4 columns around the edge
+// (half 1.5). Every candidate must be a code word and the candidates must
+// fill [lo, hi] without a gap (a flip that jumps is no stripe edge). An
+// exact tie (margin 0) is enumerated like any uncertain plane only with
+// `ties` and where the white is below full scale: a clipped pair ties as
+// well, and there no plane is trustworthy; without `ties` a tied pixel is
+// invalid. Anything else — more than kTracked uncertain strict planes, a
+// candidate that is no code word, a gap, or a wider interval — is invalid.
+// Confidence stays min margin / C (below thr / C: lower than any certain
+// pixel's at the same contrast). Certain pixels keep their value with
+// uncertainty 0; invalid ones NaN. Returns the number given an interval.
+// Scalar (the uncertain pixels are a small remainder).
+struct UncertainRule {
+  uint32_t weak_mask = 0;   // word bits of the tolerable planes (tolerable_mask)
+  float max_half = 1.5f;    // widest half-interval reported, in coordinate units
+  bool ties = false;        // enumerate exactly tied planes (white unclipped)
 };
-CoarseMap coarse_map(const StripeCode& code, const std::vector<uint8_t>& tolerable);
-
-// After decode_code_maps for pixels [b, e) of code c, where rules 1 and 2 hold:
-//  - rule 3 holds on the strict planes but a tolerable plane's margin is not
-//    above the threshold: the interval of the word (`map`, may be empty = no
-//    tolerable planes);
-//  - exactly one strict plane p is uncertain (the code's state tracks the
-//    smallest and second smallest strict margin, BitPlaneStream::
-//    track_single_planes): the union of the intervals of the word and of the
-//    word with p's bit flipped (each the word's value, or its tolerable-plane
-//    interval where those are uncertain too), taken only when the two touch
-//    (|difference| <= 1 column between them) — a stripe edge of plane p runs
-//    through the pixel, so it sees both columns. Anything else (two strict
-//    planes uncertain, or a flip that jumps) stays invalid.
-// There coord = centre, valid = 255 and uncertainty = half-width; confidence
-// stays min margin / C (below thr / C: lower than any certain pixel's at the
-// same contrast). Elsewhere uncertainty = 0 where valid, NaN where invalid.
-// Returns the number of pixels given an interval. Scalar (runs on the
-// invalid remainder's state only through plain loads).
+// Word bits (bit bits-1-p for plane p) of the planes flagged in `tolerable`.
+uint32_t tolerable_mask(const std::vector<uint8_t>& tolerable, uint32_t bits);
 size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
-                        const CoarseMap& map, size_t b, size_t e, const BaseRow& row, float* coord,
-                        uint8_t* valid, float* uncertainty);
+                        const UncertainRule& rule, size_t b, size_t e, const BaseRow& row,
+                        float* coord, uint8_t* valid, float* uncertainty);
 
 // The per-row decode loop shared by the decoders: on the stream's pool, for
 // every row, decode_base into a per-band BaseRow (lit / intensity written

@@ -599,29 +599,13 @@ TEST(NoiseRule, MarginWithinKSigmaIsRejected) {
   }
 }
 
-// Gray code, the k finest planes tolerable: the interval is the aligned block
-// of 2^k columns (clipped to the code's length), written out independently.
-TEST(UncertainPlanes, GrayCoarseMapIsTheAlignedBlock) {
-  const StripeCode cols = make_gray_code(1000);
-  for (uint32_t k : {1u, 2u}) {
-    std::vector<uint8_t> tol(cols.bits, 0);
-    for (uint32_t p = cols.bits - k; p < cols.bits; ++p) tol[p] = 1;
-    const CoarseMap m = coarse_map(cols, tol);
-    const uint32_t block = 1u << k;
-    for (uint32_t x = 0; x < 1000; ++x) {
-      const uint32_t lo = x / block * block, hi = std::min(lo + block - 1, 999u);
-      const uint32_t w = cols.words[x];
-      ASSERT_EQ(m.centre[w], 0.5f * static_cast<float>(lo + hi)) << x;
-      ASSERT_EQ(m.half[w], 0.5f * static_cast<float>(hi - lo)) << x;
-    }
-  }
-}
-
 // With uncertain output, a pixel whose finest plane is a near tie gets the
-// two-column interval (centre col +- 0.5 around the truth's pair); an exact
-// tie (no sign: also what a clipped pair looks like at 8 bit) and a near tie
-// on a coarser plane away from its edge stay invalid; other pixels are exact
-// with uncertainty 0.
+// two-column interval (centre col +- 0.5 around the truth's pair), and so
+// does an exact tie under an unclipped white (with ties enumerated; invalid
+// without); an exact tie under a clipped
+// white (what a clipped pair looks like at 8 bit) and a near tie on a
+// coarser plane away from its edge stay invalid; other pixels are exact with
+// uncertainty 0.
 TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
   const StripeCode cols = make_gray_code(kProjW);
   const std::vector<int32_t> col = truth_columns();
@@ -636,11 +620,21 @@ TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
     frames[f].set(i, midv + sign * frac * s.contrast / 2, s);
     frames[f + 1].set(i, midv - sign * frac * s.contrast / 2, s);
   };
+  const size_t clipped = 12 * kCamW + 303;
   set(finest, weak, 0.05);
   set(finest, tie, 0.0);
   set(mid, coarse, 0.05);
+  frames[static_cast<size_t>(layout.white_index())].set(clipped, 255, s);
+  frames[finest].set(clipped, 255, s);
+  frames[finest + 1].set(clipped, 255, s);
+  BinaryRoundDecoder plain_dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
+  plain_dec.set_uncertain_output(true);  // ties off (the default)
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(plain_dec.add_frame(i, frames[i].img).ok());
+  const RoundResult no_ties = plain_dec.finish(0.03, 0.1, 3.0);
+  EXPECT_EQ(no_ties.cols.valid[tie], 0) << "without tie_intervals a tie is invalid";
+  EXPECT_EQ(no_ties.cols.valid[weak], 255);
   BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
-  dec.set_uncertain_output(true);
+  dec.set_uncertain_output(true, 1.5f, true);
   for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
   const RoundResult r = dec.finish(0.03, 0.1, 3.0);
   const auto c = static_cast<uint32_t>(col[weak]);
@@ -648,18 +642,22 @@ TEST(UncertainPlanes, FinestPlaneTieGivesTheIntervalNotNothing) {
   EXPECT_EQ(r.cols.coord[weak], static_cast<float>(c / 2 * 2) + 0.5f);
   EXPECT_EQ(r.cols.uncertainty[weak], 0.5f);
   EXPECT_LE(r.cols.confidence[weak], 0.1f) << "lower than a certain pixel's";
-  EXPECT_EQ(r.cols.valid[tie], 0) << "an exact tie carries no information";
-  EXPECT_TRUE(std::isnan(r.cols.uncertainty[tie]));
+  const auto ct = static_cast<uint32_t>(col[tie]);
+  EXPECT_EQ(r.cols.valid[tie], 255) << "a tie under an unclipped white: either sign";
+  EXPECT_EQ(r.cols.coord[tie], static_cast<float>(ct / 2 * 2) + 0.5f);
+  EXPECT_EQ(r.cols.uncertainty[tie], 0.5f);
+  EXPECT_EQ(r.cols.valid[clipped], 0) << "a tie under a clipped white carries no information";
+  EXPECT_TRUE(std::isnan(r.cols.uncertainty[clipped]));
   EXPECT_EQ(r.cols.valid[coarse], 0);
   EXPECT_TRUE(std::isnan(r.cols.uncertainty[coarse]));
   size_t exact = 0, lit = 0;
   for (size_t i = 0; i < col.size(); ++i) {
-    if (col[i] < 0 || i == weak || i == tie || i == coarse) continue;
+    if (col[i] < 0 || i == weak || i == tie || i == coarse || i == clipped) continue;
     ++lit;
     exact += r.cols.coord[i] == static_cast<float>(col[i]) && r.cols.uncertainty[i] == 0.0f ? 1u : 0u;
   }
   EXPECT_EQ(exact, lit);
-  EXPECT_EQ(r.cols_weak, 1u);
+  EXPECT_EQ(r.cols_weak, 2u);
 }
 
 // One strict plane nearly tied (margin 2 DN, below 3 sigma_d and 0.1 C): at
@@ -702,6 +700,95 @@ TEST(UncertainPlanes, SingleStrictPlaneTieOnlyAtItsStripeEdge) {
   EXPECT_NEAR(r.cols.confidence[edge], 0.01f, 0.0005f) << "the tied plane's margin 2 / C, C = 200 +- 6";
   EXPECT_EQ(r.cols.valid[inner], 0) << "a flip away from the edge is a 2^k jump: not an interval";
   EXPECT_TRUE(std::isnan(r.cols.coord[inner]));
+}
+
+
+// Several strict planes nearly tied at once (margin 2 DN each): the decoder
+// reports the interval of every column whose word differs from the pixel's
+// only in those planes, when every such word is a column, they leave no gap
+// and the half-width is <= 1.5, and nothing otherwise;
+// with 4 uncertain strict planes (more than tracked) the pixel is invalid.
+// The expected sets are enumerated here from StripeCode::bit over all
+// projector columns (not from the decoder's lookup table).
+TEST(UncertainPlanes, SeveralStrictPlanesGiveTheirIntervalWhenNarrow) {
+  const StripeCode cols = make_gray_code(kProjW);
+  const std::vector<int32_t> col = truth_columns();
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[0].sensor;
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 41);
+  const uint32_t strict = cols.bits - 1;  // planes 0 .. bits-2 are strict, bits-1 tolerable
+  auto tie = [&](size_t i, uint32_t plane) {  // margin +-2 with the true sign
+    const size_t f = 2 + 2 * size_t{plane};
+    const double sign = cols.bit(plane, static_cast<uint32_t>(col[i])) ? 1.0 : -1.0;
+    frames[f].set(i, s.black + s.contrast / 2 + sign, s);
+    frames[f + 1].set(i, s.black + s.contrast / 2 - sign, s);
+  };
+  struct Probe {
+    size_t i;
+    std::vector<uint32_t> planes;
+  };
+  std::vector<Probe> probes;
+  // Rows 50..90, every 7th pixel (all lit): the one or three strict planes
+  // whose stripe edges lie nearest the pixel's column (narrow intervals
+  // where a single edge runs through it) or a fixed coarse pair (wide
+  // ones); one pixel with four.
+  for (uint32_t y = 50; y < 90; y += 2)
+    for (uint32_t x = 200; x < 580; x += 7) {
+      const size_t i = size_t{y} * kCamW + x;
+      const auto c = static_cast<uint32_t>(col[i]);
+      std::vector<uint32_t> near;
+      for (uint32_t d = 1; d < 8 && near.size() < 3; ++d)  // planes flipping at c-d|c-d+1, c+d-1|c+d
+        for (uint32_t cc : {c - d, c + d - 1})
+          for (uint32_t p = 0; p < strict; ++p)
+            if (cc + 1 < kProjW && cols.bit(p, cc) != cols.bit(p, cc + 1) &&
+                std::find(near.begin(), near.end(), p) == near.end() && near.size() < 3)
+              near.push_back(p);
+      if ((x / 7 + y) % 3 == 0) near = {strict - 3, strict - 5};
+      if ((x / 7 + y) % 3 == 1) near.resize(std::min<size_t>(near.size(), 1));
+      probes.push_back({i, near});
+    }
+  const size_t four = 92 * kCamW + 400;
+  probes.push_back({four, {strict - 1, strict - 2, strict - 3, strict - 4}});
+  for (const Probe& p : probes)
+    for (uint32_t plane : p.planes) tie(p.i, plane);
+  BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, 1, 1);
+  dec.set_uncertain_output(true, 1.5f);
+  for (uint32_t i = 0; i < frames.size(); ++i) ASSERT_TRUE(dec.add_frame(i, frames[i].img).ok());
+  const RoundResult r = dec.finish(0.03, 0.1, 3.0);
+  size_t narrow = 0, wide = 0;
+  for (const Probe& p : probes) {
+    const auto c = static_cast<uint32_t>(col[p.i]);
+    uint32_t lo = kProjW, hi = 0, count = 0;
+    for (uint32_t x = 0; x < kProjW; ++x) {
+      bool same = true;  // x's word equals c's outside the tied planes
+      for (uint32_t q = 0; q < cols.bits && same; ++q)
+        same = std::find(p.planes.begin(), p.planes.end(), q) != p.planes.end() ||
+               cols.bit(q, x) == cols.bit(q, c);
+      if (same) {
+        lo = std::min(lo, x);
+        hi = std::max(hi, x);
+        ++count;
+      }
+    }
+    const float half = 0.5f * static_cast<float>(hi - lo);
+    // Every flip a column of the projector, and no gap between them.
+    const bool full = count == (1u << p.planes.size()) && hi - lo + 1 == count;
+    SCOPED_TRACE(::testing::Message() << "pixel " << p.i << " column " << c << " planes " << p.planes.size());
+    if (p.planes.size() <= 3 && full && half <= 1.5f) {
+      ++narrow;
+      ASSERT_EQ(r.cols.valid[p.i], 255);
+      EXPECT_EQ(r.cols.coord[p.i], 0.5f * static_cast<float>(lo + hi));
+      EXPECT_EQ(r.cols.uncertainty[p.i], half);
+      EXPECT_LE(std::fabs(r.cols.coord[p.i] - static_cast<float>(c)), r.cols.uncertainty[p.i]) << "holds the truth";
+    } else {
+      ++wide;
+      EXPECT_EQ(r.cols.valid[p.i], 0);
+      EXPECT_TRUE(std::isnan(r.cols.coord[p.i]));
+      EXPECT_TRUE(std::isnan(r.cols.uncertainty[p.i]));
+    }
+  }
+  EXPECT_GT(narrow, 20u) << "the probes must exercise narrow intervals";
+  EXPECT_GT(wide, 20u) << "and wide ones";
 }
 
 }  // namespace

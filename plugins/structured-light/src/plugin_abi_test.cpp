@@ -138,7 +138,7 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(d[7]["patterns"], 3 * 6 * 9);
   std::map<std::string, nlohmann::json> params;
   for (const auto& p : d[0]["params"]) params[p["name"].get<std::string>()] = p;
-  ASSERT_EQ(params.size(), 6u);
+  ASSERT_EQ(params.size(), 8u);
   EXPECT_EQ(params["rows"]["type"], "bool");
   EXPECT_EQ(params["rows"]["default"], false);
   EXPECT_EQ(params["binarize"]["default"], "inverse");
@@ -149,6 +149,9 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(params["max_weak_error_px"]["default"], 1);
   EXPECT_EQ(params["noise_k"]["type"], "number");
   EXPECT_EQ(params["noise_k"]["default"], 3.0);
+  EXPECT_EQ(params["max_uncertainty_px"]["default"], 1.5);
+  EXPECT_EQ(params["tie_intervals"]["type"], "bool");
+  EXPECT_EQ(params["tie_intervals"]["default"], false);
   for (auto& [name, p] : params) EXPECT_FALSE(p["description"].get<std::string>().empty()) << name;
 }
 
@@ -399,7 +402,7 @@ TEST(PluginAbi, CreateErrors) {
             "modulated-phase-shift");
   EXPECT_EQ(create_error("gray", R"({"bits":3})", PROCAM_ERR_INVALID_ARGUMENT),
             "unknown parameter 'bits' for method 'gray' (known: rows, binarize, min_contrast, "
-            "min_bit_margin, max_weak_error_px, noise_k)");
+            "min_bit_margin, max_weak_error_px, noise_k, max_uncertainty_px, tie_intervals)");
   EXPECT_EQ(create_error("gray", R"({"rows":"yes"})", PROCAM_ERR_INVALID_ARGUMENT),
             R"(parameter 'rows' must be true or false, got "yes")");
   EXPECT_EQ(create_error("gray", R"({"min_bit_margin":1.5})", PROCAM_ERR_INVALID_ARGUMENT),

@@ -93,9 +93,9 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
   const DecodeContext ctx(stream_, t);
   const WordMap maps[2] = {word_map(cols_), has_rows_ ? word_map(rows_) : WordMap{}};
   const bool uncertain[2] = {uncertain_, uncertain_ && has_rows_};
-  CoarseMap coarse[2];
-  if (uncertain[0] && stream_.code(0).has_weak) coarse[0] = coarse_map(cols_, tolerable_[0]);
-  if (uncertain[1] && stream_.code(1).has_weak) coarse[1] = coarse_map(rows_, tolerable_[1]);
+  UncertainRule rule[2];
+  rule[0] = {tolerable_mask(tolerable_[0], cols_.bits), max_uncertainty_, ties_};
+  if (has_rows_) rule[1] = {tolerable_mask(tolerable_[1], rows_.bits), max_uncertainty_, ties_};
   if (uncertain_) sdk::take_map(r.cols.uncertainty, n);  // every element written below
   std::vector<float> row_unc;  // rows: the interval is not reported, only its centre
   if (uncertain[1]) row_unc.resize(n);
@@ -111,7 +111,7 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
                   if (uncertain[axis]) {
                     float* unc = axis == 0 ? r.cols.uncertainty.data() : row_unc.data();
                     band_weak[axis] += decode_uncertain(
-                        ctx, axis, maps[axis], coarse[axis], b, e, base, m.coord.data() + b,
+                        ctx, axis, maps[axis], rule[axis], b, e, base, m.coord.data() + b,
                         m.valid.empty() ? nullptr : m.valid.data() + b, unc + b);
                   } else {
                     band_weak[axis] += tolerated;

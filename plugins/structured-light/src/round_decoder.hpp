@@ -81,13 +81,17 @@ class BinaryRoundDecoder {
   // has nothing to measure and only min_bit_margin applies.
   RoundResult finish(double min_contrast, double min_bit_margin, double noise_k = 0);
 
-  // With true, pixels whose tolerable planes are uncertain, or exactly one
-  // strict plane at one of its stripe edges, get the interval centre and
-  // cols.uncertainty (decode_uncertain) instead of the tolerated bit or
-  // nothing (rows: the centre; coord only). Call before the first frame.
-  // Also tracks single uncertain strict planes (decode_uncertain).
-  void set_uncertain_output(bool on) {
+  // With true, pixels with uncertain planes whose candidate coordinates
+  // span a narrow interval get its centre and cols.uncertainty
+  // (decode_uncertain) instead of the tolerated bit or nothing (rows: the
+  // centre; coord only). Call before the first frame. Also tracks the
+  // uncertain strict planes (BitPlaneStream::track_single_planes).
+  // max_half: the widest half-interval reported, projector pixels; ties:
+  // exactly tied planes enumerated too (UncertainRule).
+  void set_uncertain_output(bool on, float max_half = 1.5f, bool ties = false) {
     uncertain_ = on;
+    max_uncertainty_ = max_half;
+    ties_ = ties;
     stream_.track_single_planes(on);
   }
 
@@ -100,6 +104,8 @@ class BinaryRoundDecoder {
   StripeCode cols_, rows_;
   bool has_rows_ = false;
   bool uncertain_ = false;
+  float max_uncertainty_ = 1.5f;
+  bool ties_ = false;
   std::vector<uint8_t> tolerable_[2];
   uint32_t width_, height_;
   BitPlaneStream stream_;

@@ -49,6 +49,9 @@ struct RoundSummary {
 
 struct ScanOutcome {
   std::vector<RoundSummary> rounds;
+  // Offline only: why the plugin's later rounds were not run (a multi-round
+  // method on a capture with fewer rounds); empty when every round ran.
+  std::string rounds_skipped;
   size_t patterns = 0;
   double capture_ms = 0, decode_ms = 0;
   size_t frames_retried = 0;
@@ -67,6 +70,11 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
 //  - plain: the round-1 frames in the plan's order (every image file, sorted
 //    by file name); a multi-round method reads later rounds from sub-folders
 //    "round2", "round3", ...
+// A capture with fewer rounds than the method plans (no "roundN" folder, or
+// no recorded frame-rN-000.png) decodes the rounds that exist, stops the
+// session there (host::Session::stop: the outputs are those of the last
+// decoded round) and, with OfflineOptions::multi_round, says so in
+// ScanOutcome::rounds_skipped.
 // Errors list the files expected (by plan label) versus found.
 // `layout` (plain folders only): which file is which plan frame —
 // frame_layout.hpp ("procam" = plan order, "opencv-graycode", "gupta-pairs" or
@@ -74,6 +82,9 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
 // from the pattern/inverse frames.
 struct OfflineOptions {
   std::string layout = "procam";
+  // The method may plan more than one round (its describe() "rounds" is not
+  // 1): a missing later round is then reported in rounds_skipped.
+  bool multi_round = false;
 };
 Result<ScanOutcome> run_offline(host::Session& session, const std::string& frames_dir,
                                 const ProgressFn& progress, const OfflineOptions& options = {});

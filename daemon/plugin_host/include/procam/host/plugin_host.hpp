@@ -207,8 +207,13 @@ public:
   Status add_frame(uint32_t index, const procam_image& frame);
   // All frames of the round were added: the plugin decodes.
   Status end_round();
-  // Results; call after next_plan() returned nullopt.
+  // Results; call after next_plan() returned nullopt, or after stop().
   Result<std::vector<Output>> outputs();
+  // The host runs no more rounds (an offline capture with fewer rounds than
+  // a multi-round method plans): outputs() then gives those of the last
+  // decoded round. failed_precondition during a round or before the first
+  // round was decoded.
+  Status stop();
 
 private:
   friend class PluginHost;

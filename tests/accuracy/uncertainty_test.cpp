@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: MIT
+// The gray method's column intervals (proj_col_uncertainty_px, issue 16)
+// against the sim's ground truth: where a pixel's uncertain planes give an
+// interval (uncertainty > 0), the interval must hold the true column,
+//   |proj_col_px - truth| <= proj_col_uncertainty_px + 0.5
+// (truth: the sim's continuous column, as the evaluators compare it; + 0.5:
+// a decoded column c stands for the projector pixel around c),
+// for at least 99 % of those pixels on every scene with global light, with
+// the default rule and with tie_intervals. Exact pixels (uncertainty 0) are
+// the claims tests' business. Scenes: where intervals come from blur
+// (sub-surface scattering, defocus). Not the metal lamp: there long-range
+// specular inter-reflection flips the *certain* planes too, so only ~26 % of
+// its ~10k interval pixels hold the truth (docs/report/real.md) — an
+// interval is only as right as the planes it trusts, a known limit of the
+// rule, not asserted here.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "plugin_runs.hpp"
+
+namespace procam {
+namespace {
+
+struct Case {
+  const char* scene;
+  const char* params;
+};
+
+class GrayIntervals : public ::testing::TestWithParam<Case> {};
+
+TEST_P(GrayIntervals, HoldTheTrueColumn) {
+  const Case& c = GetParam();
+  suite::SimRun run;
+  ASSERT_TRUE(suite::run_on_sim("structured-light", "gray", c.scene, run, c.params));
+  const host::Output* col = suite::find_output(run.outputs, "proj_col_px");
+  const host::Output* unc = suite::find_output(run.outputs, "proj_col_uncertainty_px");
+  ASSERT_NE(col, nullptr);
+  ASSERT_NE(unc, nullptr);
+  auto truth = run.rig->ground_truth(0);
+  ASSERT_TRUE(truth.ok()) << truth.status().message();
+  const uint32_t w = col->image.width, h = col->image.height;
+  ASSERT_EQ(truth->proj_col.width(), w);
+  ASSERT_EQ(truth->proj_col.height(), h);
+  const auto* cp = static_cast<const float*>(col->image.data);
+  const auto* up = static_cast<const float*>(unc->image.data);
+  const auto* tp = truth->proj_col.ptr<float>();
+  const uint8_t* lit = truth->lit.ptr<uint8_t>();
+  size_t intervals = 0, hold = 0, gross_centre = 0;
+  for (size_t i = 0; i < size_t{w} * h; ++i) {
+    if (std::isnan(cp[i])) {
+      EXPECT_TRUE(std::isnan(up[i])) << "pixel " << i << ": invalid, so no uncertainty";
+      continue;
+    }
+    ASSERT_TRUE(std::isfinite(up[i]) && up[i] >= 0.0f) << "pixel " << i;
+    if (up[i] == 0.0f || lit[i] == 0 || !std::isfinite(tp[i])) continue;
+    ++intervals;
+    const double err = std::fabs(static_cast<double>(cp[i]) - static_cast<double>(tp[i]));
+    hold += err <= static_cast<double>(up[i]) + 0.5 ? 1u : 0u;
+    gross_centre += err > 1.0 ? 1u : 0u;
+  }
+  const double frac = intervals == 0 ? 1.0 : static_cast<double>(hold) / static_cast<double>(intervals);
+  std::printf("%-16s %-28s interval pixels %zu, truth inside %.3f%%, centre > 1 column off %zu\n", c.scene, c.params,
+              intervals, 100 * frac, gross_centre);
+  EXPECT_GE(frac, 0.99) << intervals << " interval pixels";
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Scenes, GrayIntervals,
+    ::testing::Values(Case{"bowl-on-marble", "{}"}, Case{"wax-candle", "{}"}, Case{"v-groove", "{}"},
+                      Case{"bowl-on-marble", R"({"tie_intervals":true})"},
+                      Case{"wax-candle", R"({"tie_intervals":true})"}),
+    [](const ::testing::TestParamInfo<Case>& i) {
+      std::string n = std::string(i.param.scene) + (std::string(i.param.params) == "{}" ? "" : "_ties");
+      for (char& ch : n)
+        if (ch == '-') ch = '_';
+      return n;
+    });
+
+}  // namespace
+}  // namespace procam
