@@ -27,6 +27,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "procam/core/image.hpp"
 #include "procam/host/plugin_host.hpp"
 
 namespace {
@@ -68,9 +69,9 @@ Result<Session> planned_session(Isolation mode, uint32_t* frames) {
 
 // The camera frames of the ensemble's plan (rendered once, from an
 // in-process session's patterns; both backends get the same pixels).
-const std::vector<std::vector<uint8_t>>& frames() {
-  static std::vector<std::vector<uint8_t>> px = [] {
-    std::vector<std::vector<uint8_t>> out;
+const std::vector<Image>& frames() {
+  static std::vector<Image> px = [] {
+    std::vector<Image> out;
     auto s = host_with(Isolation::in_process).create_session("structured-light", "ensemble", "{}", rig_json());
     if (!s) std::abort();
     auto plan = s->next_plan();
@@ -78,31 +79,19 @@ const std::vector<std::vector<uint8_t>>& frames() {
     for (const PlannedFrame& f : (*plan)->frames) {
       const procam_image& p = f.pattern;
       if (p.width != kProjW || p.height != kProjH || p.pixel_type != PROCAM_PIXEL_U8) std::abort();
-      std::vector<uint8_t> cam(size_t{kCamW} * kCamH);
+      Image cam(kCamW, kCamH, PixelType::u8);
       for (uint32_t y = 0; y < kCamH; ++y)
         for (uint32_t x = 0; x < kCamW; ++x) {
           const uint32_t col = (x * 9 / 10 + y / 20 + 10) * kProjW / kCamW;
           const uint32_t row = (y * 9 / 10 + x / 40 + 10) * kProjH / kCamH;
           const auto* prow = static_cast<const uint8_t*>(p.data) + size_t{row} * p.stride_bytes;
-          cam[size_t{y} * kCamW + x] = prow[col] ? 220 : 15;
+          cam.ptr<uint8_t>()[size_t{y} * kCamW + x] = prow[col] ? 220 : 15;
         }
       out.push_back(std::move(cam));
     }
     return out;
   }();
   return px;
-}
-
-procam_image view_of(const std::vector<uint8_t>& px) {
-  procam_image v{};
-  v.width = kCamW;
-  v.height = kCamH;
-  v.channels = 1;
-  v.pixel_type = PROCAM_PIXEL_U8;
-  v.bit_depth = 8;
-  v.stride_bytes = kCamW;
-  v.data = px.data();
-  return v;
 }
 
 using Clock = std::chrono::steady_clock;
@@ -156,7 +145,7 @@ void run(benchmark::State& state, bool after_last_only) {
     }
     if (!after_last_only) state.ResumeTiming();
     for (uint32_t i = 0; i + 1 < n; ++i) {
-      Status st = s->add_frame(i, view_of(px[i]));
+      Status st = s->add_frame(i, px[i].view());
       if (!st) {
         state.SkipWithError(st.to_string().c_str());
         return;
@@ -164,7 +153,7 @@ void run(benchmark::State& state, bool after_last_only) {
     }
     if (after_last_only) state.ResumeTiming();
     const auto t = Clock::now();
-    Status st = s->add_frame(n - 1, view_of(px[n - 1]));
+    Status st = s->add_frame(n - 1, px[n - 1].view());
     ph.last_frame += ms_since(t);
     if (!st) {
       state.SkipWithError(st.to_string().c_str());
