@@ -47,14 +47,15 @@ struct Fault {
 };
 
 // Deadlines of this test's daemon (procamd.json "plugins"): a hang is killed
-// after call_timeout + per_frame_timeout x 3 frames = 3300 ms.
-constexpr int kCallTimeoutMs = 3000, kPerFrameTimeoutMs = 100;
+// after call_timeout + per_frame_timeout x 3 frames = 5300 ms.
+constexpr int kCallTimeoutMs = 5000, kPerFrameTimeoutMs = 100;
 
-// The hang comes first: it holds the queue for 3.3 s while the other 49
-// clients submit, so every later scan queues behind it and behind every
-// fault that follows.
+// The hang comes first: it holds the queue for 5.3 s while the other 49
+// clients submit (each submit starts the scan's worker: ~20 ms each on the
+// 2-core VM, ~1 s in all), so every later scan queues behind it and behind
+// every fault that follows.
 const Fault kFaults[] = {
-    {"hang", "timeout", "in end_round", "did not answer within 3300 ms (worker killed)"},
+    {"hang", "timeout", "in end_round", "did not answer within 5300 ms (worker killed)"},
     {"segv", "plugin_error", "in add_frame", "killed by signal 11 (SIGSEGV)"},
     {"abort", "plugin_error", "in end_round", "killed by signal 6 (SIGABRT)"},
     {"oom", "plugin_error", "end_round", "address-space limit is"},
