@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 
 #include "procam/core/image.hpp"
+#include "bench_host.hpp"
 #include "procam/host/plugin_host.hpp"
 
 namespace {
@@ -44,16 +45,7 @@ std::string rig_json() {
 }
 
 PluginHost& host_with(Isolation mode) {
-  static PluginHost* hosts[2] = {nullptr, nullptr};
-  PluginHost*& h = hosts[mode == Isolation::process ? 1 : 0];
-  if (h == nullptr) {
-    h = new PluginHost();
-    if (!h->load_file(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so").ok()) std::abort();
-    IsolationOptions iso;
-    iso.mode = mode;
-    h->set_isolation(iso);
-  }
-  return *h;
+  return bench::host_with(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so", mode);
 }
 
 // A session with its plan fetched (frames expected next), or an error.
