@@ -298,7 +298,16 @@ Result<Mapping> map_sealed_blob(int fd, size_t max_size) {
     return Error(Code::corrupt_data, "a data blob of " + std::to_string(st.st_size) + " bytes, over the limit of " +
                                          std::to_string(max_size));
   if (st.st_size == 0) return Mapping();
-  // Sealed: the pages exist; MAP_POPULATE maps them all at once (the reader
+  // Every byte was written, so every page exists: a blob with holes (a
+  // sparse memfd) would make this process allocate the pages it reads, up
+  // to kMaxBlob, on the sender's say-so.
+  const uint64_t page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+  const uint64_t pages = (static_cast<uint64_t>(st.st_size) + page - 1) / page;
+  if (static_cast<uint64_t>(st.st_blocks) * 512 < pages * page)
+    return Error(Code::corrupt_data, "a data blob of " + std::to_string(st.st_size) + " bytes with only " +
+                                         std::to_string(static_cast<uint64_t>(st.st_blocks) * 512) +
+                                         " bytes written (a sparse memfd)");
+  // Sealed and complete: MAP_POPULATE maps all pages at once (the reader
   // reads everything: checks, then copies to files).
   void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_SHARED | MAP_POPULATE, fd, 0);
   if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of a data blob: ") + std::strerror(errno));

@@ -4,6 +4,7 @@
 #include "worker_wire.hpp"
 
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -79,6 +80,20 @@ TEST(WorkerWire, InPlaceBlobHoldsTheSameBytesAsTheStringEncoding) {
   auto empty = make_sealed_blob([](Writer&) {}, "test-empty");
   ASSERT_TRUE(empty.ok());
   EXPECT_TRUE(map_sealed_blob(empty->get()).ok());
+}
+
+// A sealed memfd with holes (sized, never written) is refused before it is
+// mapped: reading it would allocate its pages here.
+TEST(WorkerWire, SparseBlobIsRefused) {
+  UniqueFd fd(::memfd_create("sparse", MFD_CLOEXEC | MFD_ALLOW_SEALING));
+  ASSERT_TRUE(fd);
+  ASSERT_EQ(::ftruncate(fd.get(), 64 << 20), 0);
+  ASSERT_EQ(::pwrite(fd.get(), "x", 1, 0), 1);  // one page written of 16384
+  ASSERT_EQ(::fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_WRITE), 0);
+  auto m = map_sealed_blob(fd.get());
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.status().code(), Code::corrupt_data);
+  EXPECT_NE(m.status().message().find("sparse"), std::string::npos) << m.status().message();
 }
 
 TEST(WorkerWire, InPlaceBlobRefusesAnEncoderThatWritesMoreThanItCounted) {
