@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -28,9 +30,10 @@ Server::Server(engine::ScanService& service, const host::PluginHost& plugins)
     : service_(service), plugins_(plugins), router_(ctx_, zmq::socket_type::router) {
   event_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   router_.set(zmq::sockopt::linger, 200);
-  // Drop (with a log line in libzmq) anything absurdly large before it is
-  // buffered; requests between 1 MiB and this get a too_large reply.
-  router_.set(zmq::sockopt::maxmsgsize, int64_t{8} << 20);
+  // Drop anything absurdly large before it is buffered (the monitor below
+  // logs the dropped connection); requests between 1 MiB and this are read
+  // and get a too_large reply.
+  router_.set(zmq::sockopt::maxmsgsize, kHardMessageBytes);
   // Outgoing memory per client is bounded: at most kReplyQueueMessages
   // replies wait in a client's queue (a fetch reply is <= 8 MiB, so <= 128 MiB
   // per connection). router_mandatory makes a full queue an EAGAIN we can
@@ -40,6 +43,18 @@ Server::Server(engine::ScanService& service, const host::PluginHost& plugins)
   // Heartbeats let clients tell a dead daemon from a slow one.
   router_.set(zmq::sockopt::heartbeat_ivl, 2000);
   router_.set(zmq::sockopt::heartbeat_timeout, 6000);
+  // Connections ZeroMQ closes, including those it drops for an oversized
+  // message, are otherwise invisible: watch them through a socket monitor.
+  static constexpr const char* kMonitor = "inproc://procamd-router-monitor";
+  if (zmq_socket_monitor(router_.handle(), kMonitor,
+                         ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL) == 0) {
+    monitor_ = zmq::socket_t(ctx_, zmq::socket_type::pair);
+    monitor_.set(zmq::sockopt::linger, 0);
+    monitor_.connect(kMonitor);
+  } else {
+    PROCAM_LOG(daemon, warn) << "cannot monitor the request socket (" << zmq_strerror(zmq_errno())
+                             << "): connections dropped for oversized messages will not be logged";
+  }
 }
 
 Server::~Server() {
@@ -213,14 +228,64 @@ void Server::notify_event(const std::string& scan_id, const std::string& event, 
   [[maybe_unused]] auto n = ::write(event_fd_, &one, sizeof one);
 }
 
+void Server::drain_monitor() {
+  for (int k = 0; k < 64; ++k) {
+    // libzmq monitor events: [u16 event, u32 value] then the endpoint.
+    std::vector<zmq::message_t> ev;
+    try {
+      if (!zmq::recv_multipart(monitor_, std::back_inserter(ev), zmq::recv_flags::dontwait)) return;
+    } catch (const zmq::error_t&) {
+      return;
+    }
+    if (ev.size() < 2 || ev[0].size() != 6) continue;
+    uint16_t event = 0;
+    uint32_t value = 0;
+    std::memcpy(&event, ev[0].data(), 2);
+    std::memcpy(&value, static_cast<const char*>(ev[0].data()) + 2, 4);
+    on_monitor_event(event, value, ev[1].to_string());
+  }
+}
+
+void Server::on_monitor_event(uint16_t event, uint32_t value, const std::string& endpoint) {
+  if (event == ZMQ_EVENT_DISCONNECTED) ++connections_closed_;
+  // At most 10 lines a minute, so a flood cannot fill the disk.
+  const auto now = std::chrono::steady_clock::now();
+  if (now - monitor_window_ > std::chrono::minutes(1)) {
+    if (monitor_quiet_ > 0)
+      PROCAM_LOG(daemon, info) << monitor_quiet_ << " more connections ended in the last minute (not logged)";
+    monitor_window_ = now;
+    monitor_logged_ = 0;
+    monitor_quiet_ = 0;
+  }
+  if (monitor_logged_ >= 10) {
+    ++monitor_quiet_;
+    return;
+  }
+  ++monitor_logged_;
+  if (event == ZMQ_EVENT_DISCONNECTED) {
+    // ZeroMQ 4.3 reports a client that closed and a connection it dropped
+    // (a message over the hard limit, a ZMTP error) as the same event.
+    PROCAM_LOG(daemon, info) << "a client connection on " << endpoint << " ended (descriptor " << value
+                             << "; " << connections_closed_ << " since start): the client closed it, or ZeroMQ "
+                             << "dropped it for a message over the " << (kHardMessageBytes >> 20)
+                             << " MiB hard limit or a ZMTP protocol error (proto/PROTOCOL.md section 12)";
+  } else if (event == ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL) {
+    char code[16];
+    std::snprintf(code, sizeof code, "0x%08x", value);
+    PROCAM_LOG(daemon, warn) << "a client on " << endpoint << " failed the ZeroMQ handshake (ZMTP protocol error "
+                             << code << "); is it speaking ZeroMQ (ZMTP 3)?";
+  }
+}
+
 void Server::run(int stop_fd) {
   for (;;) {
     zmq::pollitem_t items[] = {{router_.handle(), 0, ZMQ_POLLIN, 0},
                                {nullptr, event_fd_, ZMQ_POLLIN, 0},
-                               {nullptr, stop_fd, ZMQ_POLLIN, 0}};
+                               {nullptr, stop_fd, ZMQ_POLLIN, 0},
+                               {monitor_.handle(), 0, ZMQ_POLLIN, 0}};
     try {
       // Events waiting for a slow client are retried every 5 ms.
-      zmq::poll(items, 3, std::chrono::milliseconds(backlog_.empty() ? -1 : 5));
+      zmq::poll(items, monitor_ ? 4 : 3, std::chrono::milliseconds(backlog_.empty() ? -1 : 5));
     } catch (const zmq::error_t& e) {
       if (e.num() == EINTR) continue;
       PROCAM_LOG(daemon, error) << "poll failed: " << e.what();
@@ -233,6 +298,7 @@ void Server::run(int stop_fd) {
       return;
     }
     flush_backlog();
+    if (monitor_ && (items[3].revents & ZMQ_POLLIN)) drain_monitor();
     if (items[1].revents & ZMQ_POLLIN) {
       uint64_t v;
       [[maybe_unused]] auto n = ::read(event_fd_, &v, sizeof v);
@@ -468,6 +534,7 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
           d["metrics"]["requests"] = requests_;
           d["metrics"]["bad_requests"] = bad_requests_;
           d["metrics"]["replies_dropped"] = replies_dropped_;
+          d["metrics"]["connections_closed"] = connections_closed_;
           d["metrics"]["curve"] = curve_;
           return ok({{"daemon", std::move(d)}});
         }

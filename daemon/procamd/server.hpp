@@ -42,6 +42,13 @@ inline constexpr int kReplyQueueMessages = 16;
 // Server::send_event). Progress events of a scan coalesce to the newest, so
 // this bounds a client that never reads, not a busy one.
 inline constexpr size_t kEventBacklog = 256;
+// The largest ZeroMQ message procamd receives at all (ZMQ_MAXMSGSIZE), to
+// bound the memory one connection can make it buffer. A request body over
+// the protocol limit (proto::kMaxRequestBytes, 1 MiB) and up to this size is
+// read and answered `too_large` with its id; ZeroMQ drops a larger one
+// before buffering it and closes that connection, which the socket monitor
+// logs (Server::on_monitor_event).
+inline constexpr int64_t kHardMessageBytes = int64_t{64} << 20;
 
 class Server {
 public:
@@ -74,6 +81,12 @@ private:
   void flush_backlog();
   void note_dropped(const char* what);
   void drain_events();
+  // Socket monitor (main thread): connections ZeroMQ ended (a client
+  // leaving, or a message over kHardMessageBytes / a ZMTP error, which
+  // ZeroMQ 4.3 reports the same way), counted and logged at most 10 lines a
+  // minute; failed handshakes logged likewise.
+  void drain_monitor();
+  void on_monitor_event(uint16_t event, uint32_t value, const std::string& endpoint);
   void zap_loop();
   bool key_allowed(const std::string& key32);
 
@@ -81,6 +94,10 @@ private:
   const host::PluginHost& plugins_;
   zmq::context_t ctx_{1};
   zmq::socket_t router_;
+  zmq::socket_t monitor_;  // PAIR on the router's monitor; closed before router_
+  uint64_t connections_closed_ = 0;  // main thread only
+  std::chrono::steady_clock::time_point monitor_window_{};
+  unsigned monitor_logged_ = 0, monitor_quiet_ = 0;
   int event_fd_ = -1;
   std::mutex events_mu_;
   struct PendingEvent { std::string scan_id, event; nlohmann::json fields; };

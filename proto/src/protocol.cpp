@@ -419,11 +419,13 @@ Result<Request> decode_request_impl(std::string_view bytes, std::string* id_out)
     return Error(Code::bad_message, "the body starts with a UTF-8 byte-order mark (EF BB BF)",
                  "send plain UTF-8 JSON without a byte-order mark");
   }
-  if (bytes.size() > kMaxRequestBytes)
+  if (bytes.size() > kMaxRequestBytes) {
+    if (id_out) *id_out = salvage_id(bytes);  // linear: a byte search for "id"
     return Error(Code::too_large,
                  "request is " + std::to_string(bytes.size()) + " bytes; the limit is " +
                      std::to_string(kMaxRequestBytes),
                  "params and rig_options are limited to 64 KiB each");
+  }
   auto parsed = parse_strict(bytes, kMaxMessageDepth);
   if (!parsed) {
     if (id_out) *id_out = salvage_id(bytes);

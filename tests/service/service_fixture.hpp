@@ -25,6 +25,7 @@ struct ConfigOptions {
   nlohmann::json curve;            // null: off
   nlohmann::json retention;        // null: off
   nlohmann::json queued_scans;     // null: the daemon's default (run queued scans after a restart)
+  nlohmann::json plugins;          // procamd.json "plugins" (isolation, timeouts); null: the defaults
   std::vector<std::string> plugin_paths;
 };
 
@@ -58,6 +59,7 @@ inline std::string write_config(const fs::path& dir, const ConfigOptions& o) {
   if (!o.curve.is_null()) cfg["curve"] = o.curve;
   if (!o.retention.is_null()) cfg["retention"] = o.retention;
   if (!o.queued_scans.is_null()) cfg["queued_scans"] = o.queued_scans;
+  if (!o.plugins.is_null()) cfg["plugins"] = o.plugins;
   const std::string path = (dir / "procamd-test.json").string();
   std::ofstream(path) << cfg.dump(2);
   return path;

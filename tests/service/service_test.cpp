@@ -930,13 +930,47 @@ TEST(ServiceRobustness, OversizedAndMalformedMessagesNeverStopTheDaemon) {
   // Two body frames: bad_message.
   const std::string two = raw_exchange(s, {"{}", "{}"});
   EXPECT_NE(two.find("bad_message"), std::string::npos) << two;
-  // Over the 8 MiB transport limit: ZeroMQ drops it and that connection.
+  // Over the 1 MiB request limit but under the 64 MiB hard cap (issue 17
+  // item 6): read and answered too_large with its id, and the same
+  // connection is served next.
+  {
+    std::string body = R"({"procam":1,"id":"nine-mib","type":"ping","pad":")";
+    body += std::string(9u << 20, 'p') + "\"}";
+    const std::string r = raw_exchange(s, {body});
+    ASSERT_FALSE(r.empty()) << "no reply to a 9 MiB request";
+    const json j = json::parse(r);
+    EXPECT_EQ(j["id"], "nine-mib") << r;
+    EXPECT_EQ(j["error"]["code"], "too_large") << r;
+    EXPECT_NE(j["error"]["message"].get<std::string>().find(std::to_string(body.size()) + " bytes"), std::string::npos)
+        << r;
+    const std::string next = raw_exchange(s, {R"({"procam":1,"id":"after","type":"ping"})"});
+    ASSERT_FALSE(next.empty());
+    EXPECT_EQ(json::parse(next)["id"], "after") << next;
+  }
+  // Over the 64 MiB hard cap: ZeroMQ drops it before buffering it and closes
+  // that connection (no reply is possible); the daemon's socket monitor
+  // counts and logs it. Both sockets stay open meanwhile, so the one
+  // connection that ends is the dropped one.
+  const auto closed = [&] {
+    const std::string r = raw_exchange(s, {R"({"procam":1,"id":"m","type":"status"})"});
+    return r.empty() ? -1 : json::parse(r)["daemon"]["metrics"]["connections_closed"].get<int>();
+  };
+  const int closed_before = closed();
+  ASSERT_GE(closed_before, 0);
   {
     auto big = sock();
     big.send(zmq::message_t(), zmq::send_flags::sndmore);
-    big.send(zmq::buffer(std::string(9u << 20, 'x')), zmq::send_flags::none);
+    big.send(zmq::buffer(std::string((64u << 20) + 1, 'x')), zmq::send_flags::none);
     zmq::message_t m;
     EXPECT_FALSE(big.recv(m).has_value());
+    int now = closed();
+    for (int i = 0; i < 100 && now == closed_before; ++i) {
+      std::this_thread::sleep_for(20ms);
+      now = closed();
+    }
+    EXPECT_EQ(now, closed_before + 1);
+    EXPECT_NE(sd.d->log().find("dropped it for a message over the 64 MiB hard limit"), std::string::npos)
+        << sd.d->log();
   }
   // The daemon still serves everyone.
   client::Client c(sd.endpoint(), 5s);

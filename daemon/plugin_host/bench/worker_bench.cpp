@@ -21,6 +21,7 @@
 #include <string>
 
 #include "procam/core/image.hpp"
+#include "bench_host.hpp"
 #include "procam/host/plugin_host.hpp"
 
 namespace {
@@ -28,16 +29,7 @@ using namespace procam;
 using namespace procam::host;
 
 PluginHost& host_with(Isolation mode) {
-  static PluginHost* hosts[2] = {nullptr, nullptr};
-  PluginHost*& h = hosts[mode == Isolation::process ? 0 : 1];
-  if (h == nullptr) {
-    h = new PluginHost();
-    if (!h->load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok()) std::abort();
-    IsolationOptions iso;
-    iso.mode = mode;
-    h->set_isolation(iso);
-  }
-  return *h;
+  return bench::host_with(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so", mode);
 }
 
 void BM_AddFrame(benchmark::State& state) {

@@ -7,11 +7,14 @@
 // session, of a good plugin and of the same plugin, works.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "procam/core/image.hpp"
@@ -218,6 +221,35 @@ TEST_F(IsolationTest, MissingWorkerIsReportedWithAHint) {
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), Code::not_found);
   EXPECT_TRUE(contains(s.status().hint(), "in_process")) << s.status().hint();
+}
+
+// A worker from another build (here a script saying hello with protocol
+// version 99) is refused with an error that says so, not "garbage".
+TEST_F(IsolationTest, WorkerOfAnotherProtocolVersionIsRefusedClearly) {
+  char dir[] = "/tmp/procam-isolation-XXXXXX";
+  ASSERT_NE(::mkdtemp(dir), nullptr);
+  const std::string script = std::string(dir) + "/procam-plugin-worker";
+  {
+    std::FILE* f = std::fopen(script.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    // One 16-byte packet on fd 3: magic "PCWK", version 99, type 64 (hello), seq 0, length 0.
+    std::fputs("#!/bin/sh\nprintf '\\120\\103\\127\\113\\143\\000\\100\\000\\000\\000\\000\\000"
+               "\\000\\000\\000\\000' >&3\nsleep 5\n", f);
+    std::fclose(f);
+  }
+  ASSERT_EQ(::chmod(script.c_str(), 0700), 0);
+  IsolationOptions iso;
+  iso.worker_path = script;
+  iso.start_timeout = 3000ms;
+  host_.set_isolation(iso);
+  auto s = host_.create_session("null", "null", "{}", "{}");
+  std::remove(script.c_str());
+  ::rmdir(dir);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.status().code(), Code::plugin_error) << s.status().to_string();
+  EXPECT_TRUE(contains(s.status().message(), "protocol version 99, expected 1")) << s.status().message();
+  EXPECT_TRUE(contains(s.status().message(), "from another build")) << s.status().message();
+  EXPECT_TRUE(no_children());
 }
 
 TEST_F(IsolationTest, TrustedPluginsRunInProcess) {

@@ -231,7 +231,12 @@ Result<std::unique_ptr<WorkerProxy>> WorkerProxy::start(const IsolationOptions& 
     return p->fail("start", c == Code::timeout ? Code::timeout : Code::plugin_error,
                    c == Code::timeout   ? "worker did not start within " + ms_text(options.start_timeout)
                    : c == Code::unavailable ? "worker ended before saying hello (" + p->reap(false) + ")"
-                                            : "worker sent a malformed hello (" + hello.status().message() + ")");
+                   // A worker of another build: say so rather than "malformed".
+                   : hello.status().message().rfind("protocol version", 0) == 0
+                       ? "worker speaks another " + hello.status().message() +
+                             " (a procam-plugin-worker from another build: install procamd and its worker "
+                             "together, or point plugins.worker at the matching one)"
+                       : "worker sent a malformed hello (" + hello.status().message() + ")");
   }
   if (hello->type != static_cast<uint16_t>(wire::Msg::hello))
     return p->fail("start", Code::plugin_error, std::string("worker sent '") + wire::msg_name(hello->type) +

@@ -68,7 +68,7 @@ void Writer::str(std::string_view s) {
 }
 
 void Writer::align(size_t a) {
-  while (buf_.size() % a != 0) u8(0);
+  while (n_ % a != 0 && !overflowed_) u8(0);
 }
 
 void Reader::fail(const std::string& why) {
@@ -261,6 +261,34 @@ Result<UniqueFd> make_sealed_blob(const std::string& bytes, const char* name) {
   return fd;
 }
 
+Result<UniqueFd> make_sealed_blob(const std::function<void(Writer&)>& encode, const char* name) {
+  Writer count = Writer::counting();
+  encode(count);
+  const size_t n = count.size();
+  if (n > kMaxBlob)
+    return Error(Code::invalid_argument, std::string(name) + " of " + std::to_string(n) + " bytes is over the " +
+                                             std::to_string(kMaxBlob) + "-byte blob limit");
+  UniqueFd fd(::memfd_create(name, MFD_CLOEXEC | MFD_ALLOW_SEALING));
+  if (!fd) return Error(Code::unavailable, std::string("memfd_create: ") + std::strerror(errno));
+  if (n > 0) {
+    if (::ftruncate(fd.get(), static_cast<off_t>(n)) != 0)
+      return Error(Code::unavailable, std::string("sizing a memfd: ") + std::strerror(errno));
+    // MAP_POPULATE: the pages are allocated and mapped in one call instead
+    // of one page fault each (costly in a VM; README.md "Process model").
+    void* p = ::mmap(nullptr, n, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd.get(), 0);
+    if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of a memfd: ") + std::strerror(errno));
+    Writer w(static_cast<char*>(p), n);
+    encode(w);
+    ::munmap(p, n);  // F_SEAL_WRITE needs no writable mapping left
+    if (w.overflowed() || w.size() != n)
+      return Error(Code::internal, std::string(name) + ": the encoder wrote " + std::to_string(w.size()) +
+                                       " bytes after counting " + std::to_string(n));
+  }
+  if (::fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_WRITE | F_SEAL_SEAL) != 0)
+    return Error(Code::unavailable, std::string("sealing a memfd: ") + std::strerror(errno));
+  return fd;
+}
+
 Result<Mapping> map_sealed_blob(int fd, size_t max_size) {
   const int seals = ::fcntl(fd, F_GET_SEALS);
   constexpr int need = F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_WRITE;
@@ -271,7 +299,18 @@ Result<Mapping> map_sealed_blob(int fd, size_t max_size) {
     return Error(Code::corrupt_data, "a data blob of " + std::to_string(st.st_size) + " bytes, over the limit of " +
                                          std::to_string(max_size));
   if (st.st_size == 0) return Mapping();
-  void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_SHARED, fd, 0);
+  // Every byte was written, so every page exists: a blob with holes (a
+  // sparse memfd) would make this process allocate the pages it reads, up
+  // to kMaxBlob, on the sender's say-so.
+  const uint64_t page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+  const uint64_t pages = (static_cast<uint64_t>(st.st_size) + page - 1) / page;
+  if (static_cast<uint64_t>(st.st_blocks) * 512 < pages * page)
+    return Error(Code::corrupt_data, "a data blob of " + std::to_string(st.st_size) + " bytes with only " +
+                                         std::to_string(static_cast<uint64_t>(st.st_blocks) * 512) +
+                                         " bytes written (a sparse memfd)");
+  // Sealed and complete: MAP_POPULATE maps all pages at once (the reader
+  // reads everything: checks, then copies to files).
+  void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_SHARED | MAP_POPULATE, fd, 0);
   if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of a data blob: ") + std::strerror(errno));
   return Mapping(p, static_cast<size_t>(st.st_size));
 }
@@ -286,7 +325,8 @@ Result<Ring> make_ring(uint32_t slots, uint64_t slot_size) {
   if (::ftruncate(fd.get(), static_cast<off_t>(total)) != 0 ||
       ::fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) != 0)
     return Error(Code::unavailable, std::string("sizing the frame ring: ") + std::strerror(errno));
-  void* p = ::mmap(nullptr, total, PROT_READ | PROT_WRITE, MAP_SHARED, fd.get(), 0);
+  // Pre-faulted: every frame is copied into it, so all pages get touched anyway.
+  void* p = ::mmap(nullptr, total, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd.get(), 0);
   if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of the frame ring: ") + std::strerror(errno));
   Ring ring;
   ring.map = Mapping(p, total);
@@ -308,7 +348,7 @@ Result<Mapping> map_ring(int fd, uint32_t slots, uint64_t slot_size) {
       ::fstat(fd, &st) != 0 || static_cast<uint64_t>(st.st_size) < total)
     return Error(Code::corrupt_data, "frame ring descriptor does not hold " + std::to_string(slots) + " x " +
                                          std::to_string(slot_size) + " bytes");
-  void* p = ::mmap(nullptr, total, PROT_READ, MAP_SHARED, fd, 0);
+  void* p = ::mmap(nullptr, total, PROT_READ, MAP_SHARED | MAP_POPULATE, fd, 0);
   if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of the frame ring: ") + std::strerror(errno));
   return Mapping(p, total);
 }
@@ -452,6 +492,11 @@ Status decode_create(const Mapping& blob, CreateRequest& out) {
 
 std::string encode_plan(const Plan& plan) {
   Writer w;
+  write_plan(w, plan);
+  return std::move(w.bytes());
+}
+
+void write_plan(Writer& w, const Plan& plan) {
   w.u32(static_cast<uint32_t>(plan.frames.size()));
   w.str(plan.note);
   for (const PlannedFrame& f : plan.frames) {
@@ -459,7 +504,6 @@ std::string encode_plan(const Plan& plan) {
     put_settings(w, f.settings);
     put_image(w, f.pattern);
   }
-  return std::move(w.bytes());
 }
 
 Status decode_plan(const Mapping& blob, AbiPlan& out) {
@@ -490,6 +534,11 @@ Status decode_plan(const Mapping& blob, AbiPlan& out) {
 
 std::string encode_outputs(const std::vector<Output>& outputs) {
   Writer w;
+  write_outputs(w, outputs);
+  return std::move(w.bytes());
+}
+
+void write_outputs(Writer& w, const std::vector<Output>& outputs) {
   w.u32(static_cast<uint32_t>(outputs.size()));
   for (const Output& o : outputs) {
     w.str(o.name);
@@ -510,7 +559,6 @@ std::string encode_outputs(const std::vector<Output>& outputs) {
       default: break;
     }
   }
-  return std::move(w.bytes());
 }
 
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out) {

@@ -15,6 +15,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -88,22 +90,52 @@ private:
   size_t size_ = 0;
 };
 
-// Little-endian append-only buffer.
+// Little-endian append-only buffer. Three targets, the same bytes:
+//  - Writer(): its own growing string (bytes());
+//  - Writer::counting(): nothing stored, size() counts (the first pass of a
+//    blob written in place, make_sealed_blob(encode));
+//  - Writer(dst, capacity): caller memory (a mapped memfd); a write past
+//    `capacity` is dropped and overflowed() turns true.
+// Offsets (align) count from the start in every mode.
 class Writer {
 public:
-  void u8(uint8_t v) { buf_.push_back(static_cast<char>(v)); }
+  Writer() = default;
+  Writer(char* dst, size_t capacity) : dst_(dst), cap_(capacity), mode_(Mode::fixed) {}
+  static Writer counting() {
+    Writer w;
+    w.mode_ = Mode::count;
+    return w;
+  }
+  void u8(uint8_t v) { raw(&v, 1); }
   void u32(uint32_t v) { raw(&v, 4); }
   void i32(int32_t v) { raw(&v, 4); }
   void u64(uint64_t v) { raw(&v, 8); }
   void f64(double v) { raw(&v, 8); }
   void str(std::string_view s);  // u32 length, bytes, NUL
-  void raw(const void* p, size_t n) { buf_.append(static_cast<const char*>(p), n); }
+  void raw(const void* p, size_t n) {
+    if (mode_ == Mode::grow) {
+      buf_.append(static_cast<const char*>(p), n);
+    } else if (mode_ == Mode::fixed) {
+      if (n > cap_ - n_) {
+        overflowed_ = true;
+        return;
+      }
+      if (n > 0) std::memcpy(dst_ + n_, p, n);
+    }
+    n_ += n;
+  }
   void align(size_t a);
-  size_t size() const { return buf_.size(); }
-  std::string& bytes() { return buf_; }
+  size_t size() const { return n_; }
+  bool overflowed() const { return overflowed_; }
+  std::string& bytes() { return buf_; }  // grow mode only
 
 private:
+  enum class Mode { grow, count, fixed };
   std::string buf_;
+  char* dst_ = nullptr;
+  size_t cap_ = 0, n_ = 0;
+  Mode mode_ = Mode::grow;
+  bool overflowed_ = false;
 };
 
 // Bounds-checked reader; after the first failure every read returns 0/"" and
@@ -152,6 +184,12 @@ Status parse_packet(const char* data, size_t n, Message& m);
 // Bulk data: a memfd holding `bytes`, sealed against shrinking, growing and
 // writing, so the receiver can map it without fear of SIGBUS or changes.
 Result<UniqueFd> make_sealed_blob(const std::string& bytes, const char* name);
+// The same, written in place: `encode` runs twice, on a counting Writer and
+// then on one over the memfd's mapping (pre-faulted with MAP_POPULATE), so
+// bulk data (plans, outputs) is copied once, straight into shared memory,
+// without a growing buffer in between. `encode` must write the same bytes
+// both times (it is a pure function of its data); internal if not.
+Result<UniqueFd> make_sealed_blob(const std::function<void(Writer&)>& encode, const char* name);
 // Maps a received blob read-only after checking its seals and size.
 Result<Mapping> map_sealed_blob(int fd, size_t max_size = kMaxBlob);
 
@@ -184,6 +222,7 @@ std::string encode_create(const CreateRequest& req);
 Status decode_create(const Mapping& blob, CreateRequest& out);
 
 std::string encode_plan(const Plan& plan);
+void write_plan(Writer& w, const Plan& plan);
 // A plan decoded into the C structs the plugin would have returned, ready
 // for detail::plan_from_abi; pointers refer to `blob` and to `frames`.
 struct AbiPlan {
@@ -193,6 +232,7 @@ struct AbiPlan {
 Status decode_plan(const Mapping& blob, AbiPlan& out);
 
 std::string encode_outputs(const std::vector<Output>& outputs);
+void write_outputs(Writer& w, const std::vector<Output>& outputs);
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out);
 
 // An error reply: code, message, hint.

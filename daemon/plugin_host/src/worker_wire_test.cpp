@@ -4,6 +4,7 @@
 #include "worker_wire.hpp"
 
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -61,6 +62,55 @@ TEST(WorkerWire, PlanRoundTripsThroughASealedBlob) {
     for (uint32_t x = 0; x < 4; ++x)
       EXPECT_EQ(static_cast<const uint8_t*>(v.data)[y * 4 + x], px[y * 5 + x]);
   EXPECT_EQ(reinterpret_cast<uintptr_t>(v.data) % 64, 0u);  // pixel runs are aligned
+}
+
+// Blobs written in place (counted, then encoded into the mapped memfd) hold
+// exactly the bytes of the string encoding, and are sealed like them.
+TEST(WorkerWire, InPlaceBlobHoldsTheSameBytesAsTheStringEncoding) {
+  std::vector<uint8_t> px;
+  const Plan p = sample_plan(px);
+  const std::string expect = encode_plan(p);
+  auto fd = make_sealed_blob([&](Writer& w) { write_plan(w, p); }, "test-in-place");
+  ASSERT_TRUE(fd.ok()) << fd.status().to_string();
+  auto m = map_sealed_blob(fd->get());  // checks the seals
+  ASSERT_TRUE(m.ok()) << m.status().to_string();
+  ASSERT_EQ(m->size(), expect.size());
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(m->data()), m->size()), expect);
+  // An empty blob is still a sealed memfd.
+  auto empty = make_sealed_blob([](Writer&) {}, "test-empty");
+  ASSERT_TRUE(empty.ok());
+  EXPECT_TRUE(map_sealed_blob(empty->get()).ok());
+}
+
+// A sealed memfd with holes (sized, never written) is refused before it is
+// mapped: reading it would allocate its pages here.
+TEST(WorkerWire, SparseBlobIsRefused) {
+  UniqueFd fd(::memfd_create("sparse", MFD_CLOEXEC | MFD_ALLOW_SEALING));
+  ASSERT_TRUE(fd);
+  ASSERT_EQ(::ftruncate(fd.get(), 64 << 20), 0);
+  ASSERT_EQ(::pwrite(fd.get(), "x", 1, 0), 1);  // one page written of 16384
+  ASSERT_EQ(::fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_WRITE), 0);
+  auto m = map_sealed_blob(fd.get());
+  ASSERT_FALSE(m.ok());
+  EXPECT_EQ(m.status().code(), Code::corrupt_data);
+  EXPECT_NE(m.status().message().find("sparse"), std::string::npos) << m.status().message();
+}
+
+TEST(WorkerWire, InPlaceBlobRefusesAnEncoderThatWritesMoreThanItCounted) {
+  int pass = 0;
+  auto grows = make_sealed_blob([&](Writer& w) { w.u32(pass++ == 0 ? 1 : 2); if (pass > 1) w.u64(7); }, "t");
+  EXPECT_EQ(grows.status().code(), Code::internal) << grows.status().to_string();
+  pass = 0;
+  auto shrinks = make_sealed_blob([&](Writer& w) { if (pass++ == 0) w.u64(7); else w.u32(1); }, "t");
+  EXPECT_EQ(shrinks.status().code(), Code::internal) << shrinks.status().to_string();
+  // A fixed writer drops what does not fit and says so.
+  char buf[6] = {};
+  Writer w(buf, sizeof buf);
+  w.u32(0x01020304);
+  w.u32(5);
+  EXPECT_TRUE(w.overflowed());
+  EXPECT_EQ(w.size(), 4u);
+  EXPECT_EQ(buf[0], 4);
 }
 
 TEST(WorkerWire, EveryTruncationOfAPlanIsRefused) {

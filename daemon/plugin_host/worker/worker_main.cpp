@@ -42,8 +42,9 @@ void reply_error(const Status& st) { send_or_die(wire::Msg::error, wire::encode_
 
 void reply_ok(const std::string& payload = {}, int fd = -1) { send_or_die(wire::Msg::ok, payload, fd); }
 
-void reply_blob(uint8_t flag, const std::string& bytes, const char* name) {
-  auto blob = wire::make_sealed_blob(bytes, name);
+// Bulk replies are written straight into their memfd (one copy).
+void reply_blob(uint8_t flag, const std::function<void(wire::Writer&)>& encode, const char* name) {
+  auto blob = wire::make_sealed_blob(encode, name);
   if (!blob) return reply_error(blob.status());
   wire::Writer w;
   w.u8(flag);
@@ -162,7 +163,7 @@ int serve(const worker::SandboxReport& sandbox) {
         auto plan = s.session->next_plan();
         if (!plan) reply_error(plan.status());
         else if (!plan->has_value()) reply_ok(std::string(1, '\0'));
-        else reply_blob(1, wire::encode_plan(**plan), "procam-plan");
+        else reply_blob(1, [&](wire::Writer& w) { wire::write_plan(w, **plan); }, "procam-plan");
         break;
       }
       case wire::Msg::set_ring: {
@@ -200,7 +201,7 @@ int serve(const worker::SandboxReport& sandbox) {
       case wire::Msg::get_outputs: {
         auto outs = s.session->outputs();
         if (!outs) reply_error(outs.status());
-        else reply_blob(1, wire::encode_outputs(*outs), "procam-outputs");
+        else reply_blob(1, [&](wire::Writer& w) { wire::write_outputs(w, *outs); }, "procam-outputs");
         break;
       }
       default:

@@ -1,0 +1,178 @@
+// SPDX-License-Identifier: MIT
+// The issue-17 speed goal on a real decoder (README.md "Process model"): the
+// structured-light plugin's "ensemble" method (one round, no correction
+// rounds: its plan is 41 frames for a 1024x768 projector, 4 codes x 10 planes
+// + white) on 1920x1200 8-bit camera frames, rig "threads": 2, decoded
+// through the host's Session, in-process (/0) and isolated in a worker (/1).
+//  - BM_EnsembleScan/<backend>: all 41 add_frame calls (the plugin decodes
+//    as frames arrive), end_round, the closing next_plan and outputs() - the
+//    whole decode a scan pays after the session exists. Goal: isolated within
+//    10 % of in-process.
+//  - BM_EnsembleAfterLastFrame/<backend>: the last frame's add_frame,
+//    end_round, next_plan and outputs(), the other 40 frames already in:
+//    what a client waits for after the camera is done. Goal: <= 10 ms.
+// Session creation (and, isolated, the worker's start; bench/worker_bench.cpp
+// measures that) is outside the timed region. Camera frames are rendered
+// once from the plugin's own plan: projector pixel (col, row) seen at camera
+// (x, y) with col = (0.9 x + y / 20 + 10) * 1024 / 1920, row likewise (as
+// plugins/structured-light/src/ensemble_bench.cpp), lit 220, dark 15.
+// Run: <build>/bin/procam_ensemble_scan_bench --benchmark_repetitions=5
+//      --benchmark_report_aggregates_only=true   (report the medians)
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "procam/core/image.hpp"
+#include "bench_host.hpp"
+#include "procam/host/plugin_host.hpp"
+
+namespace {
+using namespace procam;
+using namespace procam::host;
+
+constexpr uint32_t kCamW = 1920, kCamH = 1200, kProjW = 1024, kProjH = 768;
+
+std::string rig_json() {
+  return nlohmann::json{{"projector", {{"width", kProjW}, {"height", kProjH}}},
+                        {"cameras", {{{"width", kCamW}, {"height", kCamH}, {"bit_depth", 8}}}},
+                        {"threads", 2}}
+      .dump();
+}
+
+PluginHost& host_with(Isolation mode) {
+  return bench::host_with(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so", mode);
+}
+
+// A session with its plan fetched (frames expected next), or an error.
+Result<Session> planned_session(Isolation mode, uint32_t* frames) {
+  auto s = host_with(mode).create_session("structured-light", "ensemble", "{}", rig_json());
+  if (!s) return s.status();
+  auto plan = s->next_plan();
+  if (!plan) return plan.status();
+  if (!plan->has_value()) return Error(Code::internal, "ensemble planned no round");
+  *frames = static_cast<uint32_t>((*plan)->frames.size());
+  return std::move(*s);
+}
+
+// The camera frames of the ensemble's plan (rendered once, from an
+// in-process session's patterns; both backends get the same pixels).
+const std::vector<Image>& frames() {
+  static std::vector<Image> px = [] {
+    std::vector<Image> out;
+    auto s = host_with(Isolation::in_process).create_session("structured-light", "ensemble", "{}", rig_json());
+    if (!s) std::abort();
+    auto plan = s->next_plan();
+    if (!plan || !plan->has_value()) std::abort();
+    for (const PlannedFrame& f : (*plan)->frames) {
+      const procam_image& p = f.pattern;
+      if (p.width != kProjW || p.height != kProjH || p.pixel_type != PROCAM_PIXEL_U8) std::abort();
+      Image cam(kCamW, kCamH, PixelType::u8);
+      for (uint32_t y = 0; y < kCamH; ++y)
+        for (uint32_t x = 0; x < kCamW; ++x) {
+          const uint32_t col = (x * 9 / 10 + y / 20 + 10) * kProjW / kCamW;
+          const uint32_t row = (y * 9 / 10 + x / 40 + 10) * kProjH / kCamH;
+          const auto* prow = static_cast<const uint8_t*>(p.data) + size_t{row} * p.stride_bytes;
+          cam.ptr<uint8_t>()[size_t{y} * kCamW + x] = prow[col] ? 220 : 15;
+        }
+      out.push_back(std::move(cam));
+    }
+    return out;
+  }();
+  return px;
+}
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+// Time spent per call after the last frame, summed over iterations (ms).
+struct Phases {
+  double last_frame = 0, end_round = 0, next_plan = 0, outputs = 0;
+  double output_bytes = 0;  // of the last iteration's images and points
+};
+
+// end_round, the closing next_plan (no correction rounds: none) and outputs.
+bool finish(Session& s, benchmark::State& state, Phases& ph) {
+  auto t = Clock::now();
+  Status st = s.end_round();
+  ph.end_round += ms_since(t);
+  t = Clock::now();
+  auto more = st ? s.next_plan() : Result<std::optional<Plan>>(st);
+  ph.next_plan += ms_since(t);
+  if (!more || more->has_value()) {
+    state.SkipWithError(more ? "a second round was planned" : more.status().to_string().c_str());
+    return false;
+  }
+  t = Clock::now();
+  auto outs = s.outputs();
+  ph.outputs += ms_since(t);
+  if (!outs || outs->empty()) {
+    state.SkipWithError(outs ? "no outputs" : outs.status().to_string().c_str());
+    return false;
+  }
+  benchmark::DoNotOptimize(outs->front().image.data);
+  ph.output_bytes = 0;
+  for (const Output& o : *outs)
+    ph.output_bytes += o.kind == PROCAM_OUTPUT_IMAGE
+                           ? static_cast<double>(o.image.stride_bytes) * o.image.height
+                           : static_cast<double>(o.point_count) * o.point_stride * sizeof(float);
+  return true;
+}
+
+void run(benchmark::State& state, bool after_last_only) {
+  const auto mode = state.range(0) == 0 ? Isolation::in_process : Isolation::process;
+  const auto& px = frames();
+  Phases ph;
+  for (auto _ : state) {
+    state.PauseTiming();
+    uint32_t n = 0;
+    auto s = planned_session(mode, &n);
+    if (!s || n != px.size()) {
+      state.SkipWithError(s ? "the plan's frame count changed" : s.status().to_string().c_str());
+      break;
+    }
+    if (!after_last_only) state.ResumeTiming();
+    for (uint32_t i = 0; i + 1 < n; ++i) {
+      Status st = s->add_frame(i, px[i].view());
+      if (!st) {
+        state.SkipWithError(st.to_string().c_str());
+        return;
+      }
+    }
+    if (after_last_only) state.ResumeTiming();
+    const auto t = Clock::now();
+    Status st = s->add_frame(n - 1, px[n - 1].view());
+    ph.last_frame += ms_since(t);
+    if (!st) {
+      state.SkipWithError(st.to_string().c_str());
+      return;
+    }
+    if (!finish(*s, state, ph)) return;
+    state.PauseTiming();
+    s = Error(Code::cancelled, "released");  // session end (and the worker's exit) untimed
+    state.ResumeTiming();
+  }
+  const auto per_iter = [&](double sum) {
+    return benchmark::Counter(sum / static_cast<double>(state.iterations()));
+  };
+  state.counters["last_frame_ms"] = per_iter(ph.last_frame);
+  state.counters["end_round_ms"] = per_iter(ph.end_round);
+  state.counters["next_plan_ms"] = per_iter(ph.next_plan);
+  state.counters["outputs_ms"] = per_iter(ph.outputs);
+  state.counters["output_MB"] = ph.output_bytes / 1e6;
+  state.SetLabel(std::string(mode == Isolation::process ? "isolated" : "in_process") + ", " +
+                 std::to_string(px.size()) + " frames");
+}
+
+void BM_EnsembleScan(benchmark::State& state) { run(state, false); }
+void BM_EnsembleAfterLastFrame(benchmark::State& state) { run(state, true); }
+BENCHMARK(BM_EnsembleScan)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
