@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: MIT
+// The daemon's calibrate_geometry flow (PROTOCOL.md 5.12) through the scan
+// service, as procamd wires it: the distorted sim rig scans four board poses
+// (structured-light/gray rows=true, save_frames), a calibration record is
+// submitted naming them, and its manifest, result file and per-view table
+// are checked; then every refusal the request can meet. Accuracy against
+// the rig's truth is geometric_sim_test's job (eight poses); here four poses
+// must give a sane calibration (focal lengths within 1 %, joint RMS < 0.3 px).
+#include "procam/calibration/daemon_job.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "procam/engine/service.hpp"
+#include "procam/hw/rig.hpp"
+
+namespace procam::calibration {
+namespace {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+json rig_config() {
+  std::ifstream in(PROCAM_SOURCE_DIR "/configs/rigs/sim-distorted.json");
+  return json::parse(in);
+}
+
+class DaemonCalibration : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = (fs::temp_directory_path() / ("procam_cal16_daemon_" + std::to_string(::getpid()))).string();
+    fs::remove_all(dir_);
+    host_ = std::make_unique<host::PluginHost>(host::LoadOptions{.probe_in_child = false});
+    host_->load_directories({PROCAM_PLUGIN_DIR});
+    auto rig = hw::create_rig(rig_config(), {PROCAM_SOURCE_DIR "/configs/rigs", {PROCAM_SOURCE_DIR "/configs/scenes"}});
+    ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+    engine::ServiceConfig cfg;
+    cfg.results_dir = dir_;
+    cfg.evaluate = false;
+    cfg.calibrate_geometry = [this](const engine::GeometryCalibrationJob& job) {
+      return run_daemon_job(*host_, job, 2);
+    };
+    service_ = std::make_unique<engine::ScanService>(std::move(*rig), *host_, cfg, nullptr);
+    ASSERT_TRUE(service_->start().ok());
+  }
+  void TearDown() override {
+    service_.reset();
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  // Waits until `id` is done or failed (at most 120 s); returns its manifest.
+  json wait(const std::string& id) {
+    for (int i = 0; i < 1200; ++i) {
+      auto s = service_->scan_summary(id);
+      if (s.ok() && ((*s)["state"] == "done" || (*s)["state"] == "failed")) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    auto m = service_->manifest(id);
+    EXPECT_TRUE(m.ok()) << m.status().to_string();
+    return m.ok() ? *m : json();
+  }
+  std::string scan_pose(int k, json params = {{"rows", true}}, bool save_frames = true) {
+    engine::ScanRequest req;
+    req.plugin = "structured-light";
+    req.method = "gray";
+    req.params = std::move(params);
+    req.rig_options = {{"scene", "calib/board-" + std::to_string(k)}};
+    req.save_frames = save_frames;
+    auto r = service_->submit(req);
+    EXPECT_TRUE(r.ok()) << r.status().to_string();
+    return r.ok() ? (*r)["scan_id"].get<std::string>() : std::string();
+  }
+  std::string dir_;
+  std::unique_ptr<host::PluginHost> host_;
+  std::unique_ptr<engine::ScanService> service_;
+};
+
+TEST_F(DaemonCalibration, PoseScansThenOneRequestGiveTheRigCalibration) {
+  std::vector<std::string> ids;
+  for (int k : {0, 1, 3, 5}) ids.push_back(scan_pose(k));
+  for (const auto& id : ids) ASSERT_EQ(wait(id)["state"], "done") << id;
+  auto r = service_->submit_calibration(ids, 9, 7, 30.0, "sim poses");
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const std::string cal = (*r)["scan_id"];
+  const json m = wait(cal);
+  ASSERT_EQ(m["state"], "done") << m.dump(2);
+  EXPECT_EQ(m["plugin"], engine::kCalibrationPlugin);
+  EXPECT_EQ(m["method"], engine::kCalibrationMethod);
+  const json& c = m["calibration"];
+  ASSERT_EQ(c["views"].size(), ids.size());
+  for (size_t i = 0; i < ids.size(); ++i) {
+    EXPECT_EQ(c["views"][i]["name"], ids[i]) << "views are named by their scan";
+    EXPECT_TRUE(c["views"][i]["used"].get<bool>()) << c["views"][i].dump();
+  }
+  EXPECT_LT(c["stereo_rms_px"].get<double>(), 0.3);
+  const json cfg = rig_config();
+  EXPECT_NEAR(c["rig"]["cameras"][0]["intrinsics"]["fx"].get<double>(),
+              cfg["cameras"][0]["intrinsics"]["fx"].get<double>(), 0.01 * 900);
+  EXPECT_NEAR(c["rig"]["projector"]["intrinsics"]["fx"].get<double>(),
+              cfg["projector"]["intrinsics"]["fx"].get<double>(), 0.01 * 1125);
+  EXPECT_NEAR(c["square_check"]["mean_mm"].get<double>(), 30.0, 0.1);
+  // The result file is the one `procam calibrate-geometry` writes, listed for fetch.
+  auto path = service_->file_path(cal, c["result_file"]);
+  ASSERT_TRUE(path.ok()) << path.status().to_string();
+  std::ifstream in(*path);
+  const json file = json::parse(in);
+  EXPECT_EQ(file, c["rig"]);
+  EXPECT_TRUE(service_->file_path(cal, "calibration-report.md").ok());
+  // A calibration record is listed like a scan.
+  const json listed = service_->list_scans(std::nullopt, 10);
+  EXPECT_EQ(listed["scans"][0]["scan_id"], cal);
+}
+
+TEST_F(DaemonCalibration, RefusalsSayWhatIsWrong) {
+  const std::string good = scan_pose(0);
+  const std::string no_rows = scan_pose(1, json::object());
+  const std::string no_frames = scan_pose(2, {{"rows", true}}, false);
+  for (const auto& id : {good, no_rows, no_frames}) ASSERT_EQ(wait(id)["state"], "done") << id;
+  auto expect = [&](const std::vector<std::string>& ids, Code code, const std::string& needle) {
+    auto r = service_->submit_calibration(ids, 9, 7, 30.0, "");
+    ASSERT_FALSE(r.ok()) << needle;
+    EXPECT_EQ(r.status().code(), code) << r.status().to_string();
+    EXPECT_NE(r.status().message().find(needle), std::string::npos) << r.status().to_string();
+    EXPECT_FALSE(r.status().hint().empty()) << r.status().to_string();
+  };
+  expect({good, good + "x", no_rows}, Code::invalid_argument, "no scan with id '" + good + "x'");
+  expect({good, no_rows, no_frames}, Code::failed_precondition, "without rows=true");
+  expect({good, no_frames, good}, Code::failed_precondition, "has no saved frames");
+  // Too few usable views: a record that ends failed, naming the rejected view.
+  auto r = service_->submit_calibration({good, good, good}, 11, 9, 30.0, "wrong board");
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const json m = wait((*r)["scan_id"]);
+  EXPECT_EQ(m["state"], "failed");
+  EXPECT_EQ(m["error"]["code"], "failed_precondition") << m["error"].dump();
+  EXPECT_NE(m["error"]["message"].get<std::string>().find(good), std::string::npos) << m["error"].dump();
+}
+
+}  // namespace
+}  // namespace procam::calibration
