@@ -29,31 +29,40 @@ json rig_config() {
   return json::parse(in);
 }
 
+// One service and one set of pose scans for the suite (scanning is the slow
+// part): four good poses, one without rows=true, one without saved frames.
 class DaemonCalibration : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = (fs::temp_directory_path() / ("procam_cal16_daemon_" + std::to_string(::getpid()))).string();
-    fs::remove_all(dir_);
-    host_ = std::make_unique<host::PluginHost>(host::LoadOptions{.probe_in_child = false});
+  static void SetUpTestSuite() {
+    dir_ = new std::string((fs::temp_directory_path() / ("procam_cal16_daemon_" + std::to_string(::getpid()))).string());
+    fs::remove_all(*dir_);
+    host_ = new host::PluginHost(host::LoadOptions{.probe_in_child = false});
     host_->load_directories({PROCAM_PLUGIN_DIR});
     auto rig = hw::create_rig(rig_config(), {PROCAM_SOURCE_DIR "/configs/rigs", {PROCAM_SOURCE_DIR "/configs/scenes"}});
     ASSERT_TRUE(rig.ok()) << rig.status().to_string();
     engine::ServiceConfig cfg;
-    cfg.results_dir = dir_;
+    cfg.results_dir = *dir_;
     cfg.evaluate = false;
-    cfg.calibrate_geometry = [this](const engine::GeometryCalibrationJob& job) {
-      return run_daemon_job(*host_, job, 2);
-    };
-    service_ = std::make_unique<engine::ScanService>(std::move(*rig), *host_, cfg, nullptr);
+    cfg.calibrate_geometry = [](const engine::GeometryCalibrationJob& job) { return run_daemon_job(*host_, job, 2); };
+    service_ = new engine::ScanService(std::move(*rig), *host_, cfg, nullptr);
     ASSERT_TRUE(service_->start().ok());
+    good_ = new std::vector<std::string>;
+    for (int k : {0, 1, 3, 5}) good_->push_back(scan_pose(k));
+    no_rows_ = new std::string(scan_pose(2, json::object()));
+    no_frames_ = new std::string(scan_pose(4, {{"rows", true}}, false));
   }
-  void TearDown() override {
-    service_.reset();
+  static void TearDownTestSuite() {
+    delete service_;
+    delete host_;
     std::error_code ec;
-    fs::remove_all(dir_, ec);
+    fs::remove_all(*dir_, ec);
+    delete dir_;
+    delete good_;
+    delete no_rows_;
+    delete no_frames_;
   }
   // Waits until `id` is done or failed (at most 120 s); returns its manifest.
-  json wait(const std::string& id) {
+  static json wait(const std::string& id) {
     for (int i = 0; i < 1200; ++i) {
       auto s = service_->scan_summary(id);
       if (s.ok() && ((*s)["state"] == "done" || (*s)["state"] == "failed")) break;
@@ -63,7 +72,8 @@ class DaemonCalibration : public ::testing::Test {
     EXPECT_TRUE(m.ok()) << m.status().to_string();
     return m.ok() ? *m : json();
   }
-  std::string scan_pose(int k, json params = {{"rows", true}}, bool save_frames = true) {
+  // Queues a gray scan of board pose k (finished by wait()).
+  static std::string scan_pose(int k, json params = {{"rows", true}}, bool save_frames = true) {
     engine::ScanRequest req;
     req.plugin = "structured-light";
     req.method = "gray";
@@ -74,14 +84,21 @@ class DaemonCalibration : public ::testing::Test {
     EXPECT_TRUE(r.ok()) << r.status().to_string();
     return r.ok() ? (*r)["scan_id"].get<std::string>() : std::string();
   }
-  std::string dir_;
-  std::unique_ptr<host::PluginHost> host_;
-  std::unique_ptr<engine::ScanService> service_;
+  static std::string* dir_;
+  static host::PluginHost* host_;
+  static engine::ScanService* service_;
+  static std::vector<std::string>* good_;
+  static std::string *no_rows_, *no_frames_;
 };
+std::string* DaemonCalibration::dir_ = nullptr;
+host::PluginHost* DaemonCalibration::host_ = nullptr;
+engine::ScanService* DaemonCalibration::service_ = nullptr;
+std::vector<std::string>* DaemonCalibration::good_ = nullptr;
+std::string* DaemonCalibration::no_rows_ = nullptr;
+std::string* DaemonCalibration::no_frames_ = nullptr;
 
 TEST_F(DaemonCalibration, PoseScansThenOneRequestGiveTheRigCalibration) {
-  std::vector<std::string> ids;
-  for (int k : {0, 1, 3, 5}) ids.push_back(scan_pose(k));
+  const std::vector<std::string>& ids = *good_;
   for (const auto& id : ids) ASSERT_EQ(wait(id)["state"], "done") << id;
   auto r = service_->submit_calibration(ids, 9, 7, 30.0, "sim poses");
   ASSERT_TRUE(r.ok()) << r.status().to_string();
@@ -113,12 +130,11 @@ TEST_F(DaemonCalibration, PoseScansThenOneRequestGiveTheRigCalibration) {
   // A calibration record is listed like a scan.
   const json listed = service_->list_scans(std::nullopt, 10);
   EXPECT_EQ(listed["scans"][0]["scan_id"], cal);
+  EXPECT_EQ(listed["scans"][0]["plugin"], engine::kCalibrationPlugin);
 }
 
 TEST_F(DaemonCalibration, RefusalsSayWhatIsWrong) {
-  const std::string good = scan_pose(0);
-  const std::string no_rows = scan_pose(1, json::object());
-  const std::string no_frames = scan_pose(2, {{"rows", true}}, false);
+  const std::string good = (*good_)[0], no_rows = *no_rows_, no_frames = *no_frames_;
   for (const auto& id : {good, no_rows, no_frames}) ASSERT_EQ(wait(id)["state"], "done") << id;
   auto expect = [&](const std::vector<std::string>& ids, Code code, const std::string& needle) {
     auto r = service_->submit_calibration(ids, 9, 7, 30.0, "");
@@ -131,12 +147,15 @@ TEST_F(DaemonCalibration, RefusalsSayWhatIsWrong) {
   expect({good, no_rows, no_frames}, Code::failed_precondition, "without rows=true");
   expect({good, no_frames, good}, Code::failed_precondition, "has no saved frames");
   // Too few usable views: a record that ends failed, naming the rejected view.
-  auto r = service_->submit_calibration({good, good, good}, 11, 9, 30.0, "wrong board");
+  auto r = service_->submit_calibration({good, (*good_)[1], (*good_)[2]}, 11, 9, 30.0, "wrong board");
   ASSERT_TRUE(r.ok()) << r.status().to_string();
   const json m = wait((*r)["scan_id"]);
   EXPECT_EQ(m["state"], "failed");
   EXPECT_EQ(m["error"]["code"], "failed_precondition") << m["error"].dump();
-  EXPECT_NE(m["error"]["message"].get<std::string>().find(good), std::string::npos) << m["error"].dump();
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_NE(m["error"]["message"].get<std::string>().find((*good_)[i] + ": chessboard 11x9 inner corners not found"),
+              std::string::npos)
+        << m["error"].dump();
 }
 
 }  // namespace
