@@ -52,12 +52,13 @@ Vec3 board_corner_world(const ChessboardTexture& tex, const Plane& plane, int c,
 
 // Mean albedo of `tex` on `plane` over camera pixel (col, row): pixel-centre
 // convention, the pixel covers [col - 0.5, col + 0.5] x [row - 0.5, row + 0.5]
-// in the (distorted) image; each sample is the camera ray K.ray() (lens
-// distortion included) intersected with the plane. 5 x 5 samples on the
-// pixel's edges and centre decide whether the pixel is uniform (then that
-// value, exactly); otherwise the mean of 377 samples inside it on a
-// Fibonacci lattice (a straight edge's area fraction, of any direction, to
-// ~1/377 of the contrast). `outside` = the material's albedo.
+// in the (distorted) image; each sample is a camera ray (K.ray() at the
+// pixel's corners, lens distortion included, blended bilinearly inside it)
+// intersected with the plane. The pixel's corners and centre decide whether
+// it is uniform (then that value, exactly: squares must be wider than a
+// pixel); otherwise the mean of 377 samples inside it on a Fibonacci lattice
+// (a straight edge's area fraction, of any direction, to ~1/377 of the
+// contrast). `outside` = the material's albedo.
 double footprint_albedo(const ChessboardTexture& tex, const Plane& plane, double outside, const Intrinsics& K,
                         const Rigid3& world_from_cam, double col, double row);
 
