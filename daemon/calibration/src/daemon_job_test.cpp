@@ -14,6 +14,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <thread>
 
 #include "procam/engine/service.hpp"
@@ -127,6 +128,13 @@ TEST_F(DaemonCalibration, PoseScansThenOneRequestGiveTheRigCalibration) {
   const json file = json::parse(in);
   EXPECT_EQ(file, c["rig"]);
   EXPECT_TRUE(service_->file_path(cal, "calibration-report.md").ok());
+  // The scan report shows the per-view table.
+  auto html = service_->file_path(cal, "report.html");
+  ASSERT_TRUE(html.ok()) << html.status().to_string();
+  std::ifstream hin(*html);
+  const std::string page((std::istreambuf_iterator<char>(hin)), std::istreambuf_iterator<char>());
+  EXPECT_NE(page.find("Geometric calibration"), std::string::npos);
+  for (const auto& id : ids) EXPECT_NE(page.find(id), std::string::npos) << "the report's table names view " << id;
   // A calibration record is listed like a scan.
   const json listed = service_->list_scans(std::nullopt, 10);
   EXPECT_EQ(listed["scans"][0]["scan_id"], cal);
