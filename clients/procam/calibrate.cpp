@@ -2,7 +2,9 @@
 // `procam calibrate-geometry`: camera + projector intrinsics with distortion
 // and cam_from_proj from chessboard captures under Gray codes, offline
 // (daemon/calibration; docs/calibration.md "Geometric calibration").
+#include <chrono>
 #include <cstdio>
+#include <thread>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -27,24 +29,103 @@ bool parse_pair(const std::string& s, uint32_t& a, uint32_t& b) {
   b = y;
   return true;
 }
-}  // namespace
-
-int cmd_calibrate_geometry(const Args& a) {
-  for (const char* k : {"captures", "projector", "board", "square-mm", "out"})
-    if (!a.has(k)) return usage_error(std::string("calibrate-geometry needs --") + k);
-  calibration::DecodeOptions dec;
-  if (!parse_pair(a.get("projector"), dec.projector_width, dec.projector_height))
-    return usage_error("--projector must be WIDTHxHEIGHT in projector pixels, e.g. 1024x768");
+// Board spec from --board COLSxROWS --square-mm S; false (after a usage
+// message) when either is missing or malformed.
+bool board_args(const Args& a, calibration::BoardSpec& board, int& rc) {
   uint32_t cols = 0, rows = 0;
-  if (!parse_pair(a.get("board"), cols, rows))
-    return usage_error("--board must be COLSxROWS inner corners, e.g. 9x7");
-  calibration::BoardSpec board{static_cast<int>(cols), static_cast<int>(rows), 0.0};
+  if (!parse_pair(a.get("board"), cols, rows)) {
+    rc = usage_error("--board must be COLSxROWS inner corners, e.g. 9x7");
+    return false;
+  }
+  board = calibration::BoardSpec{static_cast<int>(cols), static_cast<int>(rows), 0.0};
   try {
     board.square_mm = std::stod(a.get("square-mm"));
   } catch (...) {
     board.square_mm = 0;
   }
-  if (!(board.square_mm > 0)) return usage_error("--square-mm must be the square size in mm, e.g. 75");
+  if (!(board.square_mm > 0)) {
+    rc = usage_error("--square-mm must be the square size in mm, e.g. 75");
+    return false;
+  }
+  return true;
+}
+
+// Through procamd (request calibrate_geometry, PROTOCOL.md 5.12): the pose
+// scans were taken by the daemon (gray rows=true, save_frames); the daemon
+// calibrates, this waits for the record and downloads rig-calibration.json.
+int calibrate_through_daemon(const Args& a) {
+  for (const char* k : {"board", "square-mm", "out"})
+    if (!a.has(k)) return usage_error(std::string("calibrate-geometry --scans needs --") + k);
+  calibration::BoardSpec board;
+  int rc = 0;
+  if (!board_args(a, board, rc)) return rc;
+  const std::string out = a.get("out");
+  if (fs::exists(out) && a.get("force") != "1") return usage_error(out + " exists; pass --force 1 to replace it");
+  proto::CalibrateGeometry req;
+  for (const std::string& v : a.list("scans")) {  // repeated and/or comma-separated ids
+    size_t at = 0;
+    while (at <= v.size()) {
+      const size_t comma = std::min(v.find(',', at), v.size());
+      if (comma > at) req.scans.push_back(v.substr(at, comma - at));
+      at = comma + 1;
+    }
+  }
+  req.board_cols = board.cols;
+  req.board_rows = board.rows;
+  req.square_mm = board.square_mm;
+  req.label = a.has("label") ? a.get("label") : "";
+  client::Client c = a.connect();
+  auto r = c.call(req);
+  if (!r) return report(r.status());
+  const std::string id = r->value("scan_id", "");
+  std::fprintf(stderr, "calibration %s queued on %s: decoding %zu pose scans\n", id.c_str(), c.endpoint().c_str(),
+               req.scans.size());
+  std::string state;
+  for (int i = 0; i < 30 * 60 * 2; ++i) {  // poll status, at most 30 minutes
+    auto st = c.call(proto::StatusQuery{id});
+    if (!st) return report(st.status());
+    state = (*st)["scan"].value("state", "");
+    if (state == "done" || state == "failed") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+  auto m = c.call(proto::ResultQuery{id});
+  if (!m) return report(m.status());
+  const nlohmann::json& man = (*m)["manifest"];
+  if (state != "done") {
+    const nlohmann::json& e = man.value("error", nlohmann::json::object());
+    std::fprintf(stderr, "calibration %s %s: %s\n", id.c_str(), state.c_str(),
+                 e.is_object() ? e.value("message", "").c_str() : "");
+    if (e.is_object() && !e.value("hint", "").empty()) std::fprintf(stderr, "hint: %s\n", e.value("hint", "").c_str());
+    return 1;
+  }
+  const nlohmann::json& cal = man["calibration"];
+  if (Status fs_ = c.fetch_file(id, cal.value("result_file", "rig-calibration.json"), out); !fs_) return report(fs_);
+  if (a.json) {
+    std::printf("%s\n", cal.dump(2).c_str());
+    return 0;
+  }
+  for (const auto& v : cal["views"])
+    std::printf("%-24s %-4s corners %2d (projector %2d)  RMS camera %.3f px projector %.3f px  %s\n",
+                v.value("name", "").c_str(), v.value("used", false) ? "used" : "no", v.value("corners", 0),
+                v.value("projector_corners", 0), v.value("camera_rms_px", 0.0), v.value("projector_rms_px", 0.0),
+                v.value("rejected_because", "").c_str());
+  std::printf("joint RMS %.3f px; squares triangulated: mean %.2f mm\n", cal.value("stereo_rms_px", 0.0),
+              cal.value("square_check", nlohmann::json::object()).value("mean_mm", 0.0));
+  std::printf("wrote %s (calibration %s): copy its \"projector\" and \"cameras\" calibration into your rig config\n",
+              out.c_str(), id.c_str());
+  return 0;
+}
+}  // namespace
+
+int cmd_calibrate_geometry(const Args& a) {
+  if (a.has("scans")) return calibrate_through_daemon(a);
+  for (const char* k : {"captures", "projector", "board", "square-mm", "out"})
+    if (!a.has(k)) return usage_error(std::string("calibrate-geometry needs --") + k);
+  calibration::DecodeOptions dec;
+  if (!parse_pair(a.get("projector"), dec.projector_width, dec.projector_height))
+    return usage_error("--projector must be WIDTHxHEIGHT in projector pixels, e.g. 1024x768");
+  calibration::BoardSpec board;
+  if (int rc = 0; !board_args(a, board, rc)) return rc;
   if (a.has("layout")) dec.layout = a.get("layout");
   const std::string out = a.get("out");
   if (fs::exists(out) && a.get("force") != "1")

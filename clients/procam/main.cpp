@@ -77,11 +77,15 @@ const std::vector<Command> kCommands = {
      "calibrate-latency --rig RIG.json [--cycles N] [--write 1]\n"
      "                                offline (stop procamd): measure display/camera latency; --write stores it in the rig config"},
     {"calibrate-geometry", cmd_calibrate_geometry,
-     {"captures", "projector", "board", "square-mm", "layout", "out", "force", "plugins"},
+     {"captures", "projector", "board", "square-mm", "layout", "out", "force", "plugins", "scans", "label",
+      "endpoint", "timeout"},
      "calibrate-geometry --captures DIR... --projector WxH --board COLSxROWS --square-mm S --out RIG.json\n"
      "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json] [--force 1]\n"
      "                                offline: camera + projector intrinsics with distortion and cam_from_proj\n"
-     "                                from chessboard poses under Gray codes with rows (one folder per pose)"},
+     "                                from chessboard poses under Gray codes with rows (one folder per pose)\n"
+     "calibrate-geometry --scans ID[,ID...] --board COLSxROWS --square-mm S --out RIG.json [--label TEXT]\n"
+     "                                through procamd: from finished pose scans (scan --plugin structured-light\n"
+     "                                --method gray --param rows=true --save-frames 1, one per board pose)"},
     {"keygen", cmd_keygen, {"out"},
      "keygen --out NAME               new CURVE key pair: NAME.pub, NAME.secret (README \"Remote access\")"},
 };

@@ -198,7 +198,7 @@ class Client:
 
     def call(self, type_, request_id=None, **fields):
         """Any request; idempotent ones are retried once after a timeout."""
-        retries = 0 if type_ in ("scan", "cancel") and request_id is None else 1
+        retries = 0 if type_ in ("scan", "cancel", "calibrate_geometry") and request_id is None else 1
         return self._request(type_, fields, request_id, retries)[0]
 
     def hello(self, client="procam_client.py/1"):
@@ -220,6 +220,21 @@ class Client:
     def list_rig_options(self):
         """{"<option>": {"type", "description", "default", "values"}}; the sim rig lists its scenes."""
         return self.call("list_rig_options")["options"]
+
+    def calibrate_geometry(self, scans, inner_corners, square_mm, label="", events=False, request_id=None):
+        """Queue a geometric calibration from finished pose scans (PROTOCOL.md 5.12).
+
+        scans: ids of structured-light/gray scans with params rows=true and
+        save_frames, one chessboard pose each (3..50); inner_corners: (cols,
+        rows); square_mm: edge of one square. Returns {"scan_id", "state",
+        "queue_position"}; when the record is done, result(scan_id)["calibration"]
+        holds the per-view table and "rig", and fetch its "result_file"."""
+        fields = {"scans": list(scans), "board": {"inner_corners": list(inner_corners), "square_mm": square_mm}}
+        if label:
+            fields["label"] = label
+        if events:
+            fields["events"] = True
+        return self.call("calibrate_geometry", request_id=request_id, **fields)
 
     def status(self, scan_id=None):
         r = self.call("status", scan_id=scan_id)

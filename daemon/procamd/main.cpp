@@ -14,6 +14,7 @@
 #include "config.hpp"
 #include "procam/core/log.hpp"
 #include "procam/core/strings.hpp"
+#include "procam/calibration/daemon_job.hpp"
 #include "procam/engine/service.hpp"
 #include "procam/host/plugin_host.hpp"
 #include "procam/hw/rig.hpp"
@@ -149,6 +150,11 @@ int main(int argc, char** argv) {
   scfg.queued_max_age = std::chrono::seconds(static_cast<int64_t>(cfg->queued_max_age_s));
   scfg.retention.min_free_mb = cfg->retention_min_free_mb;
   scfg.calibration_tables = cfg->calibration_tables;
+  // calibrate_geometry requests: decode the pose scans' saved frames with the
+  // loaded plugins and fit (procam/calibration/daemon_job.hpp).
+  scfg.calibrate_geometry = [&plugins, threads = cfg->threads](const engine::GeometryCalibrationJob& job) {
+    return calibration::run_daemon_job(plugins, job, threads);
+  };
   for (const auto& [name, table] : cfg->calibration_tables.items())
     PROCAM_LOG(daemon, info) << "calibration table " << name << " (" << table["samples"].size() << " samples)";
   engine::ScanService service(std::move(*rig), plugins, scfg,

@@ -468,9 +468,9 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
         if (!v) return err(v.status());
         ok({{"version", *v}, {"daemon", "procamd 0.1.0"}, {"rig", service_.rig_name()},
             {"capabilities", curve_ ? nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe",
-                                                     "list_scans", "list_rig_options", "curve"}
+                                                     "list_scans", "list_rig_options", "calibrate_geometry", "curve"}
                                     : nlohmann::json{"events", "fetch", "cancel", "ping", "scan_dedupe",
-                                                     "list_scans", "list_rig_options"}}});
+                                                     "list_scans", "list_rig_options", "calibrate_geometry"}}});
       },
       [&](const proto::ListPlugins&) {
         nlohmann::json plugins = nlohmann::json::array(), rejected = nlohmann::json::array();
@@ -519,6 +519,15 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
         ok(*r);
       },
       [&](const proto::ListScans& l) { ok(service_.list_scans(l.state, l.limit)); },
+      [&](const proto::CalibrateGeometry& c) {
+        auto r = service_.submit_calibration(c.scans, c.board_cols, c.board_rows, c.square_mm, c.label, req->id);
+        if (!r) return err(r.status());
+        if (c.events) {  // state events of the calibration record, as for a scan
+          auto& subs = subscribers_[(*r)["scan_id"].get<std::string>()];
+          if (std::find(subs.begin(), subs.end(), env) == subs.end()) subs.push_back(env);
+        }
+        ok(*r);
+      },
       [&](const proto::ListRigOptions&) { ok(service_.rig_options()); },
       [&](const proto::Cancel& c) {
         auto r = service_.cancel(c.scan_id);

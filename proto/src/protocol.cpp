@@ -19,9 +19,9 @@ namespace {
 using json = nlohmann::json;
 
 // In RequestBody's variant order.
-constexpr std::array<std::string_view, 11> kTypes = {
+constexpr std::array<std::string_view, 12> kTypes = {
     "hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch", "cancel", "ping",
-    "list_scans", "list_rig_options"};
+    "list_scans", "list_rig_options", "calibrate_geometry"};
 
 constexpr const char* kSpecHint = "see proto/PROTOCOL.md";
 
@@ -388,6 +388,66 @@ Result<RequestBody> decode_list_scans(const Fields& f) {
   return RequestBody{std::move(r)};
 }
 
+// calibrate_geometry: {"scans": [ids], "board": {"inner_corners": [c, r],
+// "square_mm": s}, "label"?, "events"?}.
+Result<RequestBody> decode_calibrate_geometry(const Fields& f) {
+  PROCAM_TRY(f.only({"scans", "board", "label", "events"}));
+  CalibrateGeometry c;
+  const json* scans = f.find("scans");
+  if (!scans) return f.missing("scans");
+  if (!scans->is_array()) return f.wrong_type("scans", "an array of scan ids", *scans);
+  if (scans->size() < kMinCalibrationScans || scans->size() > kMaxCalibrationScans)
+    return Error(Code::invalid_argument,
+                 "field 'scans' lists " + std::to_string(scans->size()) + " scans; calibration needs " +
+                     std::to_string(kMinCalibrationScans) + ".." + std::to_string(kMaxCalibrationScans),
+                 "scan the board in at least 3 poses (5-15 recommended), one gray rows=true scan with "
+                 "save_frames each");
+  for (const json& id : *scans) {
+    if (!id.is_string() || id.get_ref<const std::string&>().empty() ||
+        id.get_ref<const std::string&>().size() > kMaxIdBytes)
+      return Error(Code::bad_message, "field 'scans' must hold scan ids (strings of 1.." +
+                                          std::to_string(kMaxIdBytes) + " bytes), got " + dump(id),
+                   kSpecHint);
+    const std::string& s = id.get_ref<const std::string&>();
+    if (std::find(c.scans.begin(), c.scans.end(), s) != c.scans.end())
+      return Error(Code::invalid_argument, "field 'scans' lists scan '" + s + "' twice",
+                   "each pose counts once; list every scan id once");
+    c.scans.push_back(s);
+  }
+  const json* board = f.find("board");
+  if (!board) return f.missing("board");
+  if (!board->is_object()) return f.wrong_type("board", "an object", *board);
+  const char* board_form = "board is {\"inner_corners\": [cols, rows], \"square_mm\": edge}, e.g. "
+                           "{\"inner_corners\": [9, 7], \"square_mm\": 75}";
+  for (const auto& [key, value] : board->items())
+    if (key != "inner_corners" && key != "square_mm")
+      return Error(Code::bad_message, "unknown field 'board." + key + "'", board_form);
+  const json* ic = board->contains("inner_corners") ? &(*board)["inner_corners"] : nullptr;
+  if (!ic || !ic->is_array() || ic->size() != 2 || !(*ic)[0].is_number_integer() || !(*ic)[1].is_number_integer())
+    return Error(Code::bad_message, "field 'board.inner_corners' must be [cols, rows] (two integers)", board_form);
+  const int64_t cols = (*ic)[0].get<int64_t>(), rows = (*ic)[1].get<int64_t>();
+  if (cols < 2 || cols > 100 || rows < 2 || rows > 100)
+    return Error(Code::invalid_argument,
+                 "field 'board.inner_corners' is [" + std::to_string(cols) + ", " + std::to_string(rows) +
+                     "]; each count must be 2..100",
+                 "count the inner corners: a board of 10 x 8 squares has 9 x 7");
+  c.board_cols = static_cast<int>(cols);
+  c.board_rows = static_cast<int>(rows);
+  const json* sq = board->contains("square_mm") ? &(*board)["square_mm"] : nullptr;
+  if (!sq || !sq->is_number()) return Error(Code::bad_message, "field 'board.square_mm' must be a number", board_form);
+  c.square_mm = sq->get<double>();
+  if (!(c.square_mm > 0 && c.square_mm <= 1000))
+    return Error(Code::invalid_argument, "field 'board.square_mm' must be in (0, 1000] mm, got " + dump(*sq),
+                 "measure one square's edge of the printed board, in millimetres");
+  auto label = f.string("label", false, kMaxLabelBytes, true);
+  PROCAM_TRY(label);
+  c.label = label->value_or("");
+  auto events = f.boolean("events");
+  PROCAM_TRY(events);
+  c.events = events->value_or(false);
+  return RequestBody{std::move(c)};
+}
+
 // A request too broken to parse may still carry its id: find a top-level-looking
 // "id": "<text>" in the raw bytes so the error reply can be correlated. Only a
 // plain id (printable ASCII, no escapes, 1..kMaxIdBytes) is taken; anything
@@ -493,6 +553,8 @@ Result<Request> decode_request_impl(std::string_view bytes, std::string* id_out)
   } else if (type == "list_rig_options") {
     Status s = f.only({});
     body = s.ok() ? Result<RequestBody>(RequestBody{ListRigOptions{}}) : Result<RequestBody>(s);
+  } else if (type == "calibrate_geometry") {
+    body = decode_calibrate_geometry(f);
   } else {
     std::vector<std::string> names(kTypes.begin(), kTypes.end());
     return Error(Code::unknown_type, "unknown request type '" + type + "'",
@@ -543,6 +605,13 @@ json request_fields(const RequestBody& body) {
       return j;
     }
     json operator()(const ListRigOptions&) const { return json::object(); }
+    json operator()(const CalibrateGeometry& c) const {
+      json j = {{"scans", c.scans},
+                {"board", {{"inner_corners", {c.board_cols, c.board_rows}}, {"square_mm", c.square_mm}}}};
+      if (c.events) j["events"] = true;
+      if (!c.label.empty()) j["label"] = c.label;
+      return j;
+    }
   };
   return std::visit(Visitor{}, body);
 }

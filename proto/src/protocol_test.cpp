@@ -74,6 +74,8 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
       {"12", ListScans{}},
       {"13", ListScans{"active", 5}},
       {"14", ListRigOptions{}},
+      {"15", CalibrateGeometry{{"s1", "s2", "s3"}, 9, 7, 75.0, true, "desk rig"}},
+      {"16", CalibrateGeometry{{"a", "b", "c", "d"}, 2, 100, 0.5, false, ""}},
       {std::string(kMaxIdBytes, 'x'), ListPlugins{}},
   };
   std::set<std::string_view> types;
@@ -86,6 +88,33 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
     types.insert(type_name(req.body));
   }
   EXPECT_EQ(types.size(), std::variant_size_v<RequestBody>);
+}
+
+TEST(ProtoRequest, CalibrateGeometryFieldsAreChecked) {
+  const std::string head = R"({"procam":1,"id":"a","type":"calibrate_geometry",)";
+  const std::string board = R"("board":{"inner_corners":[9,7],"square_mm":75})";
+  auto r = decode_request(head + R"("scans":["x","y","z"],)" + board + "}");
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const auto& c = std::get<CalibrateGeometry>(r->body);
+  EXPECT_EQ(c.scans.size(), 3u);
+  EXPECT_EQ(c.board_cols, 9);
+  EXPECT_EQ(c.board_rows, 7);
+  EXPECT_DOUBLE_EQ(c.square_mm, 75.0);
+  expect_error(head + board + "}", Code::bad_message, "missing field 'scans'");
+  expect_error(head + R"("scans":["x","y"],)" + board + "}", Code::invalid_argument, "calibration needs 3..50");
+  expect_error(head + R"("scans":["x","y","x"],)" + board + "}", Code::invalid_argument, "scan 'x' twice");
+  expect_error(head + R"("scans":["x","y",7],)" + board + "}", Code::bad_message, "must hold scan ids");
+  expect_error(head + R"("scans":["x","y","z"]})", Code::bad_message, "missing field 'board'");
+  expect_error(head + R"("scans":["x","y","z"],"board":{"inner_corners":[9],"square_mm":75}})", Code::bad_message,
+               "'board.inner_corners' must be [cols, rows]");
+  expect_error(head + R"("scans":["x","y","z"],"board":{"inner_corners":[1,7],"square_mm":75}})",
+               Code::invalid_argument, "each count must be 2..100");
+  expect_error(head + R"("scans":["x","y","z"],"board":{"inner_corners":[9,7],"square_mm":0}})",
+               Code::invalid_argument, "'board.square_mm' must be in (0, 1000]");
+  expect_error(head + R"("scans":["x","y","z"],"board":{"inner_corners":[9,7],"square_mm":75,"kind":"x"}})",
+               Code::bad_message, "unknown field 'board.kind'");
+  expect_error(head + R"("scans":["x","y","z"],)" + board + R"(,"method":"gray"})", Code::bad_message,
+               "unknown field 'method'");
 }
 
 TEST(ProtoRequest, ListScansFiltersAreChecked) {
@@ -783,7 +812,7 @@ TEST(ProtoSpec, EveryExampleInProtocolMdDecodes) {
     }
   }
   for (auto t : {"hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch",
-                 "cancel", "ping", "list_scans", "list_rig_options"}) {
+                 "cancel", "ping", "list_scans", "list_rig_options", "calibrate_geometry"}) {
     EXPECT_TRUE(request_types.count(t)) << "no request example of type " << t;
     EXPECT_TRUE(reply_types.count(t)) << "no reply example of type " << t;
   }

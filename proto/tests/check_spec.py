@@ -16,7 +16,7 @@ PROTO = pathlib.Path(__file__).resolve().parent.parent
 ROOT = PROTO.parent
 SCHEMAS = PROTO / "schemas"
 REQUEST_TYPES = ["hello", "list_plugins", "describe_rig", "scan", "status", "result", "fetch",
-                 "cancel", "ping", "list_scans", "list_rig_options"]
+                 "cancel", "ping", "list_scans", "list_rig_options", "calibrate_geometry"]
 
 failures = []
 

@@ -10,10 +10,16 @@
 
 namespace procam::calibration {
 
-Result<View> decode_capture(host::PluginHost& host, const std::string& dir, const DecodeOptions& o) {
+Result<View> decode_capture(const host::PluginHost& host, const std::string& dir, const DecodeOptions& o) {
   if (o.projector_width == 0 || o.projector_height == 0)
     return Error(Code::invalid_argument, "calibration capture: projector size not given", "give --projector WxH");
-  const std::vector<std::string> files = engine::list_image_files(dir);
+  std::vector<std::string> files = engine::list_image_files(dir);
+  // A scan folder with saved frames (frame-r<round>-<index>.png) also holds
+  // the scan's output images and previews: only the frames make the white.
+  if (std::filesystem::is_regular_file(std::filesystem::path(dir) / engine::recorded_frame_name(1, 0)))
+    std::erase_if(files, [](const std::string& f) {
+      return !std::filesystem::path(f).filename().string().starts_with("frame-r");
+    });
   if (files.empty())
     return Error(Code::invalid_argument, "calibration capture " + dir + ": no image files",
                  "each capture folder holds one board pose's Gray-code frames");

@@ -10,6 +10,8 @@
 // 0.5 mm and 0.05 degrees; the board's squares triangulate to their size.
 #include "procam/calibration/geometric.hpp"
 
+#include "calibration_test_util.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -21,17 +23,13 @@
 namespace procam::calibration {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using test::angle_deg;
+using test::D_of;
+using test::K_of;
+using test::kPi;
+using test::rot;
 constexpr uint32_t kCamW = 800, kCamH = 640, kProjW = 640, kProjH = 480;
 const BoardSpec kBoard{9, 7, 30.0};
-
-cv::Matx33d rot(double rx_deg, double ry_deg, double rz_deg) {
-  const double a = rx_deg * kPi / 180, b = ry_deg * kPi / 180, c = rz_deg * kPi / 180;
-  const cv::Matx33d Rx(1, 0, 0, 0, std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a));
-  const cv::Matx33d Ry(std::cos(b), 0, std::sin(b), 0, 1, 0, -std::sin(b), 0, std::cos(b));
-  const cv::Matx33d Rz(std::cos(c), -std::sin(c), 0, std::sin(c), std::cos(c), 0, 0, 0, 1);
-  return Rz * Ry * Rx;
-}
 
 struct Truth {
   LensModel cam{kCamW, kCamH, 1100, 1098, 405, 318, {-0.15, 0.08, 0.001, -0.0008, 0.0}};
@@ -39,12 +37,6 @@ struct Truth {
   cv::Matx33d R = rot(3, -15, 1);  // cam_from_proj: x_cam = R x_proj + t
   cv::Vec3d t{200, -10, 30};
 };
-
-cv::Mat K_of(const LensModel& m) { return (cv::Mat_<double>(3, 3) << m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1); }
-cv::Mat D_of(const LensModel& m) {
-  return (cv::Mat_<double>(1, 5) << m.distortion[0], m.distortion[1], m.distortion[2], m.distortion[3],
-          m.distortion[4]);
-}
 
 // Undistorted normalised rays of camera points (iterated to 1e-10).
 std::vector<cv::Point2f> rays(const std::vector<cv::Point2f>& px, const Truth& T) {
@@ -160,12 +152,6 @@ std::vector<View> views(const Truth& T) {
   return out;
 }
 
-double angle_deg(const cv::Matx33d& A, const cv::Matx33d& B) {
-  const cv::Matx33d D = A.t() * B;
-  const double c = std::clamp((D(0, 0) + D(1, 1) + D(2, 2) - 1) / 2, -1.0, 1.0);
-  return std::acos(c) * 180 / kPi;
-}
-
 class GeometricCalibration : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { views_ = new std::vector<View>(views(Truth{})); }
@@ -180,35 +166,11 @@ TEST_F(GeometricCalibration, RecoversKnownIntrinsicsDistortionAndPose) {
   ASSERT_TRUE(r.ok()) << r.status().to_string();
   std::printf("%s", report_markdown(*r).c_str());
   for (const ViewReport& v : r->views) EXPECT_TRUE(v.used) << v.name << ": " << v.rejected_because;
-  auto near_rel = [](double got, double truth, const char* what) {
-    EXPECT_NEAR(got, truth, 0.005 * std::abs(truth)) << what;
-  };
-  near_rel(r->camera.fx, T.cam.fx, "camera fx");
-  near_rel(r->camera.fy, T.cam.fy, "camera fy");
-  near_rel(r->camera.cx, T.cam.cx, "camera cx");
-  near_rel(r->camera.cy, T.cam.cy, "camera cy");
-  near_rel(r->projector.fx, T.proj.fx, "projector fx");
-  near_rel(r->projector.fy, T.proj.fy, "projector fy");
-  near_rel(r->projector.cx, T.proj.cx, "projector cx");
-  near_rel(r->projector.cy, T.proj.cy, "projector cy");
-  // Distortion: k1, k2, k3 trade off against each other, so compare what
-  // they do: the displacement (pixels) each model's distortion applies to the
-  // image points the views covered (the detected corners), each model
-  // undistorting into its own pixel grid (so fx, cx errors, tested above,
-  // are not counted twice).
-  auto field_error_px = [&](const LensModel& got, const LensModel& truth, bool projector) {
-    std::vector<cv::Point2f> pts, a, b;
-    for (const ViewReport& v : r->views)
-      for (const auto& c : projector ? v.proj_corners : v.cam_corners) pts.emplace_back(c[0], c[1]);
-    cv::undistortPoints(pts, a, K_of(got), D_of(got), cv::noArray(), K_of(got));
-    cv::undistortPoints(pts, b, K_of(truth), D_of(truth), cv::noArray(), K_of(truth));
-    double worst = 0;
-    for (size_t i = 0; i < pts.size(); ++i)
-      worst = std::max(worst, static_cast<double>(cv::norm((a[i] - pts[i]) - (b[i] - pts[i]))));
-    return worst;
-  };
-  EXPECT_LT(field_error_px(r->camera, T.cam, false), 0.5) << "camera lens model over the covered image";
-  EXPECT_LT(field_error_px(r->projector, T.proj, true), 0.5) << "projector lens model over the covered image";
+  test::expect_intrinsics_within(r->camera, T.cam, 0.005, "camera");
+  test::expect_intrinsics_within(r->projector, T.proj, 0.005, "projector");
+  EXPECT_LT(test::distortion_field_error_px(*r, r->camera, T.cam, false), 0.5) << "camera lens model over the covered image";
+  EXPECT_LT(test::distortion_field_error_px(*r, r->projector, T.proj, true), 0.5)
+      << "projector lens model over the covered image";
   const cv::Matx33d R(r->cam_from_proj_rotation.data());
   const cv::Vec3d t(r->cam_from_proj_translation_mm.data());
   EXPECT_LT(angle_deg(R, T.R), 0.05) << "cam_from_proj rotation";

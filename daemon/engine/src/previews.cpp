@@ -261,6 +261,26 @@ Status write_scan_report(const std::string& dir, const nlohmann::json& manifest)
     h << "</table>\n";
   }
 
+  // Calibration records (calibrate_geometry, PROTOCOL.md 5.12): the per-view table.
+  if (manifest.contains("calibration") && manifest["calibration"].is_object()) {
+    const auto& c = manifest["calibration"];
+    h << "<h2>Geometric calibration</h2>\n<table><tr><th>view (scan)</th><th>used</th><th>corners</th>"
+         "<th>with projector position</th><th>camera RMS (px)</th><th>projector RMS (px)</th><th>why rejected</th></tr>\n";
+    for (const auto& v : c.value("views", nlohmann::json::array()))
+      h << "<tr><td>" << html_escape(v.value("name", "")) << "</td><td>" << (v.value("used", false) ? "yes" : "no")
+        << "</td><td>" << json_text(v.value("corners", nlohmann::json(0))) << "</td><td>"
+        << json_text(v.value("projector_corners", nlohmann::json(0))) << "</td><td>"
+        << json_text(v.value("camera_rms_px", nlohmann::json(0))) << "</td><td>"
+        << json_text(v.value("projector_rms_px", nlohmann::json(0))) << "</td><td>"
+        << html_escape(v.value("rejected_because", "")) << "</td></tr>\n";
+    h << "</table>\n<table>\n";
+    for (const char* k : {"camera_rms_px", "projector_rms_px", "stereo_rms_px"})
+      if (c.contains(k)) row(k, json_text(c[k]));
+    if (c.contains("square_check")) row("squares triangulated", c["square_check"].dump());
+    row("result file", c.value("result_file", ""));
+    h << "</table>\n";
+  }
+
   std::map<std::string, std::string> descriptions;
   if (manifest.contains("outputs") && manifest["outputs"].is_array()) {
     bool any = false;

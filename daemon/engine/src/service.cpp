@@ -155,13 +155,18 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
                    "the queue holds " + std::to_string(cfg_.max_queue) + " scans; retry later with back-off");
     }
   }
-  auto session = make_session(req);
-  if (!session) return session.status();
   auto rec = std::make_shared<Record>();
+  if (service_detail::is_calibration(req)) {
+    auto job = check_calibration(req);  // no plugin session: the worker decodes the scans' frames
+    if (!job) return job.status();
+  } else {
+    auto session = make_session(req);
+    if (!session) return session.status();
+    rec->session.emplace(std::move(*session));
+  }
   rec->id = new_scan_id();
   rec->req = req;
   rec->created_utc = utc_now();
-  rec->session.emplace(std::move(*session));
   {
     // Reserve the id (state "queued", not yet in the queue: a cancel now is
     // "just starting", retry), persist the request outside the lock, then queue.
@@ -286,6 +291,7 @@ void ScanService::emit(Record& rec, const std::string& event, nlohmann::json fie
 }
 
 void ScanService::run_one(Record& rec) {
+  if (service_detail::is_calibration(rec.req)) return run_calibration(rec);  // service_calibration.cpp
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
   auto set_state = [&](const std::string& s) {

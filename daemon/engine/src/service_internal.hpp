@@ -45,6 +45,11 @@ struct ScanService::Record {
 
 namespace service_detail {
 
+// A calibration record (ScanService::submit_calibration), not a plugin scan.
+inline bool is_calibration(const ScanRequest& req) {
+  return req.plugin == kCalibrationPlugin && req.method == kCalibrationMethod;
+}
+
 // --- manifest (service_manifest.cpp) ---
 // The error object of a failed Status for JSON (proto::error_to_json), null when ok.
 nlohmann::json error_json(const Status& s);

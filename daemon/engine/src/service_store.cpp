@@ -237,6 +237,16 @@ void ScanService::restart_queued(std::vector<std::pair<std::shared_ptr<Record>, 
                         ", more than " + std::to_string(cfg_.queued_max_age.count()) +
                         " s before the daemon restarted",
                     "scan again if still wanted (queued_scans.max_age_s in the daemon config)");
+      } else if (service_detail::is_calibration(rec->req)) {
+        if (auto job = check_calibration(rec->req); !job) {
+          why = job.status().with_context("queued before a restart, but can no longer run");
+        } else {
+          std::lock_guard lock(mu_);
+          scans_[rec->id] = rec;
+          queue_.push_back(rec);
+          ++requeued;
+          continue;
+        }
       } else if (auto session = make_session(rec->req); !session) {
         why = session.status().with_context("queued before a restart, but can no longer run");
       } else {

@@ -13,6 +13,7 @@
 #include "tank.hpp"
 #include "parallel.hpp"
 #include "procam/hw/sim/raycast.hpp"
+#include "procam/hw/sim/texture.hpp"
 
 namespace procam::sim {
 namespace {
@@ -23,7 +24,7 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // point itself when it lies within this fraction of the distance to it.
 constexpr double kShadowRelEps = 1e-6;
 
-void fill_view_rows(const SceneTracer& tracer, const ProjectorModel& projector,
+void fill_view_rows(const Scene& scene, const SceneTracer& tracer, const ProjectorModel& projector,
                     const Rigid3& world_from_cam, const Rigid3& proj_from_world,
                     const Vec3& proj_centre_world, PreparedView& v, uint32_t row_begin,
                     uint32_t row_end) {
@@ -44,7 +45,14 @@ void fill_view_rows(const SceneTracer& tracer, const ProjectorModel& projector,
       Vec3 n_world = hit.normal;
       if (dot(n_world, d_world) > 0) n_world = -n_world;  // face the camera
       const Vec3 n_cam = world_from_cam.rotation.transposed() * n_world;
-      const double albedo = tracer.material(hit.object).albedo;
+      const Object& obj = scene.objects[static_cast<size_t>(hit.object)];
+      // A textured plane: the texture's mean over this pixel's footprint
+      // (texture.hpp, anti-aliased); else the material's albedo.
+      const Plane* plane = obj.texture ? std::get_if<Plane>(&obj.shape) : nullptr;
+      const double albedo =
+          plane != nullptr ? footprint_albedo(*obj.texture, *plane, obj.material.albedo, K, world_from_cam,
+                                              static_cast<double>(col), static_cast<double>(row))
+                           : obj.material.albedo;
       v.depth_mm[i] = static_cast<float>(x_cam.z);
       v.point_mm[3 * i + 0] = static_cast<float>(x_cam.x);
       v.point_mm[3 * i + 1] = static_cast<float>(x_cam.y);
@@ -76,7 +84,9 @@ void fill_view_rows(const SceneTracer& tracer, const ProjectorModel& projector,
       v.lit[i] = 1;
       const double irr = intensity * cos_p / (dist * dist);
       v.irradiance_gain[i] = static_cast<float>(irr);
-      v.direct_gain[i] = static_cast<float>(tracer.material(hit.object).direct_albedo() / M_PI * irr);
+      // Textured surfaces are opaque (the parser checks), so their direct albedo is the albedo.
+      const double direct_albedo = plane != nullptr ? albedo : obj.material.direct_albedo();
+      v.direct_gain[i] = static_cast<float>(direct_albedo / M_PI * irr);
       const auto ix = static_cast<int64_t>(std::floor(xp + 0.5));
       const auto iy = static_cast<int64_t>(std::floor(yp + 0.5));
       v.nearest[i] = static_cast<int32_t>((iy + 1) * stride + (ix + 1));
@@ -147,7 +157,7 @@ Result<PreparedView> prepare_view(const Scene& scene, const ProjectorModel& proj
   const Rigid3 proj_from_world = world_from_proj.inverse();
   const Vec3 proj_centre_world = world_from_proj.translation_mm;
   detail::parallel_rows(v.height, threads, [&](uint32_t b, uint32_t e) {
-    fill_view_rows(tracer, projector, world_from_cam, proj_from_world, proj_centre_world, v, b, e);
+    fill_view_rows(scene, tracer, projector, world_from_cam, proj_from_world, proj_centre_world, v, b, e);
   });
   for (size_t i = 0; i < n; ++i)
     v.ambient[i] = static_cast<float>(static_cast<double>(v.albedo[i]) / M_PI * scene.ambient);

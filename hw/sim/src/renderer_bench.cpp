@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Speed of the sim renderer on the default rig (1280×800 camera and projector,
 // plane scene): direct render, pattern preparation + blur level, sensor, and a
-// whole capture. Single-threaded unless stated.
+// whole capture; and a textured calibration board on the distorted rig.
+// Single-threaded unless stated.
 #include <benchmark/benchmark.h>
 
 #include <fstream>
@@ -106,6 +107,25 @@ void BM_PrepareScene(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_PrepareScene)->Unit(benchmark::kMillisecond);
+
+// Scene preparation of a calibration pose on the distorted rig
+// (configs/rigs/sim-distorted.json, board-4): Arg 1 with the chessboard
+// texture (anti-aliased footprints), Arg 0 the same plate untextured; the
+// difference is the texture's cost. Single-threaded.
+void BM_PrepareBoard(benchmark::State& state) {
+  std::ifstream in(std::string(PROCAM_SOURCE_DIR) + "/configs/rigs/sim-distorted.json");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto cfg = parse_sim_rig_config(nlohmann::json::parse(ss.str()));
+  auto scene = load_scene(std::string(PROCAM_SOURCE_DIR) + "/configs/scenes/calib/board-4.json", {});
+  if (!cfg.ok() || !scene.ok()) { state.SkipWithError("scene/config failed"); return; }
+  if (state.range(0) == 0) scene->objects[0].texture.reset();
+  for (auto _ : state) {
+    auto v = prepare_view(*scene, cfg->projector, cfg->cameras[0].calibration, 1);
+    benchmark::DoNotOptimize(v.ok());
+  }
+}
+BENCHMARK(BM_PrepareBoard)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace procam::sim

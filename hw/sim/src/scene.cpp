@@ -53,7 +53,7 @@ Vec3 unit_vec(FieldReader& r, const char* key, std::optional<Vec3> def) {
 }
 
 Plane parse_plane(FieldReader& r) {
-  r.only({"type", "name", "material", "point_mm", "normal", "size_mm", "u_axis"});
+  r.only({"type", "name", "material", "point_mm", "normal", "size_mm", "u_axis", "texture"});
   Plane p;
   p.point_mm = r.vec3("point_mm", std::nullopt, "a point on the plane, mm");
   p.normal = unit_vec(r, "normal", std::nullopt);
@@ -118,6 +118,52 @@ Bowl parse_bowl(FieldReader& r) {
   b.depth_mm = r.positive("depth_mm", b.radius_mm, "mm (default: radius_mm, a hemisphere)");
   b.opening = unit_vec(r, "opening", Vec3{0, 0, -1});
   return b;
+}
+
+// "texture" of a plane (texture.hpp): {"type": "chessboard", "inner_corners":
+// [cols, rows], "square_mm", "dark", "light", "border_squares"}. The plane's
+// material must be opaque and not a sheet, and a finite plane must hold the
+// textured area.
+ChessboardTexture parse_texture(FieldReader& obj, const Plane& plane, const Material& m) {
+  ChessboardTexture t;
+  const nlohmann::json* tj = obj.object("texture", true);
+  if (tj == nullptr) return t;
+  FieldReader r(*tj, obj.field("texture"), obj.errors());
+  r.only({"type", "inner_corners", "square_mm", "dark", "light", "border_squares", "comment"});
+  const std::string type = r.string("type", std::nullopt);
+  if (r.errors().ok() && type != "chessboard") {
+    r.fail("type", "unknown texture type '" + type + "'", "use \"chessboard\"");
+    return t;
+  }
+  const auto ic = r.numbers<2>("inner_corners", std::nullopt, "[cols, rows] inner corners");
+  if (r.errors().ok()) {
+    for (double c : ic)
+      if (!(c >= 2 && c <= 100 && c == std::floor(c))) {
+        r.fail("inner_corners", "both counts must be integers in [2, 100], got [" + FieldReader::num_str(ic[0]) +
+                                    ", " + FieldReader::num_str(ic[1]) + "]");
+        return t;
+      }
+    t.cols = static_cast<int>(ic[0]);
+    t.rows = static_cast<int>(ic[1]);
+  }
+  t.square_mm = r.number("square_mm", std::nullopt, "edge of one square, mm", 0.1, 1000.0);
+  t.dark = r.number("dark", 0.05, "albedo of the dark squares", 0.0, 1.0);
+  t.light = r.number("light", 0.9, "albedo of the light squares and the border", 0.0, 1.0);
+  t.border_squares = static_cast<int>(r.integer("border_squares", 1, 0, 100));
+  if (!r.errors().ok()) return t;
+  if (m.translucent() || m.sheet()) {
+    obj.fail("texture", "a texture needs an opaque material (no mean_free_path_mm, no transmittance)");
+  } else if (std::max(t.dark, t.light) + m.specular > 1.0 + 1e-12) {
+    r.fail("light", "max(dark, light) + material.specular must be <= 1 (energy conservation)");
+  } else if (plane.finite && (plane.width_mm < 2 * t.half_width_mm() - 1e-9 ||
+                              plane.height_mm < 2 * t.half_height_mm() - 1e-9)) {
+    obj.fail("size_mm", "the plane (" + FieldReader::num_str(plane.width_mm) + " x " +
+                            FieldReader::num_str(plane.height_mm) + " mm) must hold the board with its border (" +
+                            FieldReader::num_str(2 * t.half_width_mm()) + " x " +
+                            FieldReader::num_str(2 * t.half_height_mm()) + " mm)",
+             "enlarge size_mm or lower border_squares / square_mm");
+  }
+  return t;
 }
 
 std::string read_file(const std::string& path, Status& st) {
@@ -338,6 +384,10 @@ Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
         std::string type = r.string("type", std::nullopt);
         o.name = r.string("name", std::string());
         if (!errors.ok()) break;
+        if (type != "plane" && r.has("texture")) {
+          r.fail("texture", "only planes take a texture", "put the board on a \"plane\" object");
+          break;
+        }
         if (type == "plane") {
           o.shape = parse_plane(r);
         } else if (type == "box") {
@@ -353,6 +403,7 @@ Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
           break;
         }
         o.material = parse_material(r);
+        if (r.has("texture") && errors.ok()) o.texture = parse_texture(r, std::get<Plane>(o.shape), o.material);
         scene.objects.push_back(std::move(o));
       }
     }

@@ -25,13 +25,22 @@ Intrinsics parse_intrinsics(FieldReader& parent, const char* key) {
   const nlohmann::json* j = parent.object(key, true);
   if (j == nullptr) return k;
   FieldReader r(*j, parent.field(key), parent.errors());
-  r.only({"width", "height", "fx", "fy", "cx", "cy"});
+  r.only({"width", "height", "fx", "fy", "cx", "cy", "distortion"});
   k.width = static_cast<uint32_t>(r.integer("width", std::nullopt, 1, 65536));
   k.height = static_cast<uint32_t>(r.integer("height", std::nullopt, 1, 65536));
   k.fx = r.positive("fx", std::nullopt, "focal length, pixels");
   k.fy = r.positive("fy", std::nullopt, "focal length, pixels");
   k.cx = r.number("cx", std::nullopt, "principal point, pixels");
   k.cy = r.number("cy", std::nullopt, "principal point, pixels");
+  // Lens distortion, OpenCV's [k1, k2, p1, p2, k3] (procam/base/calibration.hpp):
+  // the renderer casts camera rays through Intrinsics::ray() and finds a
+  // point's projector pixel with Intrinsics::project(), both distortion-aware.
+  if (r.has("distortion")) {
+    const auto d = r.numbers<5>("distortion", std::nullopt, "[k1, k2, p1, p2, k3]");
+    for (size_t i = 0; i < 5 && r.errors().ok(); ++i)
+      if (!(std::abs(d[i]) <= 10.0)) r.fail("distortion", "coefficients must be finite and within [-10, 10]");
+    if (r.errors().ok()) k.distortion = d;
+  }
   return k;
 }
 

@@ -112,8 +112,22 @@ struct ListRigOptions {
   bool operator==(const ListRigOptions&) const = default;
 };
 
+inline constexpr size_t kMinCalibrationScans = 3;
+inline constexpr size_t kMaxCalibrationScans = 50;
+// Geometric calibration of the rig from finished chessboard scans
+// (PROTOCOL.md 5.12): each scan a structured-light/gray rows=true scan with
+// saved frames, one board pose each. Runs as a calibration "scan" record.
+struct CalibrateGeometry {
+  std::vector<std::string> scans;  // kMinCalibrationScans..kMaxCalibrationScans scan ids, no repeats
+  int board_cols = 0, board_rows = 0;  // inner corners, 2..100 each
+  double square_mm = 0;                // > 0, <= 1000
+  bool events = false;
+  std::string label;  // "" when not sent
+  bool operator==(const CalibrateGeometry&) const = default;
+};
+
 using RequestBody = std::variant<Hello, ListPlugins, DescribeRig, Scan, StatusQuery, ResultQuery,
-                                 Fetch, Cancel, Ping, ListScans, ListRigOptions>;
+                                 Fetch, Cancel, Ping, ListScans, ListRigOptions, CalibrateGeometry>;
 
 struct Request {
   std::string id;

@@ -6,6 +6,8 @@
 // view's white image is the per-pixel maximum over every frame of the folder:
 // the white frame where there is one, else the lit level of the
 // pattern/inverse pairs (so layouts without white work too).
+// A scan folder with saved frames (frame-r<round>-<index>.png beside the
+// scan's outputs and previews) is read as its frames only.
 // Thread-safety: one call per PluginHost at a time. Errors: the decode's
 // Status (naming the folder), or invalid_argument for a folder without
 // images / with mixed sizes.
@@ -30,6 +32,6 @@ struct DecodeOptions {
   uint32_t threads = 2;
 };
 
-Result<View> decode_capture(host::PluginHost& host, const std::string& dir, const DecodeOptions& options);
+Result<View> decode_capture(const host::PluginHost& host, const std::string& dir, const DecodeOptions& options);
 
 }  // namespace procam::calibration

@@ -53,6 +53,26 @@ struct RetentionPolicy {
   std::chrono::seconds download_grace{600};  // never delete a scan fetched this recently
 };
 
+// Geometric calibration of the rig (request calibrate_geometry, PROTOCOL.md
+// 5.12), run as a calibration record on the scan worker: the job the
+// service hands to ServiceConfig::calibrate_geometry once it has checked
+// every scan (finished, structured-light/gray with rows=true, saved frames).
+struct GeometryCalibrationJob {
+  std::vector<std::string> scan_ids;   // the board poses, in the request's order
+  std::vector<std::string> scan_dirs;  // their folders (frame-r1-*.png inside), same order
+  int board_cols = 0, board_rows = 0;  // inner corners
+  double square_mm = 0;
+  uint32_t projector_width = 0, projector_height = 0;  // the rig's projector
+  std::string out_dir;  // the calibration record's folder: write its result files here
+};
+// Runs the job on the worker thread and returns the manifest's
+// "calibration" object; errors fail the record (failed_precondition: too few
+// usable views, naming each rejected one). Must not throw.
+using GeometryCalibrator = std::function<Result<nlohmann::json>(const GeometryCalibrationJob&)>;
+// The pseudo plugin/method of calibration records in manifests and lists.
+inline constexpr const char* kCalibrationPlugin = "procam";
+inline constexpr const char* kCalibrationMethod = "calibrate_geometry";
+
 struct ServiceConfig {
   std::string results_dir;
   unsigned threads = 2;         // suggested to plugins
@@ -73,6 +93,9 @@ struct ServiceConfig {
   // cell's part has moved on by then. A clean stop() still cancels the queue.
   bool run_queued_on_restart = true;
   std::chrono::seconds queued_max_age{3600};
+  // Geometric calibration (calibrate_geometry requests); unset: such
+  // requests fail with failed_precondition. procamd sets it (procam::calibration).
+  GeometryCalibrator calibrate_geometry;
 };
 
 // Where a scan input comes from: output `output` of the finished scan `scan_id`.
@@ -120,6 +143,15 @@ public:
   // seen before with the same content returns that scan instead, with
   // "duplicate": true and its current state.
   Result<nlohmann::json> submit(const ScanRequest& req, const std::string& request_id = "");
+  // A calibrate_geometry request (PROTOCOL.md 5.12): checks every scan now
+  // (invalid_argument: unknown scan id; failed_precondition: a scan not done,
+  // not structured-light/gray with rows=true, or without saved frames; each
+  // with a hint) and queues a calibration record (plugin "procam", method
+  // "calibrate_geometry", params {"scans", "board"}) that runs
+  // cfg.calibrate_geometry on the worker. Reply and duplicates as submit().
+  Result<nlohmann::json> submit_calibration(const std::vector<std::string>& scan_ids, int board_cols,
+                                            int board_rows, double square_mm, const std::string& label,
+                                            const std::string& request_id = "");
   // Cancels a queued scan (it ends failed/cancelled now) or the running one
   // (it stops before its next frame). → {"scan_id","previous_state","state"};
   // not_found / failed_precondition (already finished).
@@ -160,6 +192,11 @@ private:
   // Checks rig_options and inputs and creates the plugin session (submit and
   // the restart of persisted queued scans).
   Result<host::Session> make_session(const ScanRequest& req) const;
+  // Calibration records (service_calibration.cpp): the checks of
+  // submit_calibration on a request's params, the job they describe, and the
+  // worker's run of one.
+  Result<GeometryCalibrationJob> check_calibration(const ScanRequest& req) const;
+  void run_calibration(Record& rec);
   // Queues again (or fails) the persisted queued scans load_existing found.
   void restart_queued(std::vector<std::pair<std::shared_ptr<Record>, Result<ScanRequest>>> found);
   Result<LoadedInputs> load_inputs(const ScanRequest& req) const;  // service_inputs.cpp

@@ -23,6 +23,7 @@
 
 #include "procam/base/geometry.hpp"
 #include "procam/core/status.hpp"
+#include "procam/hw/sim/texture.hpp"
 
 namespace procam::sim {
 
@@ -105,6 +106,12 @@ struct Object {
   std::string name;  // optional label from the file ("" if none)
   Shape shape;
   Material material;
+  // Albedo texture (planes only, opaque materials): replaces material.albedo
+  // for the light the surface itself reflects to the camera (direct and
+  // ambient, the radiosity gather at its pixels). Light it passes on to other
+  // surfaces (inter-reflection patches, glossy targets) still uses
+  // material.albedo. texture.hpp.
+  std::optional<ChessboardTexture> texture = std::nullopt;
 };
 
 // Homogeneous participating medium (SCENES.md "medium", docs/media.md),
