@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
 
 #include "daemon_process.hpp"
 #include "procam/core/image_io.hpp"
@@ -18,7 +21,8 @@ namespace {
 // Captures the first round of `method`'s plan (default gray) on the sim rig
 // (scene `scene`) into `dir` as 000.png, 001.png, ... and returns the
 // ground truth.
-hw::GroundTruth capture_to_files(const std::string& scene, const fs::path& dir, const std::string& method = "gray") {
+hw::GroundTruth capture_to_files(const std::string& scene, const fs::path& dir, const std::string& method = "gray",
+                                 std::vector<std::string>* labels = nullptr) {
   auto cfg = engine::read_json_file(source("configs/rigs/sim.json"));
   EXPECT_TRUE(cfg.ok());
   auto rig = hw::create_rig(*cfg, {source("configs/rigs"), {source("configs/scenes")}});
@@ -39,6 +43,7 @@ hw::GroundTruth capture_to_files(const std::string& scene, const fs::path& dir, 
     char name[32];
     std::snprintf(name, sizeof name, "%03zu.png", i);
     EXPECT_TRUE(write_image((dir / name).string(), f->image).ok());
+    if (labels) labels->push_back(frames[i].label);
   }
   auto gt = (*rig)->ground_truth(0);
   EXPECT_TRUE(gt.ok());
@@ -96,6 +101,93 @@ TEST(OfflineDecode, MultiRoundMethodOnOneRoundCaptureRunsTheRoundsThatExist) {
   // pixels decoded.
   EXPECT_LE(e["gross_error_fraction"].get<double>(), 0.005) << e.dump(2);
   EXPECT_GT(e["decoded_fraction"].get<double>(), 0.5) << e.dump(2);
+}
+
+// Round notes of a decode's manifest, joined: where the synthesis of
+// white/black is reported.
+std::string round_notes(const fs::path& out) {
+  auto m = engine::read_json_file((out / "manifest.json").string());
+  EXPECT_TRUE(m.ok());
+  std::string notes;
+  if (m.ok())
+    for (const auto& r : (*m)["plan"]["rounds"]) notes += r.dump() + "\n";
+  return notes;
+}
+
+// `--layout gupta-pairs`: a capture of pattern/inverse pairs only (no white,
+// no black, as in Gupta et al.'s released pattern sets) decodes with white
+// and black synthesized from the pairs, about as well as the full capture.
+TEST(OfflineDecode, GuptaPairsCaptureWithoutWhiteAndBlackDecodes) {
+  TempDir frames, out;
+  std::vector<std::string> labels;
+  auto gt = capture_to_files("v-groove", frames.path, "gray", &labels);
+  ASSERT_EQ(labels.size(), 24u);
+  size_t removed = 0;
+  for (size_t i = 0; i < labels.size(); ++i)
+    if (labels[i] == "white" || labels[i] == "black") {
+      char name[32];
+      std::snprintf(name, sizeof name, "%03zu.png", i);
+      ASSERT_TRUE(fs::remove(frames.path / name));
+      ++removed;
+    }
+  ASSERT_EQ(removed, 2u);
+  std::vector<std::string> cmd = decode_cmd(frames.path, out.path);
+  cmd.insert(cmd.end(), {"--layout", "gupta-pairs"});
+  std::string text;
+  ASSERT_EQ(run_command(cmd, &text), 0) << text;
+  EXPECT_NE(round_notes(out.path).find("white and black synthesized"), std::string::npos) << round_notes(out.path);
+  auto col = read_image((out.path / "proj_col_px.exr").string());
+  ASSERT_TRUE(col.ok());
+  auto e = engine::evaluate_correspondence(*col, nullptr, gt);
+  // The synthesized levels only set contrast (validity, confidence), never a
+  // bit: the correspondence suite's bars hold.
+  EXPECT_LE(e["gross_error_fraction"].get<double>(), 0.005) << e.dump(2);
+  EXPECT_GE(e["decoded_fraction"].get<double>(), 0.9) << e.dump(2);
+}
+
+// A JSON layout file maps arbitrarily named files (here in reverse order and
+// renamed) to plan frames by glob or by index; a glob that matches nothing
+// is an error naming the entry.
+TEST(OfflineDecode, JsonLayoutFileMapsRenamedFiles) {
+  TempDir frames, out;
+  std::vector<std::string> labels;
+  auto gt = capture_to_files("tilted-box", frames.path, "gray", &labels);
+  ASSERT_EQ(labels.size(), 24u);
+  nlohmann::json layout = nlohmann::json::array();
+  const size_t n = labels.size();
+  for (size_t i = 0; i < n; ++i) {
+    char from[32], to[32];
+    std::snprintf(from, sizeof from, "%03zu.png", i);
+    std::snprintf(to, sizeof to, "shot_%02zu.png", n - 1 - i);  // reverse order, new names
+    fs::rename(frames.path / from, frames.path / to);
+    // Half the entries by glob, half by index into the sorted file names.
+    if (i % 2 == 0)
+      layout.push_back({{"file", std::string("shot_") + (n - 1 - i < 10 ? "0" : "") + std::to_string(n - 1 - i) + ".p?g"},
+                        {"frame", labels[i]}});
+    else
+      layout.push_back({{"file", static_cast<int>(n - 1 - i)}, {"frame", labels[i]}});
+  }
+  const fs::path layout_file = out.path / "my-layout.json";
+  std::ofstream(layout_file) << layout.dump(1);
+  const fs::path dest = out.path / "decoded";
+  std::vector<std::string> cmd = decode_cmd(frames.path, dest);
+  cmd.insert(cmd.end(), {"--layout", layout_file.string()});
+  std::string text;
+  ASSERT_EQ(run_command(cmd, &text), 0) << text;
+  auto col = read_image((dest / "proj_col_px.exr").string());
+  ASSERT_TRUE(col.ok());
+  auto e = engine::evaluate_correspondence(*col, nullptr, gt);
+  EXPECT_GE(e["within_1col_fraction"].get<double>(), 0.99) << e.dump(2);
+
+  // A glob that matches no file: the error names it and decodes nothing.
+  layout[0]["file"] = "nothing_like_this_*.png";
+  std::ofstream(layout_file) << layout.dump(1);
+  const fs::path dest2 = out.path / "decoded2";
+  cmd = decode_cmd(frames.path, dest2);
+  cmd.insert(cmd.end(), {"--layout", layout_file.string()});
+  EXPECT_EQ(run_command(cmd, &text), 1) << text;
+  EXPECT_NE(text.find("nothing_like_this_*.png"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(dest2 / "manifest.json"));
 }
 
 TEST(OfflineDecode, WrongFrameCountAndCorruptFramesAreExplained) {
