@@ -45,26 +45,30 @@ double sample_bilinear(const std::vector<float>& img, uint32_t w, uint32_t h, do
 }
 
 void box_sum(std::vector<float>& vol, uint32_t w, uint32_t h, uint32_t slices, int r) {
+  // Prefix sums of the finite values and of the NaN count (a NaN in a plain
+  // prefix sum would poison every later window of the line).
   std::vector<double> line(std::max(w, h) + 1);
+  std::vector<uint32_t> bad(std::max(w, h) + 1);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  auto pass = [&](float* base, uint32_t n, size_t stride) {
+    line[0] = 0;
+    bad[0] = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+      const float v = base[i * stride];
+      const bool finite = std::isfinite(v);
+      line[i + 1] = line[i] + (finite ? static_cast<double>(v) : 0.0);
+      bad[i + 1] = bad[i] + (finite ? 0u : 1u);
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+      const auto a = static_cast<size_t>(std::max(0, static_cast<int>(i) - r));
+      const auto b = static_cast<size_t>(std::min(static_cast<int>(n) - 1, static_cast<int>(i) + r)) + 1;
+      base[i * stride] = bad[b] != bad[a] ? nan : static_cast<float>(line[b] - line[a]);
+    }
+  };
   for (uint32_t s = 0; s < slices; ++s) {
     float* sl = &vol[size_t{s} * w * h];
-    for (uint32_t y = 0; y < h; ++y) {  // rows
-      float* row = sl + size_t{y} * w;
-      line[0] = 0;
-      for (uint32_t x = 0; x < w; ++x) line[x + 1] = line[x] + static_cast<double>(row[x]);
-      for (uint32_t x = 0; x < w; ++x) {
-        const int a = std::max(0, static_cast<int>(x) - r), b = std::min(static_cast<int>(w) - 1, static_cast<int>(x) + r);
-        row[x] = static_cast<float>(line[static_cast<size_t>(b) + 1] - line[static_cast<size_t>(a)]);
-      }
-    }
-    for (uint32_t x = 0; x < w; ++x) {  // columns
-      line[0] = 0;
-      for (uint32_t y = 0; y < h; ++y) line[y + 1] = line[y] + static_cast<double>(sl[size_t{y} * w + x]);
-      for (uint32_t y = 0; y < h; ++y) {
-        const int a = std::max(0, static_cast<int>(y) - r), b = std::min(static_cast<int>(h) - 1, static_cast<int>(y) + r);
-        sl[size_t{y} * w + x] = static_cast<float>(line[static_cast<size_t>(b) + 1] - line[static_cast<size_t>(a)]);
-      }
-    }
+    for (uint32_t y = 0; y < h; ++y) pass(sl + size_t{y} * w, w, 1);
+    for (uint32_t x = 0; x < w; ++x) pass(sl + x, h, w);
   }
 }
 
