@@ -58,17 +58,20 @@ std::vector<float> binocular_depth(const BinocularInput& in, const DepthSearch& 
   };
 
   // Per-pixel residual volumes (slice k = hypothesis k), then window sums.
-  std::vector<float> num(n * kc), den(n * kc);
+  // Invalid samples count 0 in num/den and 0 in cnt: a window's cost uses its
+  // valid pixels, if at least half of it is valid (so hypotheses near the
+  // image border or beside a saturated blob are not lost).
+  std::vector<float> num(n * kc), den(n * kc), cnt(n * kc);
   for (uint32_t y = 0; y < h; ++y)
     for (uint32_t x = 0; x < w; ++x) {
       const size_t p = size_t{y} * w + x;
       const double il = in.left_image[p];
       const bool bad_left = !(il < search.saturation) || !std::isfinite(il);
+      if (bad_left) continue;  // saturated: no sample, and never valid itself (below)
       for (uint32_t k = 0; k < kc; ++k) {
         float& nk = num[size_t{k} * n + p];
         float& dk = den[size_t{k} * n + p];
-        nk = dk = nan;
-        if (bad_left) continue;
+        float& ck = cnt[size_t{k} * n + p];
         const double z = search.z_min_mm + k * search.z_step_mm;
         const double d_ap = z * len_l[p];
         const Vec3 pt = ca + rays_l[p] * d_ap;
@@ -86,23 +89,27 @@ std::vector<float> binocular_depth(const BinocularInput& in, const DepthSearch& 
         if (!std::isfinite(a) || !std::isfinite(b)) continue;
         nk = static_cast<float>((a - b) * (a - b));
         dk = static_cast<float>(a * a + b * b);
+        ck = 1.0f;
       }
     }
   const int r = std::max(0, search.window / 2);
   box_sum(num, w, h, kc, r);
   box_sum(den, w, h, kc, r);
+  box_sum(cnt, w, h, kc, r);
   std::vector<float> cost(size_t{kc});
+  const auto min_count = static_cast<float>((2 * r + 1) * (2 * r + 1) / 2 + 1);
   for (size_t p = 0; p < n; ++p) {
     for (uint32_t k = 0; k < kc; ++k) {
       const float d = den[size_t{k} * n + p];
-      cost[k] = d > 0 ? num[size_t{k} * n + p] / d : nan;  // NaN stays NaN
+      const float c = cnt[size_t{k} * n + p];
+      cost[k] = d > 0 && c >= min_count ? num[size_t{k} * n + p] / d : nan;
     }
     const double kk = refined_argmin(cost.data(), 1, kc);
     if (!std::isfinite(kk)) continue;
     const double z = search.z_min_mm + kk * search.z_step_mm;
     // Zero signal: nothing but backscatter (or black) at the chosen depth.
     const double signal = static_cast<double>(in.left_image[p]) - (media ? b_left(p, z * len_l[p]) : 0.0);
-    if (!(signal > search.min_signal)) continue;
+    if (!(signal > search.min_signal) || !(static_cast<double>(in.left_image[p]) < search.saturation)) continue;
     depth[p] = static_cast<float>(z);
   }
   return depth;

@@ -15,10 +15,12 @@
 // hypothesis z; the normalisation stops the e^{σd} gain from favouring near
 // depths), with a parabola through the best three hypotheses.
 //
+// Samples that are saturated or project outside the right image drop out of
+// the window; a window cost needs at least half its pixels valid.
 // Invalid (NaN) pixels: the left sample saturated, the signal I_l − B_l (or
 // I_l in clear air) at/below DepthSearch::min_signal (shadows, pure
-// backscatter), no finite cost (P leaves the right image or hits saturated
-// samples for all z), or the minimum on the first/last hypothesis.
+// backscatter), no finite cost for any z, or the minimum on the first/last
+// hypothesis (depth outside the searched range).
 // Units: mm, depth = z in the left camera frame. Threads: single-threaded,
 // pure; the inputs are read only during the call.
 #pragma once

@@ -51,9 +51,9 @@ MediumFit fit_medium(const PinholeCamera& cam, const std::vector<float>& image, 
   // Grid over log σ in [1e-4, 3e-2] mm⁻¹ and g in [-0.5, 0.95].
   double best = 1e300, bl = 0, bg = 0, beta = 0;
   for (int i = 0; i < 16; ++i)
-    for (int j = 0; j < 16; ++j) {
+    for (int j = 0; j < 21; ++j) {
       const double ls = std::log(1e-4) + (std::log(3e-2) - std::log(1e-4)) * i / 15.0;
-      const double g = -0.5 + 1.45 * j / 15.0;
+      const double g = -0.5 + 1.45 * j / 20.0;
       const double r = residual(s, c, light, light_intensity, std::exp(ls), g, beta);
       if (r < best) best = r, bl = ls, bg = g;
     }
@@ -62,9 +62,15 @@ MediumFit fit_medium(const PinholeCamera& cam, const std::vector<float>& image, 
     double b = 0;
     return residual(s, c, light, light_intensity, std::exp(q[0]), std::clamp(q[1], -0.99, 0.99), b);
   };
-  std::array<std::array<double, 2>, 3> x = {{{bl, bg}, {bl + 0.25, bg}, {bl, bg + 0.06}}};
-  std::array<double, 3> fx = {f(x[0]), f(x[1]), f(x[2])};
-  for (int it = 0; it < 120; ++it) {
+  // Restarted twice from its own best point with a fresh simplex (the
+  // residual has a long curved valley in (log σ, g) where one run stalls).
+  std::array<std::array<double, 2>, 3> x{};
+  std::array<double, 3> fx{};
+  for (int start = 0; start < 3; ++start) {
+  const double step = start == 0 ? 1.0 : 0.3;
+  x = {{{bl, bg}, {bl + 0.25 * step, bg}, {bl, bg + 0.06 * step}}};
+  fx = {f(x[0]), f(x[1]), f(x[2])};
+  for (int it = 0; it < 200; ++it) {
     std::array<size_t, 3> o = {0, 1, 2};
     std::sort(o.begin(), o.end(), [&](size_t a, size_t b) { return fx[a] < fx[b]; });
     const auto xb = x[o[0]], xm = x[o[1]], xw = x[o[2]];
@@ -95,6 +101,10 @@ MediumFit fit_medium(const PinholeCamera& cam, const std::vector<float>& image, 
     }
     x[o[2]] = xn;
     fx[o[2]] = fn;
+  }
+  const auto im = static_cast<size_t>(std::min_element(fx.begin(), fx.end()) - fx.begin());
+  bl = x[im][0];
+  bg = x[im][1];
   }
   const auto ib = static_cast<size_t>(std::min_element(fx.begin(), fx.end()) - fx.begin());
   out.medium.sigma_per_mm = std::exp(x[ib][0]);

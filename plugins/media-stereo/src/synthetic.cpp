@@ -105,8 +105,10 @@ double albedo_at(const Vec3& p) {
   return 0.55 + 0.3 * v / 2.7;
 }
 
+double albedo_at(const SyntheticScene& s, const Vec3& p) { return s.textured ? albedo_at(p) : 0.55; }
+
 double brdf(const SyntheticScene& s, const Vec3& p, const Vec3& n, const Vec3& to_light, const Vec3& to_view) {
-  double f = albedo_at(p) / std::numbers::pi;
+  double f = albedo_at(s, p) / std::numbers::pi;
   if (s.specular > 0) {
     const Vec3 h = normalized(to_light + to_view);
     f += s.specular * (s.shininess + 2) / (2 * std::numbers::pi) * std::pow(std::max(0.0, dot(n, h)), s.shininess);

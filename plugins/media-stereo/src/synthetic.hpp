@@ -45,6 +45,7 @@ struct SyntheticScene {
   double incline_deg = 30;        // inclined plane: rotation about world y through (0, 0, plane_z)
   Vec3 sphere_centre{0, 0, 560};  // half-sphere: on the back plane z = sphere_centre.z
   double sphere_radius_mm = 100;
+  bool textured = true;           // false: constant albedo 0.55 (Helmholtz needs no texture)
   double specular = 0;            // weight of the reciprocal Blinn-Phong lobe (0: Lambertian)
   double shininess = 20;
 };
@@ -55,6 +56,7 @@ bool intersect(const SyntheticScene& s, const Vec3& origin, const Vec3& ray, dou
 
 // Albedo at a surface point (smooth, about 0.25..0.85).
 double albedo_at(const Vec3& p);
+double albedo_at(const SyntheticScene& s, const Vec3& p);
 
 // Reciprocal BRDF f_r(ω_i, ω_o) (1/sr): albedo/π + specular lobe.
 double brdf(const SyntheticScene& s, const Vec3& p, const Vec3& n, const Vec3& to_light, const Vec3& to_view);
