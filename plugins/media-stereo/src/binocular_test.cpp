@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <random>
 
 #include "binocular.hpp"
 #include "medium_fit.hpp"
@@ -141,21 +142,31 @@ TEST(Binocular, ZeroSignalAndSaturatedPixelsAreInvalid) {
   for (float v : depth) EXPECT_FALSE(std::isinf(v));
 }
 
-// The whole chain: medium parameters fitted from one medium-only image
-// (3 % noise), then used by the constraint on the inclined plane.
+// The whole chain: medium parameters fitted from one medium-only image of the
+// stereo rig's left camera (3 % noise; the fit is weaker here than in the
+// §5.4.1 geometry: σ about 25 % off), then used by the constraint on the
+// inclined plane: RMS < 6 mm, still >= 10x better than clear air (88 mm).
 TEST(Binocular, FittedMediumFeedsTheConstraint) {
   const MediumParams truth = test::tank_medium();
   const test::BinocularRig rig;
   auto img = render_medium_only(rig.left, rig.light, test::kLightIntensity, truth, 2000);
+  double mean = 0;
+  for (float v : img) mean += static_cast<double>(v);
+  mean /= static_cast<double>(img.size());
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0, 0.03 * mean);
+  for (float& v : img) v = static_cast<float>(static_cast<double>(v) + noise(rng));
   const auto fit = fit_medium(rig.left, img, rig.light, test::kLightIntensity, 2000, 4);
   ASSERT_TRUE(fit.ok);
   Scan s = scan(SceneKind::inclined_plane, truth);
   s.in.medium = fit.medium;
   const auto depth = binocular_depth(s.in, search(), Constraint::media);
   const Stats st = stats(depth, s, both_visible(s));
-  std::printf("fitted medium: rms %.3f mm valid %.3f\n", st.rms_mm, st.valid);
-  EXPECT_LT(st.rms_mm, 2.5);
+  std::printf("fitted medium sigma %.5f beta %.5f g %.3f: rms %.3f mm valid %.3f\n", fit.medium.sigma_per_mm,
+              fit.medium.beta_per_mm, fit.medium.g, st.rms_mm, st.valid);
+  EXPECT_LT(st.rms_mm, 6.0);
   EXPECT_GE(st.valid, 0.95);
+  EXPECT_LT(10.0 * st.rms_mm, stats(binocular_depth(s.in, search(), Constraint::clear_air), s, both_visible(s)).rms_mm);
 }
 
 }  // namespace
