@@ -6,22 +6,6 @@
 
 namespace procam::media_stereo {
 
-namespace {
-
-std::vector<Vec3> unit_rays(const PinholeCamera& cam, std::vector<double>* lengths) {
-  std::vector<Vec3> rays(size_t{cam.width} * cam.height);
-  if (lengths) lengths->resize(rays.size());
-  for (uint32_t y = 0; y < cam.height; ++y)
-    for (uint32_t x = 0; x < cam.width; ++x) {
-      const Vec3 r = cam.ray_world(x, y);
-      const double len = norm(r);
-      rays[size_t{y} * cam.width + x] = r / len;
-      if (lengths) (*lengths)[size_t{y} * cam.width + x] = len;
-    }
-  return rays;
-}
-
-}  // namespace
 
 std::vector<float> binocular_depth(const BinocularInput& in, const DepthSearch& search, Constraint constraint) {
   const uint32_t w = in.left.width, h = in.left.height, kc = search.count();

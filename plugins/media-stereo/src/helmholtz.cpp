@@ -13,13 +13,6 @@ struct PairTables {
   BackscatterTable a, b;  // camera A lit from B; camera B lit from A
 };
 
-std::vector<Vec3> unit_rays(const PinholeCamera& cam) {
-  std::vector<Vec3> rays(size_t{cam.width} * cam.height);
-  for (uint32_t y = 0; y < cam.height; ++y)
-    for (uint32_t x = 0; x < cam.width; ++x) rays[size_t{y} * cam.width + x] = normalized(cam.ray_world(x, y));
-  return rays;
-}
-
 // (I − B) at the projection of pt into cam; NaN when outside or saturated.
 double signal_at(const PinholeCamera& cam, const std::vector<float>& img, const BackscatterTable* table,
                  const Vec3& pt, double saturation) {

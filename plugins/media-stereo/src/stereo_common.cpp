@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "stereo_common.hpp"
 
+#include "synthetic.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -11,6 +13,19 @@ namespace procam::media_stereo {
 uint32_t DepthSearch::count() const {
   if (!(z_step_mm > 0) || !(z_max_mm > z_min_mm)) return 0;
   return static_cast<uint32_t>(std::floor((z_max_mm - z_min_mm) / z_step_mm + 1e-9)) + 1;
+}
+
+std::vector<Vec3> unit_rays(const PinholeCamera& cam, std::vector<double>* lengths) {
+  std::vector<Vec3> rays(size_t{cam.width} * cam.height);
+  if (lengths) lengths->resize(rays.size());
+  for (uint32_t y = 0; y < cam.height; ++y)
+    for (uint32_t x = 0; x < cam.width; ++x) {
+      const Vec3 r = cam.ray_world(x, y);
+      const double len = norm(r);
+      rays[size_t{y} * cam.width + x] = r / len;
+      if (lengths) (*lengths)[size_t{y} * cam.width + x] = len;
+    }
+  return rays;
 }
 
 bool bilinear_taps(uint32_t w, uint32_t h, double u, double v, size_t idx[4], double wt[4]) {

@@ -21,6 +21,11 @@ struct DepthSearch {
   uint32_t count() const;
 };
 
+// Unit world directions of every pixel of `cam` (row-major); `lengths`, if
+// given, receives |ray_world| (so depth z is distance / length).
+struct PinholeCamera;
+std::vector<Vec3> unit_rays(const PinholeCamera& cam, std::vector<double>* lengths = nullptr);
+
 // Bilinear sample of a row-major w×h image at (u, v); NaN outside
 // [0, w-1]×[0, h-1] or if any of the four neighbours is >= saturation.
 double sample_bilinear(const std::vector<float>& img, uint32_t w, uint32_t h, double u, double v,

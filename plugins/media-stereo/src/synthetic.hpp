@@ -75,7 +75,7 @@ RenderedView render(const SyntheticScene& s, const PinholeCamera& cam, const Vec
                     const MediumParams& m);
 
 // The medium alone (§5.4.1 "Recovering the medium parameters"): no scene, the
-// rays end at a black wall at depth wall_z_mm.
+// rays end at a black wall at depth wall_z_mm in the camera frame.
 std::vector<float> render_medium_only(const PinholeCamera& cam, const Vec3& light, double light_intensity,
                                       const MediumParams& m, double wall_z_mm);
 
