@@ -11,7 +11,7 @@
 
 namespace procam::media_stereo::test {
 
-// Tank-scale medium: σ = 1.5 m⁻¹-ish per mm units, albedo 0.8, g = 0.5. At the
+// Tank-scale medium: σ = 0.0015 /mm (1.5 /m), albedo β/σ = 0.8, g = 0.5. At the
 // 500 mm scene the round trip attenuates by e^{-1.5}, and backscatter is
 // comparable to the direct signal (see the tests' printed B/D ratio).
 inline MediumParams tank_medium() { return {0.0015, 0.0012, 0.5}; }
