@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: MIT
+// The image formation (Eq. 5.14-5.16) against independent numeric integrals,
+// the backscatter table, clear air, and the medium fit of §5.4.1 against the
+// parameters rendered with.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <cstdlib>
+#include <random>
+
+#include "medium_fit.hpp"
+#include "scatter_model.hpp"
+#include "synthetic.hpp"
+#include "test_rig.hpp"
+
+namespace procam::media_stereo {
+namespace {
+
+// Independent Eq. 5.16 by the midpoint rule, HG written out here.
+double reference_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
+                             double t, int steps) {
+  double sum = 0;
+  const double h = t / steps;
+  for (int k = 0; k < steps; ++k) {
+    const double x = (k + 0.5) * h;
+    const Vec3 y{c.x + dir.x * x, c.y + dir.y * x, c.z + dir.z * x};
+    const double ax = y.x - l.x, ay = y.y - l.y, az = y.z - l.z;
+    const double a = std::sqrt(ax * ax + ay * ay + az * az);
+    const double cosg = -(ax * dir.x + ay * dir.y + az * dir.z) / a;
+    const double p = (1 - m.g * m.g) / (4 * std::numbers::pi * std::pow(1 + m.g * m.g - 2 * m.g * cosg, 1.5));
+    sum += m.beta_per_mm * p * i0 * std::exp(-m.sigma_per_mm * (a + x)) / (a * a) * h;
+  }
+  return sum;
+}
+
+TEST(ScatterModel, PhaseFunctionIntegratesToOne) {
+  for (double g : {-0.5, 0.0, 0.5, 0.9}) {
+    double s = 0;
+    const int n = 200000;
+    for (int k = 0; k < n; ++k) s += hg_phase(g, -1 + (k + 0.5) * 2.0 / n) * 2 * std::numbers::pi * 2.0 / n;
+    EXPECT_NEAR(s, 1.0, 1e-4) << "g = " << g;
+  }
+}
+
+TEST(ScatterModel, RenderedBackscatterMatchesIndependentIntegralTo1e6) {
+  const test::BinocularRig rig;
+  const auto m = test::tank_medium();
+  const auto v = render(test::scene_of(SceneKind::half_sphere), rig.left, rig.light, test::kLightIntensity, m);
+  for (auto [x, y] : {std::pair{5u, 7u}, {64u, 48u}, {120u, 90u}, {30u, 60u}}) {
+    const size_t i = size_t{y} * rig.left.width + x;
+    ASSERT_TRUE(std::isfinite(v.depth_mm[i]));
+    const Vec3 ray = rig.left.ray_world(x, y);
+    const double t = static_cast<double>(v.depth_mm[i]) * norm(ray);
+    const double ref = reference_backscatter(m, test::kLightIntensity, rig.left.centre(), normalized(ray), rig.light,
+                                             t, 400000);
+    EXPECT_NEAR(static_cast<double>(v.backscatter[i]), ref, 1e-6 * ref + 1e-12) << x << "," << y;
+    EXPECT_GT(ref, 0.0);
+  }
+}
+
+TEST(ScatterModel, TableInterpolatesTheIntegralTo1e4) {
+  const auto m = test::tank_medium();
+  const Vec3 c{0, 0, 0}, l{-160, -120, 0};
+  const std::vector<Vec3> rays = {normalized(Vec3{0.1, 0.05, 1}), normalized(Vec3{-0.3, 0.2, 1})};
+  const auto t = backscatter_table(m, test::kLightIntensity, c, rays, l, 900, 2.0);
+  for (size_t r = 0; r < rays.size(); ++r)
+    for (double d : {3.3, 250.0, 517.9, 899.0}) {
+      // Linear interpolation between 2 mm samples: ~1e-3 relative in the
+      // first few mm (the integrand's curvature relative to B), far below
+      // 1e-4 at scene depths.
+      const double ref = reference_backscatter(m, test::kLightIntensity, c, rays[r], l, d, 200000);
+      EXPECT_NEAR(t.at(r, d), ref, (d < 100 ? 3e-3 : 1e-4) * ref) << r << " " << d;
+    }
+  EXPECT_TRUE(std::isnan(t.at(0, 905.0)));  // beyond the table
+  EXPECT_TRUE(std::isnan(t.at(0, -1.0)));
+}
+
+TEST(ScatterModel, ClearAirIsTheMediumFreeClosedForm) {
+  const test::BinocularRig rig;
+  const auto v = render(test::scene_of(SceneKind::inclined_plane), rig.left, rig.light, test::kLightIntensity, {});
+  for (size_t i = 0; i < v.image.size(); i += 97) {
+    ASSERT_TRUE(std::isfinite(v.depth_mm[i]));
+    EXPECT_EQ(v.backscatter[i], 0.0f);
+    const auto x = static_cast<uint32_t>(i % rig.left.width), y = static_cast<uint32_t>(i / rig.left.width);
+    const Vec3 p = rig.left.centre() + rig.left.ray_world(x, y) * static_cast<double>(v.depth_mm[i]);
+    const Vec3 lp = rig.light - p;
+    const double d = norm(lp);
+    const double cos_i = std::max(0.0, dot(v.normal[i], lp) / d);
+    const double expect = test::kLightIntensity / (d * d) * cos_i * albedo_at(p) / std::numbers::pi;
+    EXPECT_NEAR(static_cast<double>(v.image[i]), expect, 1e-5 * expect);
+  }
+}
+
+TEST(MediumFit, RecoversSigmaBetaGFromOneNoisyImage) {
+  // §5.4.1: light 120 mm left of the camera, both facing +z; Gaussian noise
+  // of 3 % of the mean intensity (as in the thesis' Fig. 5.15).
+  const PinholeCamera cam = look_at_camera(test::kWidth, test::kHeight, test::kFocalPx, {0, 0, 0}, {0, 0, 1000});
+  const Vec3 light{-120, 0, 0};
+  // Not covered: a weak medium (σ = 0.0008, β = 0.0007, g = 0.2) where the
+  // fit stops in a wrong valley point (σ 0.0035, g 0.1) even without noise;
+  // see docs/media-stereo.md.
+  for (const MediumParams truth : {test::tank_medium(), MediumParams{0.004, 0.002, 0.8}}) {
+    auto img = render_medium_only(cam, light, test::kLightIntensity, truth, 2000);
+    double mean = 0;
+    for (float v : img) mean += static_cast<double>(v);
+    mean /= static_cast<double>(img.size());
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0, getenv("S13_NONOISE") ? 0.0 : 0.03 * mean);
+    for (float& v : img) v = static_cast<float>(static_cast<double>(v) + noise(rng));
+    const auto fit = fit_medium(cam, img, light, test::kLightIntensity, 2000, 6);
+    ASSERT_TRUE(fit.ok);
+    std::printf("medium truth sigma %.5f beta %.5f g %.3f -> fit sigma %.5f beta %.5f g %.3f\n", truth.sigma_per_mm,
+                truth.beta_per_mm, truth.g, fit.medium.sigma_per_mm, fit.medium.beta_per_mm, fit.medium.g);
+    EXPECT_NEAR(fit.medium.sigma_per_mm, truth.sigma_per_mm, 0.10 * truth.sigma_per_mm);
+    EXPECT_NEAR(fit.medium.beta_per_mm, truth.beta_per_mm, 0.20 * truth.beta_per_mm);
+    EXPECT_NEAR(fit.medium.g, truth.g, 0.05);
+    EXPECT_LT(fit.rms_residual, 0.05 * mean);  // about the 3 % noise
+  }
+}
+
+}  // namespace
+}  // namespace procam::media_stereo
