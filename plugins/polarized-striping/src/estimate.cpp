@@ -11,6 +11,7 @@
 
 #include "media_model.hpp"
 #include "procam/sdk/map_cache.hpp"
+#include "striping_pass.hpp"
 
 namespace procam::polarized_striping {
 namespace {
@@ -109,19 +110,6 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 
 namespace {
 
-// Sums for the report over one band of rows; bands are merged in row order so
-// the report is the same bit for bit from run to run.
-struct QualitySums {
-  double cqm = 0, gqm = 0, w = 0, cqm_w = 0, gqm_w = 0, img = 0, img2 = 0, enh = 0, enh2 = 0;
-  size_t n_cqm = 0, n_gqm = 0, n_w = 0, n_cqm_w = 0, n_gqm_w = 0, n_img = 0, n_enh = 0;
-  void add(const QualitySums& o) {
-    cqm += o.cqm, gqm += o.gqm, w += o.w, cqm_w += o.cqm_w, gqm_w += o.gqm_w;
-    img += o.img, img2 += o.img2, enh += o.enh, enh2 += o.enh2;
-    n_cqm += o.n_cqm, n_gqm += o.n_gqm, n_w += o.n_w, n_cqm_w += o.n_cqm_w, n_gqm_w += o.n_gqm_w;
-    n_img += o.n_img, n_enh += o.n_enh;
-  }
-};
-
 nlohmann::json mean_or_null(double sum, size_t n) { return n ? nlohmann::json(sum / double(n)) : nlohmann::json(nullptr); }
 
 nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p) {
@@ -187,7 +175,7 @@ void take_quality_maps(Maps& m, size_t n, bool has_gqm) {
 }  // namespace
 
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
-                       uint32_t proj_width) {
+                       uint32_t proj_width, StripingPass pass) {
   const uint32_t w = best.width(), h = best.height();
   const size_t n = size_t{w} * h;
   const bool polarised = worst != nullptr;
@@ -202,6 +190,11 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   auto unclipped = [&](size_t i) {
     return double(best.top2(i)) < lv.saturation && (!polarised || double(worst->top2(i)) < lv.saturation);
   };
+  // The one-pass kernels (striping_pass.hpp) need packed stacks of >= 3
+  // frames; everything else takes the general (reference) pass below.
+  const bool packed = best.packed() && best.frames() >= 3 &&
+                      (!polarised || (worst->packed() && worst->frames() >= 3));
+  if (!packed) pass = StripingPass::reference;
   double p = 0;
   bool separate = false;
   if (polarised) {
@@ -209,11 +202,28 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
     // on the same <= 256k-pixel stride estimate_dop uses, before the pass.
     const size_t stride = std::max<size_t>(1, n / 262144);
     std::vector<float> sb, sw;
-    for (size_t i = 0; i < n; i += stride)
-      if (unclipped(i)) {
-        sb.push_back(decode_stripe_pixel(best, i, ds).background);
-        sw.push_back(decode_stripe_pixel(*worst, i, ds).background);
+    sb.reserve(n / stride + 1);
+    sw.reserve(n / stride + 1);
+    if (pass != StripingPass::reference) {
+      // Packed: background = (sum - top1 - top2) / (K - 2) from the keys; the
+      // float quotient of these integers equals the reference's double one
+      // rounded to float, so p is the same bit for bit.
+      const int32_t sat = static_cast<int32_t>(std::min(std::ceil(lv.saturation), 1e9));
+      const float db = float(best.frames() - 2), dw = float(worst->frames() - 2);
+      const uint16_t *b1 = best.key1(), *b2 = best.key2(), *bs = best.sum16();
+      const uint16_t *w1 = worst->key1(), *w2 = worst->key2(), *ws = worst->sum16();
+      for (size_t i = 0; i < n; i += stride) {
+        if (int32_t(b2[i] >> 8) >= sat || int32_t(w2[i] >> 8) >= sat) continue;
+        sb.push_back(float(int32_t(bs[i]) - (b1[i] >> 8) - (b2[i] >> 8)) / db);
+        sw.push_back(float(int32_t(ws[i]) - (w1[i] >> 8) - (w2[i] >> 8)) / dw);
       }
+    } else {
+      for (size_t i = 0; i < n; i += stride)
+        if (unclipped(i)) {
+          sb.push_back(decode_stripe_pixel(best, i, ds).background);
+          sw.push_back(decode_stripe_pixel(*worst, i, ds).background);
+        }
+    }
     p = choose_dop(cfg, sb, sw, lv, m);
     separate = p >= cfg.p_min;
     m.p = separate ? p : 0.0;
@@ -223,6 +233,26 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   for (uint32_t k = 0; k < cfg.stripes; ++k) centre[k] = stripe_columns(proj_width, cfg.stripes, cfg.stripe_px, k).centre;
   centre[cfg.stripes] = centre[cfg.stripes - 1];
   std::atomic<size_t> valid{0};
+  if (pass != StripingPass::reference) {
+    // Packed keys index at most 256 stripes: 257 float centres, padded with the last.
+    std::vector<float> centre_f(257, float(centre[cfg.stripes]));
+    for (uint32_t k = 0; k < cfg.stripes && k < 257; ++k) centre_f[k] = float(centre[k]);
+    const PackedView vb{best.key1(), best.key2(), best.sum16(), best.frames()};
+    PackedView vw;
+    if (polarised) vw = {worst->key1(), worst->key2(), worst->sum16(), worst->frames()};
+    const PassSettings ps{ds.margin_dn, ds.saturation_dn, lv.mu, lv.z, p, separate, centre_f.data()};
+    const PassMaps pm{m.image.data(), m.enhanced.data(), m.backscatter.data(), m.stripe.data(), m.col.data(),
+                      m.cqm.data(),   m.weight.data(),   polarised ? m.gqm.data() : nullptr};
+    const PassKernel kernel = pass == StripingPass::scalar ? PassKernel::scalar
+                              : pass == StripingPass::avx2 ? PassKernel::avx2
+                                                           : PassKernel::best;
+    const QualitySums sums = for_bands(h, cfg.threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
+      valid += striping_pass(vb, polarised ? &vw : nullptr, ps, pm, size_t{y0} * w, size_t{y1} * w, q, kernel);
+    });
+    m.valid = valid;
+    m.quality = to_json(sums, polarised, m.p);
+    return m;
+  }
   // One pass per pixel: composite (Eq. 5.7), stripe decision and column,
   //   unpolarised: D^ = rise, B^ = background (A counted in it), S^ = D^;
   //   polarised:   D^ = 2 rise_b, B^/A^ by Eq. 5.6 on the backgrounds, S^ = D^ + A^;

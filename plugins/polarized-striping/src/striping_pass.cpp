@@ -1,0 +1,383 @@
+// SPDX-License-Identifier: MIT
+// One-pass end of a striping scan on packed stacks (see striping_pass.hpp).
+#include "striping_pass.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "procam/sdk/simd.hpp"
+
+namespace procam::polarized_striping {
+namespace {
+
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+
+// Thresholds and constants of one pass, shared by both kernels.
+struct Consts {
+  int32_t d_b = 1, d_w = 1;      // K - 2 of the best / worst stack
+  float fd_b = 1, fd_w = 1;
+  int32_t sat_top = 0;           // top value >= this: clipped (ceil(saturation))
+  int32_t sat_n = 0;             // N >= this: background clipped (ceil(saturation D_b))
+  int32_t rise_thr = 0;          // L > this: rises by the margin (floor(margin D_b))
+  int32_t tie_thr = 0;           // t1 - t2 > this: beats top2 by the margin (floor(margin))
+  float mu = 3, z = 1, p = 1, omp = 1;  // omp = 1 - p (p = 0 when not separated)
+  bool step = false, polarised = false, separate = false;
+};
+
+// max/min with _mm256_max_ps / _mm256_min_ps semantics (a > b ? a : b), so
+// that both kernels agree bit for bit (signed zeros included).
+inline float maxf(float a, float b) { return a > b ? a : b; }
+inline float minf(float a, float b) { return a < b ? a : b; }
+
+int32_t clamp_i32(double v) {
+  return static_cast<int32_t>(std::clamp(v, -2147483000.0, 2147483000.0));
+}
+
+Consts make_consts(const PackedView& best, const PackedView* worst, const PassSettings& s) {
+  Consts c;
+  c.d_b = int32_t(best.frames) - 2;
+  c.fd_b = float(c.d_b);
+  c.d_w = worst ? int32_t(worst->frames) - 2 : 1;
+  c.fd_w = float(c.d_w);
+  c.sat_top = clamp_i32(std::ceil(s.saturation));
+  c.sat_n = clamp_i32(std::ceil(s.saturation * c.d_b));
+  c.rise_thr = clamp_i32(std::floor(s.margin * c.d_b));
+  c.tie_thr = clamp_i32(std::floor(s.margin));
+  c.mu = float(s.mu);
+  c.z = float(s.z);
+  c.step = !(s.z > 0);
+  c.polarised = worst != nullptr;
+  c.separate = c.polarised && s.separate;
+  const double p = c.polarised && s.separate ? s.p : 0.0;
+  c.p = float(p);
+  c.omp = float(1.0 - p);
+  return c;
+}
+
+// exp(x) for x <= 88 (Cephes expf: range reduction by ln 2 in two parts, a
+// degree-6 polynomial; < 2 ulp). Plain mul/add in this order, mirrored by
+// the AVX2 kernel.
+inline float exp_poly(float x) {
+  x = maxf(x, -87.0f);
+  const float n = std::floor(x * 1.44269504088896341f + 0.5f);
+  x = x - n * 0.693359375f;
+  x = x - n * -2.12194440e-4f;
+  float y = 1.9875691500e-4f;
+  y = y * x + 1.3981999507e-3f;
+  y = y * x + 8.3334519073e-3f;
+  y = y * x + 4.1665795894e-2f;
+  y = y * x + 1.6666665459e-1f;
+  y = y * x + 5.0000001201e-1f;
+  y = y * (x * x) + x + 1.0f;
+  const int32_t e = (int32_t(n) + 127) << 23;
+  return y * std::bit_cast<float>(e);
+}
+
+// Eq. 5.10: W = 1 / (1 + exp(-(S - mu) / z)); 1 above t = 40, 0 where exp
+// would overflow float (t < -88; the double reference rounds that to 0 too).
+inline float weight_of(float s, const Consts& c) {
+  if (c.step) return s > c.mu ? 1.0f : (s < c.mu ? 0.0f : 0.5f);
+  const float t = (s - c.mu) / c.z;
+  if (t > 40.0f) return 1.0f;
+  if (-t > 88.0f) return 0.0f;
+  return 1.0f / (1.0f + exp_poly(-t));
+}
+
+// The scalar twin: noinline so that it is never contracted into FMAs inside
+// the AVX2 kernel's caller (bit-identical maps on both paths).
+__attribute__((noinline)) size_t pass_scalar(const PackedView& best, const PackedView* worst, const Consts& c,
+                                             const float* centre, const PassMaps& m, size_t i0, size_t i1,
+                                             QualitySums& q) {
+  size_t valid = 0;
+  int64_t img = 0, img2 = 0;
+  for (size_t i = i0; i < i1; ++i) {
+    const int32_t k1 = best.key1[i], k2 = best.key2[i];
+    const int32_t t1 = k1 >> 8, t2 = k2 >> 8, i1x = 255 - (k1 & 255), i2x = 255 - (k2 & 255);
+    const int32_t n = int32_t(best.sum[i]) - t1 - t2;
+    const int32_t l1 = c.d_b * t1 - n, l2 = c.d_b * t2 - n;
+    const float bg = float(n) / c.fd_b;
+    const float rise = maxf(float(l1) / c.fd_b, 0.0f);
+    const int32_t di = i1x - i2x;
+    const bool edge = (di == 1 || di == -1) && l2 > c.rise_thr;
+    const bool dec = t2 < c.sat_top && n < c.sat_n && l1 > c.rise_thr && (edge || t1 - t2 > c.tie_thr);
+    const float frac_e = float(l2) / float(l1 + l2);
+    const float stripe_v = edge ? float(i1x) + float(i2x - i1x) * frac_e : float(i1x);
+    bool ok = t2 < c.sat_top;
+    float b, s = kNaNf, d = kNaNf, a = kNaNf;
+    if (c.polarised) {
+      const int32_t w1 = worst->key1[i] >> 8, w2 = worst->key2[i] >> 8;
+      const float bw = float(int32_t(worst->sum[i]) - w1 - w2) / c.fd_w;
+      ok = ok && w2 < c.sat_top;
+      float sig = 0.0f, bsc = bg + bw;
+      if (c.separate) {  // Eq. 5.6 on the backgrounds (signal_from_polarized)
+        const float total = maxf(bg + bw, 0.0f);
+        bsc = minf(maxf((bw - bg) / c.p, 0.0f), total);
+        sig = total - bsc;
+      }
+      b = ok ? bsc : kNaNf;
+      if (dec && ok) {
+        d = 2.0f * rise;
+        a = sig;
+        s = d + a;
+      }
+    } else {
+      b = ok ? bg : kNaNf;
+      if (dec && ok) d = s = rise;
+    }
+    const bool stripe = dec && ok;
+    img += t1, img2 += int64_t(t1) * t1;
+    m.image[i] = float(t1);
+    m.enhanced[i] = s;
+    m.backscatter[i] = b;
+    if (!stripe) {
+      m.stripe[i] = m.col[i] = m.cqm[i] = m.weight[i] = kNaNf;
+      if (m.gqm) m.gqm[i] = kNaNf;
+      continue;
+    }
+    ++valid;
+    // Index clamped to the 257-entry table (NaN -> 0, as cvttps gives INT_MIN).
+    const int32_t k0 = stripe_v >= 0.0f && stripe_v < 256.0f ? int32_t(stripe_v) : (stripe_v >= 256.0f ? 255 : 0);
+    const float f = stripe_v - float(k0);
+    m.stripe[i] = stripe_v;
+    m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
+    const float w = weight_of(s, c);
+    const float bp = b * c.omp;
+    const float den_c = s + bp;  // Eq. 5.8
+    const float cq = den_c > 0.0f ? minf(maxf(s / den_c, 0.0f), 1.0f) : 0.0f;
+    m.weight[i] = w;
+    m.cqm[i] = cq;
+    q.enh += double(s), q.enh2 += double(s) * double(s);
+    q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
+    if (m.gqm) {
+      const float den_g = d + a + bp;  // Eq. 5.9
+      const float g = den_g > 0.0f ? minf(maxf((d + bp) / den_g, 0.0f), 1.0f) : 0.0f;
+      m.gqm[i] = g;
+      q.gqm += double(g), q.gqm_w += double(g) * double(w);
+    }
+  }
+  q.img += double(img), q.img2 += double(img2);
+  return valid;
+}
+
+#ifdef PROCAM_SDK_X86
+// The AVX2 kernel: pass_scalar's operations, 8 pixels at a time; [i0, i1) a
+// multiple of 8; kStream: every map 16-byte aligned at i0 (non-temporal stores).
+#define PROCAM_A2 __attribute__((target("avx2"), always_inline)) inline
+PROCAM_A2 __m256i load8(const uint16_t* p) {
+  return _mm256_cvtepu16_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+template <bool kStream>
+PROCAM_A2 void store8(float* p, __m256 v) {
+  if constexpr (kStream) {  // two 16-byte halves: maps are 16-byte aligned (malloc), not always 32
+    _mm_stream_ps(p, _mm256_castps256_ps128(v));
+    _mm_stream_ps(p + 4, _mm256_extractf128_ps(v, 1));
+  }
+  else _mm256_storeu_ps(p, v);
+}
+// Adds the 8 floats (zero where not selected) to a 4-lane double accumulator.
+PROCAM_A2 __m256d add8(__m256d acc, __m256 v) {
+  return _mm256_add_pd(_mm256_add_pd(acc, _mm256_cvtps_pd(_mm256_castps256_ps128(v))),
+                       _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)));
+}
+PROCAM_A2 __m256d add8_prod(__m256d acc, __m256 u, __m256 v) {
+  const __m256d ul = _mm256_cvtps_pd(_mm256_castps256_ps128(u)), uh = _mm256_cvtps_pd(_mm256_extractf128_ps(u, 1));
+  const __m256d vl = _mm256_cvtps_pd(_mm256_castps256_ps128(v)), vh = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
+  return _mm256_add_pd(_mm256_add_pd(acc, _mm256_mul_pd(ul, vl)), _mm256_mul_pd(uh, vh));
+}
+PROCAM_A2 double hsum(__m256d v) {
+  alignas(32) double t[4];
+  _mm256_store_pd(t, v);
+  return (t[0] + t[1]) + (t[2] + t[3]);
+}
+PROCAM_A2 __m256 clamp01(__m256 v) {
+  return _mm256_min_ps(_mm256_max_ps(v, _mm256_setzero_ps()), _mm256_set1_ps(1.0f));
+}
+PROCAM_A2 __m256 exp8(__m256 x) {  // exp_poly, lane by lane
+  x = _mm256_max_ps(x, _mm256_set1_ps(-87.0f));
+  const __m256 n = _mm256_floor_ps(
+      _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)), _mm256_set1_ps(0.5f)));
+  x = _mm256_sub_ps(x, _mm256_mul_ps(n, _mm256_set1_ps(0.693359375f)));
+  x = _mm256_sub_ps(x, _mm256_mul_ps(n, _mm256_set1_ps(-2.12194440e-4f)));
+  __m256 y = _mm256_set1_ps(1.9875691500e-4f);
+  y = _mm256_add_ps(_mm256_mul_ps(y, x), _mm256_set1_ps(1.3981999507e-3f));
+  y = _mm256_add_ps(_mm256_mul_ps(y, x), _mm256_set1_ps(8.3334519073e-3f));
+  y = _mm256_add_ps(_mm256_mul_ps(y, x), _mm256_set1_ps(4.1665795894e-2f));
+  y = _mm256_add_ps(_mm256_mul_ps(y, x), _mm256_set1_ps(1.6666665459e-1f));
+  y = _mm256_add_ps(_mm256_mul_ps(y, x), _mm256_set1_ps(5.0000001201e-1f));
+  y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(y, _mm256_mul_ps(x, x)), x), _mm256_set1_ps(1.0f));
+  const __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvttps_epi32(n), _mm256_set1_epi32(127)), 23);
+  return _mm256_mul_ps(y, _mm256_castsi256_ps(e));
+}
+PROCAM_A2 __m256 weight8(__m256 s, const Consts& c) {  // weight_of, lane by lane
+  const __m256 mu = _mm256_set1_ps(c.mu), one = _mm256_set1_ps(1.0f);
+  if (c.step) {
+    const __m256 half = _mm256_blendv_ps(_mm256_set1_ps(0.5f), _mm256_setzero_ps(), _mm256_cmp_ps(s, mu, _CMP_LT_OQ));
+    return _mm256_blendv_ps(half, one, _mm256_cmp_ps(s, mu, _CMP_GT_OQ));
+  }
+  const __m256 t = _mm256_div_ps(_mm256_sub_ps(s, mu), _mm256_set1_ps(c.z));
+  const __m256 x = _mm256_sub_ps(_mm256_setzero_ps(), t);
+  __m256 w = _mm256_div_ps(one, _mm256_add_ps(one, exp8(x)));
+  w = _mm256_blendv_ps(w, _mm256_setzero_ps(), _mm256_cmp_ps(x, _mm256_set1_ps(88.0f), _CMP_GT_OQ));
+  return _mm256_blendv_ps(w, one, _mm256_cmp_ps(t, _mm256_set1_ps(40.0f), _CMP_GT_OQ));
+}
+
+template <bool kStream>
+__attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const PackedView* worst, const Consts& c,
+                                                  const float* centre, const PassMaps& m, size_t i0, size_t i1,
+                                                  QualitySums& q) {
+  const __m256i c255 = _mm256_set1_epi32(255), one_i = _mm256_set1_epi32(1), m_one = _mm256_set1_epi32(-1);
+  const __m256i d_b = _mm256_set1_epi32(c.d_b), sat_top = _mm256_set1_epi32(c.sat_top);
+  const __m256i sat_n = _mm256_set1_epi32(c.sat_n), rise_thr = _mm256_set1_epi32(c.rise_thr);
+  const __m256i tie_thr = _mm256_set1_epi32(c.tie_thr);
+  const __m256 fd_b = _mm256_set1_ps(c.fd_b), fd_w = _mm256_set1_ps(c.fd_w), zero = _mm256_setzero_ps();
+  const __m256 nan = _mm256_set1_ps(kNaNf), two = _mm256_set1_ps(2.0f), omp = _mm256_set1_ps(c.omp);
+  const __m256 pv = _mm256_set1_ps(c.p);
+  __m256d s_enh = _mm256_setzero_pd(), s_enh2 = s_enh, s_w = s_enh, s_cqm = s_enh, s_cqm_w = s_enh;
+  __m256d s_gqm = s_enh, s_gqm_w = s_enh;
+  __m256i s_img = _mm256_setzero_si256(), s_img2 = s_img;  // per lane: <= 255 resp. 65025 per pixel, flushed per call
+  size_t valid = 0;
+  int64_t img = 0, img2 = 0;
+  size_t since_flush = 0;
+  for (size_t i = i0; i < i1; i += 8) {
+    const __m256i k1 = load8(best.key1 + i), k2 = load8(best.key2 + i), sm = load8(best.sum + i);
+    const __m256i t1 = _mm256_srli_epi32(k1, 8), t2 = _mm256_srli_epi32(k2, 8);
+    const __m256i i1x = _mm256_sub_epi32(c255, _mm256_and_si256(k1, c255));
+    const __m256i i2x = _mm256_sub_epi32(c255, _mm256_and_si256(k2, c255));
+    const __m256i n = _mm256_sub_epi32(_mm256_sub_epi32(sm, t1), t2);
+    const __m256i l1 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t1), n);
+    const __m256i l2 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t2), n);
+    const __m256 bg = _mm256_div_ps(_mm256_cvtepi32_ps(n), fd_b);
+    const __m256 rise = _mm256_max_ps(_mm256_div_ps(_mm256_cvtepi32_ps(l1), fd_b), zero);
+    const __m256i di = _mm256_sub_epi32(i1x, i2x);
+    const __m256i adj = _mm256_or_si256(_mm256_cmpeq_epi32(di, one_i), _mm256_cmpeq_epi32(di, m_one));
+    const __m256i edge = _mm256_and_si256(adj, _mm256_cmpgt_epi32(l2, rise_thr));
+    __m256i ok = _mm256_cmpgt_epi32(sat_top, t2);
+    __m256i dec = _mm256_and_si256(_mm256_and_si256(ok, _mm256_cmpgt_epi32(sat_n, n)), _mm256_cmpgt_epi32(l1, rise_thr));
+    dec = _mm256_and_si256(dec, _mm256_or_si256(edge, _mm256_cmpgt_epi32(_mm256_sub_epi32(t1, t2), tie_thr)));
+    const __m256 frac_e = _mm256_div_ps(_mm256_cvtepi32_ps(l2), _mm256_cvtepi32_ps(_mm256_add_epi32(l1, l2)));
+    const __m256 fi1 = _mm256_cvtepi32_ps(i1x);
+    const __m256 stripe_e = _mm256_add_ps(fi1, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_sub_epi32(i2x, i1x)), frac_e));
+    const __m256 stripe_v = _mm256_blendv_ps(fi1, stripe_e, _mm256_castsi256_ps(edge));
+    __m256 b, s, d = nan, a = nan;
+    if (c.polarised) {
+      const __m256i w1 = _mm256_srli_epi32(load8(worst->key1 + i), 8), w2 = _mm256_srli_epi32(load8(worst->key2 + i), 8);
+      const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst->sum + i), w1), w2);
+      const __m256 bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fd_w);
+      ok = _mm256_and_si256(ok, _mm256_cmpgt_epi32(sat_top, w2));
+      __m256 sig = zero, bsc = _mm256_add_ps(bg, bw);
+      if (c.separate) {
+        const __m256 total = _mm256_max_ps(_mm256_add_ps(bg, bw), zero);
+        bsc = _mm256_min_ps(_mm256_max_ps(_mm256_div_ps(_mm256_sub_ps(bw, bg), pv), zero), total);
+        sig = _mm256_sub_ps(total, bsc);
+      }
+      b = _mm256_blendv_ps(nan, bsc, _mm256_castsi256_ps(ok));
+      d = _mm256_mul_ps(two, rise);
+      a = sig;
+      s = _mm256_add_ps(d, a);
+    } else {
+      b = _mm256_blendv_ps(nan, bg, _mm256_castsi256_ps(ok));
+      d = s = rise;
+    }
+    const __m256 sel = _mm256_castsi256_ps(_mm256_and_si256(dec, ok));
+    const __m256i k0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), _mm256_castps_si256(sel)),
+                                                         _mm256_setzero_si256()), c255);
+    const __m256 c0 = _mm256_i32gather_ps(centre, k0, 4), c1 = _mm256_i32gather_ps(centre, _mm256_add_epi32(k0, one_i), 4);
+    const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
+    const __m256 w = weight8(s, c);
+    const __m256 bp = _mm256_mul_ps(b, omp);
+    const __m256 den_c = _mm256_add_ps(s, bp);
+    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
+    const __m256i img_v = t1;
+    s_img = _mm256_add_epi32(s_img, img_v);
+    s_img2 = _mm256_add_epi32(s_img2, _mm256_mullo_epi32(img_v, img_v));
+    if (++since_flush == 4096) {  // 4096 x 65025 < 2^31 per lane
+      alignas(32) int32_t t[8], u[8];
+      _mm256_store_si256(reinterpret_cast<__m256i*>(t), s_img);
+      _mm256_store_si256(reinterpret_cast<__m256i*>(u), s_img2);
+      for (int j = 0; j < 8; ++j) img += t[j], img2 += u[j];
+      s_img = s_img2 = _mm256_setzero_si256();
+      since_flush = 0;
+    }
+    store8<kStream>(m.image + i, _mm256_cvtepi32_ps(t1));
+    store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
+    store8<kStream>(m.backscatter + i, b);
+    store8<kStream>(m.stripe + i, _mm256_blendv_ps(nan, stripe_v, sel));
+    store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
+    store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
+    store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
+    valid += size_t(__builtin_popcount(unsigned(_mm256_movemask_ps(sel))));
+    const __m256 s0 = _mm256_and_ps(s, sel), w0 = _mm256_and_ps(w, sel), cq0 = _mm256_and_ps(cq, sel);
+    s_enh = add8(s_enh, s0), s_enh2 = add8_prod(s_enh2, s0, s0);
+    s_w = add8(s_w, w0), s_cqm = add8(s_cqm, cq0), s_cqm_w = add8_prod(s_cqm_w, cq0, w0);
+    if (m.gqm) {
+      const __m256 den_g = _mm256_add_ps(_mm256_add_ps(d, a), bp);
+      const __m256 g = _mm256_and_ps(clamp01(_mm256_div_ps(_mm256_add_ps(d, bp), den_g)),
+                                     _mm256_cmp_ps(den_g, zero, _CMP_GT_OQ));
+      store8<kStream>(m.gqm + i, _mm256_blendv_ps(nan, g, sel));
+      const __m256 g0 = _mm256_and_ps(g, sel);
+      s_gqm = add8(s_gqm, g0), s_gqm_w = add8_prod(s_gqm_w, g0, w0);
+    }
+  }
+  if constexpr (kStream) _mm_sfence();  // streamed stores visible before the band is reported done
+  alignas(32) int32_t t[8], u[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(t), s_img);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(u), s_img2);
+  for (int j = 0; j < 8; ++j) img += t[j], img2 += u[j];
+  q.img += double(img), q.img2 += double(img2);
+  q.enh += hsum(s_enh), q.enh2 += hsum(s_enh2), q.w += hsum(s_w), q.cqm += hsum(s_cqm), q.cqm_w += hsum(s_cqm_w);
+  q.gqm += hsum(s_gqm), q.gqm_w += hsum(s_gqm_w);
+  return valid;
+}
+#undef PROCAM_A2
+#endif
+
+}  // namespace
+
+bool pass_kernel_available(PassKernel kernel) {
+#ifdef PROCAM_SDK_X86
+  if (kernel == PassKernel::avx2) return sdk::cpu_has_avx2();
+#else
+  if (kernel == PassKernel::avx2) return false;
+#endif
+  return true;
+}
+
+size_t striping_pass(const PackedView& best, const PackedView* worst, const PassSettings& s, const PassMaps& m,
+                     size_t i0, size_t i1, QualitySums& q, PassKernel kernel) {
+  const Consts c = make_consts(best, worst, s);
+  const size_t n = i1 > i0 ? i1 - i0 : 0;
+  size_t valid = 0;
+  q.n_img += n;
+  const auto count = [&](size_t v) {
+    q.n_enh += v, q.n_w += v, q.n_cqm += v, q.n_cqm_w += v;
+    if (m.gqm) q.n_gqm += v, q.n_gqm_w += v;
+    return v;
+  };
+  if (kernel == PassKernel::best) kernel = pass_kernel_available(PassKernel::avx2) ? PassKernel::avx2 : PassKernel::scalar;
+#ifdef PROCAM_SDK_X86
+  if (kernel == PassKernel::avx2 && sdk::cpu_has_avx2()) {
+    // Head up to a 16-byte boundary of the image map, 8-pixel blocks, tail.
+    // Non-temporal stores (the maps are not read again here; ~74 MB written
+    // without reading them into the cache first) when every map shares that
+    // alignment.
+    const auto mis = [&](const float* p) { return (reinterpret_cast<uintptr_t>(p + i0) & 15u) / 4u; };
+    const size_t head = std::min(n, size_t((4 - mis(m.image)) & 3u));
+    bool same = true;
+    for (const float* p : {m.enhanced, m.backscatter, m.stripe, m.col, m.cqm, m.weight})
+      same = same && mis(p) == mis(m.image);
+    if (m.gqm) same = same && mis(m.gqm) == mis(m.image);
+    const size_t body = (n - head) / 8 * 8;
+    valid += pass_scalar(best, worst, c, s.centre, m, i0, i0 + head, q);
+    valid += same ? pass_avx2<true>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q)
+                  : pass_avx2<false>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q);
+    valid += pass_scalar(best, worst, c, s.centre, m, i0 + head + body, i1, q);
+    return count(valid);
+  }
+#endif
+  return count(pass_scalar(best, worst, c, s.centre, m, i0, i1, q));
+}
+
+}  // namespace procam::polarized_striping

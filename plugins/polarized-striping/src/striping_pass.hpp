@@ -1,0 +1,63 @@
+// SPDX-License-Identifier: MIT
+// One-pass end of a striping scan on packed StripeStacks (U8 frames, <= 256
+// stripes, >= 3 frames): stripe decision and column, composite (Eq. 5.7),
+// S/A/B (Eq. 5.6 on the backgrounds), CQM, GQM, W (Eq. 5.8–5.10) and the
+// report's sums. An AVX2 kernel and its scalar twin (striping_pass.cpp);
+// estimate_striping() keeps the general double-precision pass as reference.
+// Contracts: writes only pixels [i0, i1) of the maps and `q`; thread-safe for
+// disjoint ranges. Units: DN of the frames.
+// (Header reconstructed from striping_pass.cpp's and estimate.cpp's use of
+// it after it was overwritten by mistake; check against the author's intent.)
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace procam::polarized_striping {
+
+// Sums for the report over one band of rows; bands are merged in row order so
+// the report is the same bit for bit from run to run.
+struct QualitySums {
+  double cqm = 0, gqm = 0, w = 0, cqm_w = 0, gqm_w = 0, img = 0, img2 = 0, enh = 0, enh2 = 0;
+  size_t n_cqm = 0, n_gqm = 0, n_w = 0, n_cqm_w = 0, n_gqm_w = 0, n_img = 0, n_enh = 0;
+  void add(const QualitySums& o) {
+    cqm += o.cqm, gqm += o.gqm, w += o.w, cqm_w += o.cqm_w, gqm_w += o.gqm_w;
+    img += o.img, img2 += o.img2, enh += o.enh, enh2 += o.enh2;
+    n_cqm += o.n_cqm, n_gqm += o.n_gqm, n_w += o.n_w, n_cqm_w += o.n_cqm_w, n_gqm_w += o.n_gqm_w;
+    n_img += o.n_img, n_enh += o.n_enh;
+  }
+};
+
+// A packed stack's arrays: keys (value << 8) | (255 - k) of the top two, the
+// 16-bit sum, and the number of frames folded in.
+struct PackedView {
+  const uint16_t* key1 = nullptr;
+  const uint16_t* key2 = nullptr;
+  const uint16_t* sum = nullptr;
+  uint32_t frames = 0;
+};
+
+// The decision's and the quality measures' settings.
+struct PassSettings {
+  double margin = 5, saturation = 250;  // DN (StripeDecodeSettings)
+  double mu = 3, z = 1;                 // SNR weight (Eq. 5.10)
+  double p = 0;                         // DOP used
+  bool separate = false;                // p >= p_min: Eq. 5.6
+  const float* centre = nullptr;        // projector column of stripe k's centre, k = 0..256
+};
+
+// Output maps (full image size; gqm null when not polarised).
+struct PassMaps {
+  float *image, *enhanced, *backscatter, *stripe, *col, *cqm, *weight, *gqm;
+};
+
+enum class PassKernel { best, scalar, avx2 };
+
+// Whether `kernel` can run on this CPU.
+bool pass_kernel_available(PassKernel kernel);
+
+// Pixels [i0, i1): writes the maps, adds to q, returns the number of valid stripes.
+size_t striping_pass(const PackedView& best, const PackedView* worst, const PassSettings& s, const PassMaps& m,
+                     size_t i0, size_t i1, QualitySums& q, PassKernel kernel = PassKernel::best);
+
+}  // namespace procam::polarized_striping
