@@ -60,6 +60,31 @@ cv::Ptr<cv::aruco::CharucoBoard> charuco_of(const BoardSpec& b) {
                                          cv::aruco::getPredefinedDictionary(find_dict(b.dictionary)->id));
 }
 
+// OpenCV 4.5.4+'s interpolateCornersCharuco returns corners in a frame whose
+// origin is the top-left pixel's corner (opencv_contrib PR 3024), half a
+// pixel off procam's and findChessboardCorners' frame (pixel centres at
+// integers; opencv/opencv issue 25539, fixed upstream only in 2026). So
+// refine each corner again with cv::cornerSubPix on the whole image, which
+// converges in absolute centre-at-integer coordinates whatever the start
+// (measured: 0.7 px RMS off the truth before, see charuco_test.cpp). The
+// window stays inside the corner's two white squares: half-size = distance
+// to the nearest detected marker corner - 1, clamped to 2..5 px.
+void refine_to_pixel_centres(const cv::Mat& grey, const std::vector<std::vector<cv::Point2f>>& markers,
+                             std::vector<cv::Point2f>& corners) {
+  for (cv::Point2f& c : corners) {
+    double nearest = 1e9;
+    for (const auto& m : markers)
+      for (const cv::Point2f& q : m) nearest = std::min(nearest, static_cast<double>(cv::norm(q - c)));
+    const int half = std::clamp(static_cast<int>(std::floor(nearest)) - 1, 2, 5);
+    std::vector<cv::Point2f> one{c};
+    cv::cornerSubPix(grey, one, cv::Size(half, half), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
+    // Keep OpenCV's corner where the refinement ran away (> 2 px: a blurred
+    // or occluded corner), rather than a wrong one.
+    if (std::isfinite(one[0].x) && std::isfinite(one[0].y) && cv::norm(one[0] - c) < 2.0) c = one[0];
+  }
+}
+
 }  // namespace
 
 Status check_board(const BoardSpec& b) {
@@ -192,6 +217,7 @@ FoundCorners find_corners(const cv::Mat& white, const BoardSpec& board, int min_
     cv::aruco::detectMarkers(white, cb->dictionary, marker_corners, marker_ids);
     if (!marker_ids.empty())
       cv::aruco::interpolateCornersCharuco(marker_corners, marker_ids, white, cb, f.image, f.index);
+    refine_to_pixel_centres(white, marker_corners, f.image);
     const int n = static_cast<int>(f.index.size());
     std::set<int> rows, cols;
     for (const int i : f.index) rows.insert(i / board.cols), cols.insert(i % board.cols);
