@@ -13,7 +13,7 @@ namespace procam::sim {
 double ChessboardTexture::albedo_at(double a_mm, double b_mm, double outside) const {
   if (image) {
     const double x = std::floor((a_mm / image_width_mm + 0.5) * image->width);
-    const double y = std::floor((b_mm / image_height_mm + 0.5) * image->height);
+    const double y = std::floor((0.5 - b_mm / image_height_mm) * image->height);  // row 0 at +b
     if (!(x >= 0 && x < image->width && y >= 0 && y < image->height)) return outside;  // NaN lands here too
     const uint8_t v = image->pixels[static_cast<size_t>(y) * image->width + static_cast<size_t>(x)];
     return dark + (light - dark) * (v / 255.0);

@@ -100,7 +100,7 @@ TEST(Texture, AlbedoPattern) {
 }
 
 // An image texture: a 4 x 2 PGM printed 40 x 20 mm, relative to the scene
-// file's folder. Column 0 at -a, row 0 at -b; albedo dark + (light - dark)
+// file's folder. Column 0 at -a, row 0 at +b (unmirrored from the front); albedo dark + (light - dark)
 // value / 255, nearest pixel; the material beyond.
 TEST(TextureParse, ImageTextureFromAPgm) {
   const std::string dir = temp_dir("imgtex");
@@ -115,10 +115,10 @@ TEST(TextureParse, ImageTextureFromAPgm) {
   ASSERT_TRUE(t.image);
   EXPECT_DOUBLE_EQ(t.half_width_mm(), 20);
   EXPECT_DOUBLE_EQ(t.half_height_mm(), 10);
-  EXPECT_DOUBLE_EQ(t.albedo_at(-15, -5, 0.3), 0.1);   // pixel (0, 0) = 0
-  EXPECT_DOUBLE_EQ(t.albedo_at(-5, -5, 0.3), 0.7);    // pixel (1, 0) = 255
-  EXPECT_DOUBLE_EQ(t.albedo_at(-15, 5, 0.3), 0.7);    // pixel (0, 1) = 255
-  EXPECT_NEAR(t.albedo_at(15, 5, 0.3), 0.1 + 0.6 * 0x33 / 255.0, 1e-12);  // pixel (3, 1)
+  EXPECT_DOUBLE_EQ(t.albedo_at(-15, 5, 0.3), 0.1);    // pixel (0, 0) = 0
+  EXPECT_DOUBLE_EQ(t.albedo_at(-5, 5, 0.3), 0.7);     // pixel (1, 0) = 255
+  EXPECT_DOUBLE_EQ(t.albedo_at(-15, -5, 0.3), 0.7);   // pixel (0, 1) = 255
+  EXPECT_NEAR(t.albedo_at(15, -5, 0.3), 0.1 + 0.6 * 0x33 / 255.0, 1e-12);  // pixel (3, 1)
   EXPECT_DOUBLE_EQ(t.albedo_at(21, 0, 0.3), 0.3);     // beyond the bitmap
   EXPECT_DOUBLE_EQ(t.albedo_at(0, -10.5, 0.3), 0.3);
   EXPECT_DOUBLE_EQ(t.albedo_at(std::nan(""), 0, 0.3), 0.3);

@@ -19,7 +19,8 @@
 // a pixel and corner detection is sub-pixel faithful.
 //
 // Image textures: the bitmap covers image_width_mm x image_height_mm centred
-// on the origin, column 0 at -a, row 0 at -b; each bitmap pixel is a uniform
+// on the origin, column 0 at -a, row 0 at +b, so it reads unmirrored from the
+// side the plane's normal faces (a right, b up there); each bitmap pixel is a uniform
 // patch of albedo dark + (light - dark) * value / 255 (nearest neighbour, so
 // edges that fall on bitmap pixel boundaries are exact); beyond it the
 // material's albedo. The bitmap is shared, immutable after loading.
