@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // `procam calibrate-geometry`: camera + projector intrinsics with distortion
-// and cam_from_proj from chessboard captures under Gray codes, offline
+// and cam_from_proj from chessboard or ChArUco captures under Gray codes
 // (daemon/calibration; docs/calibration.md "Geometric calibration").
 #include <chrono>
 #include <cstdio>
@@ -29,24 +29,30 @@ bool parse_pair(const std::string& s, uint32_t& a, uint32_t& b) {
   b = y;
   return true;
 }
-// Board spec from --board COLSxROWS --square-mm S; false (after a usage
-// message) when either is missing or malformed.
+// Board spec from --board COLSxROWS --square-mm S (chessboard) or --board
+// charuco:SXxSY:SQUARE_MM:MARKER_MM:DICT (calibration::parse_board); false
+// (after a usage message saying what to give) when malformed.
 bool board_args(const Args& a, calibration::BoardSpec& board, int& rc) {
-  uint32_t cols = 0, rows = 0;
-  if (!parse_pair(a.get("board"), cols, rows)) {
-    rc = usage_error("--board must be COLSxROWS inner corners, e.g. 9x7");
+  const std::string text = a.get("board");
+  const bool charuco = text.rfind("charuco:", 0) == 0;
+  double square_mm = 0;
+  if (!charuco) {
+    try {
+      square_mm = std::stod(a.get("square-mm"));
+    } catch (...) {
+      square_mm = 0;
+    }
+    if (!(square_mm > 0)) {
+      rc = usage_error("--square-mm must be the square size in mm, e.g. 75 (a ChArUco --board carries its own)");
+      return false;
+    }
+  }
+  auto b = calibration::parse_board(text, square_mm);
+  if (!b) {
+    rc = usage_error("--board: " + b.status().message() + "\n" + b.status().hint());
     return false;
   }
-  board = calibration::BoardSpec{static_cast<int>(cols), static_cast<int>(rows), 0.0};
-  try {
-    board.square_mm = std::stod(a.get("square-mm"));
-  } catch (...) {
-    board.square_mm = 0;
-  }
-  if (!(board.square_mm > 0)) {
-    rc = usage_error("--square-mm must be the square size in mm, e.g. 75");
-    return false;
-  }
+  board = *b;
   return true;
 }
 
@@ -54,7 +60,7 @@ bool board_args(const Args& a, calibration::BoardSpec& board, int& rc) {
 // scans were taken by the daemon (gray rows=true, save_frames); the daemon
 // calibrates, this waits for the record and downloads rig-calibration.json.
 int calibrate_through_daemon(const Args& a) {
-  for (const char* k : {"board", "square-mm", "out"})
+  for (const char* k : {"board", "out"})
     if (!a.has(k)) return usage_error(std::string("calibrate-geometry --scans needs --") + k);
   calibration::BoardSpec board;
   int rc = 0;
@@ -73,6 +79,11 @@ int calibrate_through_daemon(const Args& a) {
   req.board_cols = board.cols;
   req.board_rows = board.rows;
   req.square_mm = board.square_mm;
+  if (board.type == calibration::BoardType::charuco) {
+    req.board_type = "charuco";
+    req.marker_mm = board.marker_mm;
+    req.dictionary = board.dictionary;
+  }
   req.label = a.has("label") ? a.get("label") : "";
   client::Client c = a.connect();
   auto r = c.call(req);
@@ -119,7 +130,7 @@ int calibrate_through_daemon(const Args& a) {
 
 int cmd_calibrate_geometry(const Args& a) {
   if (a.has("scans")) return calibrate_through_daemon(a);
-  for (const char* k : {"captures", "projector", "board", "square-mm", "out"})
+  for (const char* k : {"captures", "projector", "board", "out"})
     if (!a.has(k)) return usage_error(std::string("calibrate-geometry needs --") + k);
   calibration::DecodeOptions dec;
   if (!parse_pair(a.get("projector"), dec.projector_width, dec.projector_height))

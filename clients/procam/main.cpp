@@ -80,9 +80,10 @@ const std::vector<Command> kCommands = {
      {"captures", "projector", "board", "square-mm", "layout", "out", "force", "plugins", "scans", "label",
       "endpoint", "timeout"},
      "calibrate-geometry --captures DIR... --projector WxH --board COLSxROWS --square-mm S --out RIG.json\n"
+     "       (ChArUco: --board charuco:SXxSY:SQUARE_MM:MARKER_MM:DICT, e.g. charuco:5x7:40:30:DICT_5X5_100)\n"
      "       [--layout procam|opencv-graycode|gupta-pairs|FILE.json] [--force 1]\n"
      "                                offline: camera + projector intrinsics with distortion and cam_from_proj\n"
-     "                                from chessboard poses under Gray codes with rows (one folder per pose)\n"
+     "                                from board poses under Gray codes with rows (one folder per pose)\n"
      "calibrate-geometry --scans ID[,ID...] --board COLSxROWS --square-mm S --out RIG.json [--label TEXT]\n"
      "                                through procamd: from finished pose scans (scan --plugin structured-light\n"
      "                                --method gray --param rows=true --save-frames 1, one per board pose)"},

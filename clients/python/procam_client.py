@@ -221,15 +221,21 @@ class Client:
         """{"<option>": {"type", "description", "default", "values"}}; the sim rig lists its scenes."""
         return self.call("list_rig_options")["options"]
 
-    def calibrate_geometry(self, scans, inner_corners, square_mm, label="", events=False, request_id=None):
+    def calibrate_geometry(self, scans, inner_corners=None, square_mm=None, label="", events=False, request_id=None,
+                           board=None):
         """Queue a geometric calibration from finished pose scans (PROTOCOL.md 5.12).
 
         scans: ids of structured-light/gray scans with params rows=true and
-        save_frames, one chessboard pose each (3..50); inner_corners: (cols,
-        rows); square_mm: edge of one square. Returns {"scan_id", "state",
-        "queue_position"}; when the record is done, result(scan_id)["calibration"]
-        holds the per-view table and "rig", and fetch its "result_file"."""
-        fields = {"scans": list(scans), "board": {"inner_corners": list(inner_corners), "square_mm": square_mm}}
+        save_frames, one board pose each (3..50); inner_corners: (cols,
+        rows); square_mm: edge of one square. Or board: the request's board
+        object as is, e.g. a ChArUco board {"type": "charuco", "squares": [5, 7],
+        "square_mm": 40, "marker_mm": 30, "dictionary": "DICT_5X5_100"}.
+        Returns {"scan_id", "state", "queue_position"}; when the record is
+        done, result(scan_id)["calibration"] holds the per-view table and
+        "rig", and fetch its "result_file"."""
+        if board is None:
+            board = {"inner_corners": list(inner_corners), "square_mm": square_mm}
+        fields = {"scans": list(scans), "board": board}
         if label:
             fields["label"] = label
         if events:

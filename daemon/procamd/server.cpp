@@ -520,7 +520,7 @@ void Server::handle(std::vector<zmq::message_t>& msg) {
       },
       [&](const proto::ListScans& l) { ok(service_.list_scans(l.state, l.limit)); },
       [&](const proto::CalibrateGeometry& c) {
-        auto r = service_.submit_calibration(c.scans, c.board_cols, c.board_rows, c.square_mm, c.label, req->id);
+        auto r = service_.submit_calibration(c.scans, proto::board_json(c), c.label, req->id);
         if (!r) return err(r.status());
         if (c.events) {  // state events of the calibration record, as for a scan
           auto& subs = subscribers_[(*r)["scan_id"].get<std::string>()];

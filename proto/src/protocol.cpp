@@ -388,8 +388,23 @@ Result<RequestBody> decode_list_scans(const Fields& f) {
   return RequestBody{std::move(r)};
 }
 
+}  // namespace
+
+json board_json(const CalibrateGeometry& c) {
+  if (c.board_type == "charuco")
+    return {{"type", "charuco"},
+            {"squares", {c.board_cols + 1, c.board_rows + 1}},
+            {"square_mm", c.square_mm},
+            {"marker_mm", c.marker_mm},
+            {"dictionary", c.dictionary}};
+  return {{"inner_corners", {c.board_cols, c.board_rows}}, {"square_mm", c.square_mm}};
+}
+
+namespace {
+
 // calibrate_geometry: {"scans": [ids], "board": {"inner_corners": [c, r],
-// "square_mm": s}, "label"?, "events"?}.
+// "square_mm": s} or {"type": "charuco", "squares": [x, y], "square_mm": s,
+// "marker_mm": m, "dictionary": d}, "label"?, "events"?}.
 Result<RequestBody> decode_calibrate_geometry(const Fields& f) {
   PROCAM_TRY(f.only({"scans", "board", "label", "events"}));
   CalibrateGeometry c;
@@ -417,20 +432,36 @@ Result<RequestBody> decode_calibrate_geometry(const Fields& f) {
   const json* board = f.find("board");
   if (!board) return f.missing("board");
   if (!board->is_object()) return f.wrong_type("board", "an object", *board);
-  const char* board_form = "board is {\"inner_corners\": [cols, rows], \"square_mm\": edge}, e.g. "
-                           "{\"inner_corners\": [9, 7], \"square_mm\": 75}";
+  const char* board_form =
+      "board is {\"inner_corners\": [cols, rows], \"square_mm\": edge} (chessboard, e.g. "
+      "{\"inner_corners\": [9, 7], \"square_mm\": 75}) or {\"type\": \"charuco\", \"squares\": [x, y], "
+      "\"square_mm\": edge, \"marker_mm\": side, \"dictionary\": \"DICT_5X5_100\"}";
+  const json* type = board->contains("type") ? &(*board)["type"] : nullptr;
+  if (type && !(type->is_string() && (*type == "chessboard" || *type == "charuco")))
+    return Error(Code::invalid_argument, "field 'board.type' must be \"chessboard\" or \"charuco\", got " + dump(*type),
+                 board_form);
+  const bool charuco = type && *type == "charuco";
+  c.board_type = charuco ? "charuco" : "chessboard";
+  const char* grid = charuco ? "squares" : "inner_corners";
   for (const auto& [key, value] : board->items())
-    if (key != "inner_corners" && key != "square_mm")
+    if (key != grid && key != "square_mm" && key != "type" &&
+        !(charuco && (key == "marker_mm" || key == "dictionary")))
       return Error(Code::bad_message, "unknown field 'board." + key + "'", board_form);
-  const json* ic = board->contains("inner_corners") ? &(*board)["inner_corners"] : nullptr;
+  const json* ic = board->contains(grid) ? &(*board)[grid] : nullptr;
   if (!ic || !ic->is_array() || ic->size() != 2 || !(*ic)[0].is_number_integer() || !(*ic)[1].is_number_integer())
-    return Error(Code::bad_message, "field 'board.inner_corners' must be [cols, rows] (two integers)", board_form);
-  const int64_t cols = (*ic)[0].get<int64_t>(), rows = (*ic)[1].get<int64_t>();
+    return Error(Code::bad_message,
+                 std::string("field 'board.") + grid + "' must be " + (charuco ? "[x, y]" : "[cols, rows]") +
+                     " (two integers)",
+                 board_form);
+  // ChArUco boards are given by their squares; both are kept as inner corners.
+  const int64_t off = charuco ? 1 : 0;
+  const int64_t cols = (*ic)[0].get<int64_t>() - off, rows = (*ic)[1].get<int64_t>() - off;
   if (cols < 2 || cols > 100 || rows < 2 || rows > 100)
     return Error(Code::invalid_argument,
-                 "field 'board.inner_corners' is [" + std::to_string(cols) + ", " + std::to_string(rows) +
-                     "]; each count must be 2..100",
-                 "count the inner corners: a board of 10 x 8 squares has 9 x 7");
+                 std::string("field 'board.") + grid + "' is [" + std::to_string(cols + off) + ", " +
+                     std::to_string(rows + off) + "]; each count must be " + (charuco ? "3..101" : "2..100"),
+                 charuco ? "count the ChArUco board's squares across and down, e.g. [5, 7]"
+                         : "count the inner corners: a board of 10 x 8 squares has 9 x 7");
   c.board_cols = static_cast<int>(cols);
   c.board_rows = static_cast<int>(rows);
   const json* sq = board->contains("square_mm") ? &(*board)["square_mm"] : nullptr;
@@ -439,6 +470,23 @@ Result<RequestBody> decode_calibrate_geometry(const Fields& f) {
   if (!(c.square_mm > 0 && c.square_mm <= 1000))
     return Error(Code::invalid_argument, "field 'board.square_mm' must be in (0, 1000] mm, got " + dump(*sq),
                  "measure one square's edge of the printed board, in millimetres");
+  if (charuco) {
+    // The dictionary's name is checked against OpenCV's when the job runs
+    // (procam::calibration::check_board); the engine does not link OpenCV.
+    const json* mk = board->contains("marker_mm") ? &(*board)["marker_mm"] : nullptr;
+    const json* dict = board->contains("dictionary") ? &(*board)["dictionary"] : nullptr;
+    if (!mk || !mk->is_number() || !dict || !dict->is_string() || dict->get_ref<const std::string&>().empty() ||
+        dict->get_ref<const std::string&>().size() > 64)
+      return Error(Code::bad_message, "a ChArUco board needs 'board.marker_mm' (a number) and 'board.dictionary' "
+                                      "(an OpenCV dictionary name)",
+                   board_form);
+    c.marker_mm = mk->get<double>();
+    if (!(c.marker_mm > 0 && c.marker_mm < c.square_mm))
+      return Error(Code::invalid_argument, "field 'board.marker_mm' must be > 0 and smaller than square_mm, got " +
+                                               dump(*mk),
+                   "measure one marker's black edge of the printed board, in millimetres");
+    c.dictionary = dict->get<std::string>();
+  }
   auto label = f.string("label", false, kMaxLabelBytes, true);
   PROCAM_TRY(label);
   c.label = label->value_or("");
@@ -607,7 +655,7 @@ json request_fields(const RequestBody& body) {
     json operator()(const ListRigOptions&) const { return json::object(); }
     json operator()(const CalibrateGeometry& c) const {
       json j = {{"scans", c.scans},
-                {"board", {{"inner_corners", {c.board_cols, c.board_rows}}, {"square_mm", c.square_mm}}}};
+                {"board", board_json(c)}};
       if (c.events) j["events"] = true;
       if (!c.label.empty()) j["label"] = c.label;
       return j;

@@ -74,8 +74,9 @@ TEST(ProtoRequest, EveryTypeRoundTrips) {
       {"12", ListScans{}},
       {"13", ListScans{"active", 5}},
       {"14", ListRigOptions{}},
-      {"15", CalibrateGeometry{{"s1", "s2", "s3"}, 9, 7, 75.0, true, "desk rig"}},
-      {"16", CalibrateGeometry{{"a", "b", "c", "d"}, 2, 100, 0.5, false, ""}},
+      {"15", CalibrateGeometry{{"s1", "s2", "s3"}, 9, 7, 75.0, true, "desk rig", "chessboard", 0, ""}},
+      {"16", CalibrateGeometry{{"a", "b", "c", "d"}, 2, 100, 0.5, false, "", "chessboard", 0, ""}},
+      {"16c", CalibrateGeometry{{"a", "b", "c"}, 4, 6, 40, false, "", "charuco", 30, "DICT_5X5_100"}},
       {std::string(kMaxIdBytes, 'x'), ListPlugins{}},
   };
   std::set<std::string_view> types;
@@ -115,6 +116,37 @@ TEST(ProtoRequest, CalibrateGeometryFieldsAreChecked) {
                Code::bad_message, "unknown field 'board.kind'");
   expect_error(head + R"("scans":["x","y","z"],)" + board + R"(,"method":"gray"})", Code::bad_message,
                "unknown field 'method'");
+}
+
+TEST(ProtoRequest, CalibrateGeometryTakesAChArUcoBoard) {
+  const std::string head = R"({"procam":1,"id":"a","type":"calibrate_geometry","scans":["x","y","z"],)";
+  const std::string charuco =
+      R"("board":{"type":"charuco","squares":[5,7],"square_mm":40,"marker_mm":30,"dictionary":"DICT_5X5_100"}})";
+  auto r = decode_request(head + charuco);
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const auto& c = std::get<CalibrateGeometry>(r->body);
+  EXPECT_EQ(c.board_type, "charuco");
+  EXPECT_EQ(c.board_cols, 4);  // inner corners: squares - 1
+  EXPECT_EQ(c.board_rows, 6);
+  EXPECT_DOUBLE_EQ(c.marker_mm, 30);
+  EXPECT_EQ(c.dictionary, "DICT_5X5_100");
+  // Encoded back as sent.
+  const nlohmann::json b = board_json(c);
+  EXPECT_EQ(b["squares"], nlohmann::json({5, 7}));
+  EXPECT_EQ(b["type"], "charuco");
+  auto again = decode_request(encode_request(Request{"a", c}));
+  ASSERT_TRUE(again.ok()) << again.status().to_string();
+  EXPECT_EQ(std::get<CalibrateGeometry>(again->body), c);
+  expect_error(head + R"("board":{"type":"charuco","squares":[5,7],"square_mm":40,"marker_mm":40,"dictionary":"D"}})",
+               Code::invalid_argument, "smaller than square_mm");
+  expect_error(head + R"("board":{"type":"charuco","squares":[5,7],"square_mm":40,"marker_mm":30}})",
+               Code::bad_message, "needs 'board.marker_mm' (a number) and 'board.dictionary'");
+  expect_error(head + R"("board":{"type":"charuco","squares":[2,7],"square_mm":40,"marker_mm":30,"dictionary":"D"}})",
+               Code::invalid_argument, "each count must be 3..101");
+  expect_error(head + R"("board":{"type":"aruco","squares":[5,7],"square_mm":40}})", Code::invalid_argument,
+               "must be \"chessboard\" or \"charuco\"");
+  expect_error(head + R"("board":{"inner_corners":[9,7],"square_mm":75,"dictionary":"D"}})", Code::bad_message,
+               "unknown field 'board.dictionary'");
 }
 
 TEST(ProtoRequest, ListScansFiltersAreChecked) {

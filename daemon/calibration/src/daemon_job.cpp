@@ -16,6 +16,13 @@ Result<nlohmann::json> run_daemon_job(const host::PluginHost& host, const engine
   try {
     if (job.scan_ids.size() != job.scan_dirs.size())
       return Error(Code::internal, "calibration job: scan ids and folders differ in number");
+    // The request's board (chessboard or ChArUco), checked before decoding.
+    BoardSpec board{job.board_cols, job.board_rows, job.square_mm};
+    if (job.board.is_object()) {
+      auto b = board_from_json(job.board);
+      if (!b) return b.status();
+      board = *b;
+    }
     DecodeOptions dec;
     dec.projector_width = job.projector_width;
     dec.projector_height = job.projector_height;
@@ -27,7 +34,6 @@ Result<nlohmann::json> run_daemon_job(const host::PluginHost& host, const engine
       v->name = job.scan_ids[i];  // the report names views by their scan
       views.push_back(std::move(*v));
     }
-    const BoardSpec board{job.board_cols, job.board_rows, job.square_mm};
     auto r = calibrate(views, board, job.projector_width, job.projector_height);
     if (!r) return r.status();
     const nlohmann::json rig = to_rig_json(*r);
@@ -39,7 +45,7 @@ Result<nlohmann::json> run_daemon_job(const host::PluginHost& host, const engine
     return nlohmann::json{{"result_file", result_file},
                           {"report_file", report_file},
                           {"scans", job.scan_ids},
-                          {"board", {{"inner_corners", {job.board_cols, job.board_rows}}, {"square_mm", job.square_mm}}},
+                          {"board", board_to_json(board)},
                           {"views", rep["views"]},
                           {"camera_rms_px", r->camera_rms_px},
                           {"projector_rms_px", r->projector_rms_px},

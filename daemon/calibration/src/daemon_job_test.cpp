@@ -164,6 +164,20 @@ TEST_F(DaemonCalibration, RefusalsSayWhatIsWrong) {
     EXPECT_NE(m["error"]["message"].get<std::string>().find((*good_)[i] + ": chessboard 11x9 inner corners not found"),
               std::string::npos)
         << m["error"].dump();
+  // A ChArUco board with a dictionary OpenCV lacks: the record fails at once
+  // (before decoding), listing the names to give.
+  auto bad = service_->submit_calibration(
+      {good, (*good_)[1], (*good_)[2]},
+      json{{"type", "charuco"}, {"squares", {10, 8}}, {"square_mm", 30}, {"marker_mm", 22}, {"dictionary", "DICT_5X5_99"}},
+      "wrong dictionary");
+  ASSERT_TRUE(bad.ok()) << bad.status().to_string();
+  const json mb = wait((*bad)["scan_id"]);
+  EXPECT_EQ(mb["state"], "failed");
+  EXPECT_EQ(mb["error"]["code"], "invalid_argument") << mb["error"].dump();
+  EXPECT_NE(mb["error"]["message"].get<std::string>().find("unknown ArUco dictionary 'DICT_5X5_99'"),
+            std::string::npos)
+      << mb["error"].dump();
+  EXPECT_NE(mb["error"]["hint"].get<std::string>().find("DICT_5X5_100"), std::string::npos) << mb["error"].dump();
 }
 
 }  // namespace

@@ -12,19 +12,13 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "board.hpp"
+
 namespace procam::calibration {
 namespace {
 
 using Pts2 = std::vector<cv::Point2f>;
 using Pts3 = std::vector<cv::Point3f>;
-
-Pts3 board_points(const BoardSpec& b) {
-  Pts3 p;
-  for (int r = 0; r < b.rows; ++r)
-    for (int c = 0; c < b.cols; ++c)
-      p.emplace_back(static_cast<float>(c * b.square_mm), static_cast<float>(r * b.square_mm), 0.f);
-  return p;
-}
 
 // Projector position of camera point `corner` from the decoded maps around it
 // (step 2 of the header). False when too little of the window is decoded or
@@ -82,7 +76,8 @@ double view_rms(const Pts3& obj, const Pts2& img, const cv::Mat& rvec, const cv:
 
 struct Detected {
   size_t view = 0;
-  Pts2 cam;               // every board corner in the camera image
+  Pts3 obj;               // every board corner found in the camera image ...
+  Pts2 cam;               // ... and where
   Pts3 obj_sub;           // the corners with a projector position ...
   Pts2 cam_sub, proj_sub; // ... in the camera and in the projector
 };
@@ -92,16 +87,12 @@ struct Detected {
 Result<RigCalibration> calibrate(const std::vector<View>& views, const BoardSpec& board,
                                  uint32_t projector_width, uint32_t projector_height,
                                  const Options& options) {
-  if (board.cols < 3 || board.rows < 3 || !(board.square_mm > 0))
-    return Error(Code::invalid_argument, "calibrate: the board needs >= 3x3 inner corners and a square size > 0",
-                 "give e.g. --board 9x7 --square-mm 75");
+  if (Status s = check_board(board); !s.ok()) return s;
   if (projector_width == 0 || projector_height == 0)
     return Error(Code::invalid_argument, "calibrate: projector size is 0", "give --projector WxH");
   if (views.empty()) return Error(Code::invalid_argument, "calibrate: no views", "capture at least 3 board poses");
   const cv::Size cam_size(static_cast<int>(views[0].width), static_cast<int>(views[0].height));
   const cv::Size proj_size(static_cast<int>(projector_width), static_cast<int>(projector_height));
-  const Pts3 obj = board_points(board);
-  const size_t n_corners = obj.size();
 
   RigCalibration out;
   std::vector<Detected> det;
@@ -120,32 +111,29 @@ Result<RigCalibration> calibrate(const std::vector<View>& views, const BoardSpec
                        std::to_string(views[0].height),
                    "every view must come from the same camera and be decoded with rows");
     cv::Mat white(cam_size, CV_8UC1, const_cast<uint8_t*>(v.white.data()));
-    Pts2 corners;
-    const bool found = cv::findChessboardCorners(
-        white, cv::Size(board.cols, board.rows), corners,
-        cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
-    if (!found || corners.size() != n_corners) {
-      rep.rejected_because = "chessboard " + std::to_string(board.cols) + "x" + std::to_string(board.rows) +
-                             " inner corners not found in the white image";
+    detail::FoundCorners found = detail::find_corners(white, board, options.min_charuco_corners);
+    if (!found.rejected_because.empty()) {
+      rep.rejected_because = found.rejected_because;
       out.views.push_back(rep);
       continue;
     }
-    cv::cornerSubPix(white, corners, cv::Size(11, 11), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
-    rep.corners = static_cast<int>(corners.size());
+    const size_t n_corners = found.image.size();
+    rep.corners = static_cast<int>(n_corners);
     Detected d;
     d.view = out.views.size();
-    d.cam = corners;
-    for (size_t i = 0; i < corners.size(); ++i) {
+    d.cam = found.image;
+    for (size_t i = 0; i < n_corners; ++i) {
+      const cv::Point3f o = detail::corner_point(board, found.index[i]);
+      d.obj.push_back(o);
       cv::Point2f p;
-      if (!projector_corner(v, corners[i], options, p)) continue;
-      d.obj_sub.push_back(obj[i]);
-      d.cam_sub.push_back(corners[i]);
+      if (!projector_corner(v, found.image[i], options, p)) continue;
+      d.obj_sub.push_back(o);
+      d.cam_sub.push_back(found.image[i]);
       d.proj_sub.push_back(p);
     }
     const int have = static_cast<int>(d.proj_sub.size());
     rep.projector_corners = have;
-    if (have < 8 || have < static_cast<int>(std::ceil(options.min_corner_fraction * static_cast<double>(n_corners)))) {
+    if (have < (board.type == BoardType::charuco ? options.min_charuco_corners : 8) || have < static_cast<int>(std::ceil(options.min_corner_fraction * static_cast<double>(n_corners)))) {
       rep.rejected_because = std::to_string(have) + " of " + std::to_string(n_corners) +
                              " corners have a decoded projector position (the projector must light most of "
                              "the board, and the decode must include rows)";
@@ -169,9 +157,10 @@ Result<RigCalibration> calibrate(const std::vector<View>& views, const BoardSpec
                        std::to_string(options.min_views) + why,
                    "capture more board poses (tilted 20-40 degrees, filling different parts of both images)");
     }
-    std::vector<Pts3> objs(det.size(), obj), objs_sub;
+    std::vector<Pts3> objs, objs_sub;
     std::vector<Pts2> cam_pts, cam_sub, proj_sub;
     for (const Detected& d : det) {
+      objs.push_back(d.obj);
       cam_pts.push_back(d.cam);
       objs_sub.push_back(d.obj_sub);
       cam_sub.push_back(d.cam_sub);
@@ -193,8 +182,8 @@ Result<RigCalibration> calibrate(const std::vector<View>& views, const BoardSpec
     double worst_rms = 0;
     for (size_t k = 0; k < det.size(); ++k) {
       cv::Mat rvec, tvec;
-      cv::solvePnP(obj, det[k].cam, Kc, Dc, rvec, tvec);
-      const double ec = view_rms(obj, det[k].cam, rvec, tvec, Kc, Dc);
+      cv::solvePnP(det[k].obj, det[k].cam, Kc, Dc, rvec, tvec);
+      const double ec = view_rms(det[k].obj, det[k].cam, rvec, tvec, Kc, Dc);
       cv::Mat Rc;
       cv::Rodrigues(rvec, Rc);
       // x_proj = R^T (x_cam - T): board -> camera -> projector.

@@ -14,22 +14,18 @@
 // again from the recorded folder).
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
 #include "calibration_test_util.hpp"
+#include "sim_scan_util.hpp"
 #include "procam/calibration/captures.hpp"
 #include "procam/calibration/geometric.hpp"
-#include "procam/engine/rig_json.hpp"
-#include "procam/engine/scan_runner.hpp"
-#include "procam/hw/rig.hpp"
 #include "procam/hw/sim/scene.hpp"
 #include "procam/hw/sim/texture.hpp"
 
@@ -38,61 +34,17 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr int kPoses = 8;
-constexpr uint32_t kProjW = 800, kProjH = 600;  // configs/rigs/sim-distorted.json
+constexpr uint32_t kProjW = test::kSimProjW, kProjH = test::kSimProjH;
 const BoardSpec kBoard{9, 7, 30.0};
 
-nlohmann::json rig_config() {
-  std::ifstream in(PROCAM_SOURCE_DIR "/configs/rigs/sim-distorted.json");
-  return nlohmann::json::parse(in);
-}
+using test::lens_of;
+using test::Scanned;
+nlohmann::json rig_config() { return test::sim_rig_config(); }
 
-LensModel lens_of(const nlohmann::json& k) {
-  LensModel m{k.at("width").get<uint32_t>(), k.at("height").get<uint32_t>(), k.at("fx").get<double>(),
-              k.at("fy").get<double>(), k.at("cx").get<double>(), k.at("cy").get<double>(), {}};
-  const auto d = k.at("distortion").get<std::vector<double>>();
-  for (size_t i = 0; i < 5; ++i) m.distortion[i] = d[i];
-  return m;
-}
-
-struct Scanned {
-  std::vector<View> views;
-  std::string dir;
-};
-
-// Scans every pose through the rig, recording frames, and decodes each
-// recorded folder again (the calibrate-geometry path).
 Scanned scan_poses() {
-  Scanned out;
-  out.dir = (fs::temp_directory_path() / ("procam_cal16_" + std::to_string(::getpid()))).string();
-  fs::remove_all(out.dir);
-  auto rig = hw::create_rig(rig_config(), {PROCAM_SOURCE_DIR "/configs/rigs", {PROCAM_SOURCE_DIR "/configs/scenes"}});
-  EXPECT_TRUE(rig.ok()) << rig.status().to_string();
-  if (!rig.ok()) return out;
-  host::PluginHost host(host::LoadOptions{.probe_in_child = false});
-  host.load_directories({PROCAM_PLUGIN_DIR});
-  const nlohmann::json rig_json = engine::plugin_rig_json(**rig, 2);
-  DecodeOptions o;
-  o.projector_width = kProjW;
-  o.projector_height = kProjH;
-  for (int k = 0; k < kPoses; ++k) {
-    const std::string name = "board-" + std::to_string(k);
-    Status st = (*rig)->apply_scan_options({{"scene", "calib/" + name}});
-    EXPECT_TRUE(st.ok()) << st.to_string();
-    auto session = host.create_session("structured-light", "gray", R"({"rows": true})", rig_json.dump());
-    EXPECT_TRUE(session.ok()) << session.status().to_string();
-    if (!st.ok() || !session.ok()) return out;
-    engine::CaptureOptions co;
-    co.record_dir = out.dir + "/" + name;
-    fs::create_directories(co.record_dir);
-    std::atomic<bool> cancel{false};
-    auto scan = engine::run_scan(**rig, *session, co, nullptr, cancel);
-    EXPECT_TRUE(scan.ok()) << scan.status().to_string();
-    auto v = decode_capture(host, co.record_dir, o);
-    EXPECT_TRUE(v.ok()) << v.status().to_string();
-    if (!v.ok()) return out;
-    out.views.push_back(std::move(*v));
-  }
-  return out;
+  std::vector<std::string> names;
+  for (int k = 0; k < kPoses; ++k) names.push_back("calib/board-" + std::to_string(k));
+  return test::scan_sim_poses(PROCAM_SOURCE_DIR "/configs/scenes", names, "cal16");
 }
 
 class SimCalibration : public ::testing::Test {

@@ -1,16 +1,12 @@
 // SPDX-License-Identifier: MIT
 // Geometric calibration against known truth: views rendered here in closed
-// form from a chosen camera, projector (both with lens distortion) and pose,
-// so every fitted parameter has a true value.
-//  - white image: the chessboard seen through the distorted camera, 2x2
-//    supersampled, sensor noise sigma 2 DN;
-//  - proj_col / proj_row: each camera pixel's board point projected into the
-//    distorted projector and rounded to integers, as a Gray-code decode gives.
+// form (closed_form_views.hpp: distorted camera and projector, known pose,
+// a chessboard here), so every fitted parameter has a true value.
 // Tolerances (issue 16 item 1): intrinsics within 0.5 %, cam_from_proj within
 // 0.5 mm and 0.05 degrees; the board's squares triangulate to their size.
 #include "procam/calibration/geometric.hpp"
 
-#include "calibration_test_util.hpp"
+#include "closed_form_views.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,41 +20,12 @@ namespace procam::calibration {
 namespace {
 
 using test::angle_deg;
-using test::D_of;
-using test::K_of;
-using test::kPi;
-using test::rot;
-constexpr uint32_t kCamW = 800, kCamH = 640, kProjW = 640, kProjH = 480;
+using test::kCamH;
+using test::kCamW;
+using test::kProjH;
+using test::kProjW;
+using test::Truth;
 const BoardSpec kBoard{9, 7, 30.0};
-
-struct Truth {
-  LensModel cam{kCamW, kCamH, 1100, 1098, 405, 318, {-0.15, 0.08, 0.001, -0.0008, 0.0}};
-  LensModel proj{kProjW, kProjH, 760, 762, 322, 300, {0.04, -0.02, 0.0005, 0.0003, 0.0}};
-  cv::Matx33d R = rot(3, -15, 1);  // cam_from_proj: x_cam = R x_proj + t
-  cv::Vec3d t{200, -10, 30};
-};
-
-// Undistorted normalised rays of camera points (iterated to 1e-10).
-std::vector<cv::Point2f> rays(const std::vector<cv::Point2f>& px, const Truth& T) {
-  std::vector<cv::Point2f> n;
-  cv::undistortPoints(px, n, K_of(T.cam), D_of(T.cam), cv::noArray(), cv::noArray(),
-                      cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 50, 1e-10));
-  return n;
-}
-
-// Board coordinates (mm) where camera ray (x, y, 1) meets the board at pose
-// (Rb, tb) (board -> camera); false when it misses in front.
-bool board_hit(cv::Point2f r, const cv::Matx33d& Rb, const cv::Vec3d& tb, cv::Vec3d& P, double& bx, double& by) {
-  const cv::Vec3d d(r.x, r.y, 1.0), n(Rb(0, 2), Rb(1, 2), Rb(2, 2));
-  const double den = n.dot(d);
-  if (std::abs(den) < 1e-12) return false;
-  const double s = n.dot(tb) / den;
-  if (!(s > 0)) return false;
-  P = d * s;
-  const cv::Vec3d b = Rb.t() * (P - tb);
-  bx = b[0], by = b[1];
-  return true;
-}
 
 // Reflectance of the board: checkers over the inner-corner grid plus one
 // square, a white quiet zone of one square, dark background.
@@ -73,80 +40,20 @@ float reflectance(double bx, double by) {
   return margin ? 220.f : 60.f;
 }
 
-View render(const Truth& T, const cv::Matx33d& Rb, const cv::Vec3d& tb, const std::string& name, uint32_t seed) {
-  View v;
-  v.name = name;
-  v.width = kCamW;
-  v.height = kCamH;
-  const size_t n = size_t{kCamW} * kCamH;
-  // White: 2x2 samples per pixel.
-  std::vector<cv::Point2f> sub;
-  sub.reserve(4 * n);
-  for (uint32_t y = 0; y < kCamH; ++y)
-    for (uint32_t x = 0; x < kCamW; ++x)
-      for (float oy : {-0.25f, 0.25f})
-        for (float ox : {-0.25f, 0.25f}) sub.emplace_back(static_cast<float>(x) + ox, static_cast<float>(y) + oy);
-  const std::vector<cv::Point2f> sub_rays = rays(sub, T);
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> noise(0.f, 2.f);
-  v.white.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    float sum = 0;
-    for (size_t k = 0; k < 4; ++k) {
-      cv::Vec3d P;
-      double bx, by;
-      sum += board_hit(sub_rays[4 * i + k], Rb, tb, P, bx, by) ? reflectance(bx, by) : 60.f;
-    }
-    v.white[i] = static_cast<uint8_t>(std::clamp(sum / 4 + noise(rng), 0.f, 255.f));
-  }
-  // Projector maps at pixel centres.
-  std::vector<cv::Point2f> centres;
-  centres.reserve(n);
-  for (uint32_t y = 0; y < kCamH; ++y)
-    for (uint32_t x = 0; x < kCamW; ++x) centres.emplace_back(static_cast<float>(x), static_cast<float>(y));
-  const std::vector<cv::Point2f> centre_rays = rays(centres, T);
-  std::vector<cv::Point3f> in_proj;
-  std::vector<size_t> idx;
-  const double S = kBoard.square_mm;
-  for (size_t i = 0; i < n; ++i) {
-    cv::Vec3d P;
-    double bx, by;
-    if (!board_hit(centre_rays[i], Rb, tb, P, bx, by)) continue;
-    if (bx < -2 * S || bx >= (kBoard.cols + 1) * S || by < -2 * S || by >= (kBoard.rows + 1) * S) continue;
-    const cv::Vec3d q = T.R.t() * (P - T.t);  // projector frame
-    if (!(q[2] > 0)) continue;
-    in_proj.emplace_back(static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2]));
-    idx.push_back(i);
-  }
-  std::vector<cv::Point2f> pp;
-  cv::projectPoints(in_proj, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K_of(T.proj), D_of(T.proj), pp);
-  v.proj_col.assign(n, NAN);
-  v.proj_row.assign(n, NAN);
-  for (size_t k = 0; k < idx.size(); ++k) {
-    const float c = std::round(pp[k].x), r = std::round(pp[k].y);
-    if (c < 0 || r < 0 || c > kProjW - 1 || r > kProjH - 1) continue;
-    v.proj_col[idx[k]] = c;
-    v.proj_row[idx[k]] = r;
-  }
-  return v;
-}
-
 // Poses: board origin (first inner corner) so that the board's centre sits
 // near (0, 0, z) in the camera frame, tilted in different directions.
 std::vector<View> views(const Truth& T) {
   const double S = kBoard.square_mm;
-  const cv::Vec3d centre_b(4 * S, 3 * S, 0);
-  struct Pose {
-    double rx, ry, rz, x, y, z;
-  };
-  const Pose poses[] = {{0, 0, 0, 0, 0, 650},      {25, 0, 5, -20, 10, 620},  {-20, 15, 0, 15, -10, 700},
-                        {0, 28, -6, 10, 5, 640},   {12, -25, 3, -10, 0, 600}, {-18, -15, 10, 0, 15, 720}};
+  const test::BoardLook look{reflectance, -2 * S, (kBoard.cols + 1) * S, -2 * S, (kBoard.rows + 1) * S};
+  const test::Pose poses[] = {{0, 0, 0, 0, 0, 650},      {25, 0, 5, -20, 10, 620},  {-20, 15, 0, 15, -10, 700},
+                              {0, 28, -6, 10, 5, 640},   {12, -25, 3, -10, 0, 600}, {-18, -15, 10, 0, 15, 720}};
   std::vector<View> out;
   uint32_t seed = 1;
-  for (const Pose& p : poses) {
-    const cv::Matx33d Rb = rot(p.rx, p.ry, p.rz);
-    const cv::Vec3d tb = cv::Vec3d(p.x, p.y, p.z) - Rb * centre_b;
-    out.push_back(render(T, Rb, tb, "pose" + std::to_string(seed), seed));
+  for (const test::Pose& p : poses) {
+    cv::Matx33d Rb;
+    cv::Vec3d tb;
+    test::pose_of(p, cv::Vec3d(4 * S, 3 * S, 0), Rb, tb);
+    out.push_back(test::render(T, look, Rb, tb, "pose" + std::to_string(seed), seed));
     ++seed;
   }
   return out;

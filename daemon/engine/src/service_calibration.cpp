@@ -18,12 +18,18 @@ namespace fs = std::filesystem;
 Result<nlohmann::json> ScanService::submit_calibration(const std::vector<std::string>& scan_ids, int board_cols,
                                                        int board_rows, double square_mm, const std::string& label,
                                                        const std::string& request_id) {
+  return submit_calibration(scan_ids, {{"inner_corners", {board_cols, board_rows}}, {"square_mm", square_mm}}, label,
+                            request_id);
+}
+
+Result<nlohmann::json> ScanService::submit_calibration(const std::vector<std::string>& scan_ids,
+                                                       const nlohmann::json& board, const std::string& label,
+                                                       const std::string& request_id) {
   ScanRequest req;
   req.plugin = kCalibrationPlugin;
   req.method = kCalibrationMethod;
   req.label = label;
-  req.params = {{"scans", scan_ids},
-                {"board", {{"inner_corners", {board_cols, board_rows}}, {"square_mm", square_mm}}}};
+  req.params = {{"scans", scan_ids}, {"board", board}};
   return submit(req, request_id);  // checks through check_calibration(), queues like a scan
 }
 
@@ -36,8 +42,12 @@ Result<GeometryCalibrationJob> ScanService::check_calibration(const ScanRequest&
   try {
     job.scan_ids = p.at("scans").get<std::vector<std::string>>();
     const auto& board = p.at("board");
-    job.board_cols = board.at("inner_corners").at(0).get<int>();
-    job.board_rows = board.at("inner_corners").at(1).get<int>();
+    job.board = board;
+    // A ChArUco board is given by its squares (one more than inner corners).
+    const bool charuco = board.contains("squares");
+    const auto& grid = charuco ? board.at("squares") : board.at("inner_corners");
+    job.board_cols = grid.at(0).get<int>() - (charuco ? 1 : 0);
+    job.board_rows = grid.at(1).get<int>() - (charuco ? 1 : 0);
     job.square_mm = board.at("square_mm").get<double>();
   } catch (const std::exception& e) {
     return Error(Code::invalid_argument, std::string("calibration request: bad params: ") + e.what(),

@@ -120,36 +120,63 @@ Bowl parse_bowl(FieldReader& r) {
   return b;
 }
 
+// "image" texture fields: {"file": PGM path (relative: to the scene file's
+// folder), "size_mm": [width, height] printed size}.
+void parse_image_texture(FieldReader& r, ChessboardTexture& t, const std::string& source) {
+  const std::string file = r.string("file", std::nullopt);
+  const auto size = r.numbers<2>("size_mm", std::nullopt, "[width, height] printed size, mm");
+  if (!r.errors().ok()) return;
+  if (!(size[0] > 0 && size[1] > 0)) {
+    r.fail("size_mm", "both extents must be > 0");
+    return;
+  }
+  fs::path path(file);
+  if (path.is_relative() && !source.empty()) path = fs::path(source).parent_path() / path;
+  auto bmp = read_pgm(path.string());
+  if (!bmp.ok()) {
+    r.fail("file", bmp.status().message(), bmp.status().hint());
+    return;
+  }
+  t.image = std::make_shared<const GreyBitmap>(std::move(*bmp));
+  t.image_width_mm = size[0];
+  t.image_height_mm = size[1];
+}
+
 // "texture" of a plane (texture.hpp): {"type": "chessboard", "inner_corners":
-// [cols, rows], "square_mm", "dark", "light", "border_squares"}. The plane's
-// material must be opaque and not a sheet, and a finite plane must hold the
-// textured area.
-ChessboardTexture parse_texture(FieldReader& obj, const Plane& plane, const Material& m) {
+// [cols, rows], "square_mm", "dark", "light", "border_squares"} or {"type":
+// "image", "file", "size_mm", "dark", "light"}. The plane's material must be
+// opaque and not a sheet, and a finite plane must hold the textured area.
+ChessboardTexture parse_texture(FieldReader& obj, const Plane& plane, const Material& m, const std::string& source) {
   ChessboardTexture t;
   const nlohmann::json* tj = obj.object("texture", true);
   if (tj == nullptr) return t;
   FieldReader r(*tj, obj.field("texture"), obj.errors());
-  r.only({"type", "inner_corners", "square_mm", "dark", "light", "border_squares", "comment"});
   const std::string type = r.string("type", std::nullopt);
-  if (r.errors().ok() && type != "chessboard") {
-    r.fail("type", "unknown texture type '" + type + "'", "use \"chessboard\"");
+  if (r.errors().ok() && type != "chessboard" && type != "image") {
+    r.fail("type", "unknown texture type '" + type + "'", "use \"chessboard\" or \"image\"");
     return t;
   }
-  const auto ic = r.numbers<2>("inner_corners", std::nullopt, "[cols, rows] inner corners");
-  if (r.errors().ok()) {
-    for (double c : ic)
-      if (!(c >= 2 && c <= 100 && c == std::floor(c))) {
-        r.fail("inner_corners", "both counts must be integers in [2, 100], got [" + FieldReader::num_str(ic[0]) +
-                                    ", " + FieldReader::num_str(ic[1]) + "]");
-        return t;
-      }
-    t.cols = static_cast<int>(ic[0]);
-    t.rows = static_cast<int>(ic[1]);
+  if (type == "image") {
+    r.only({"type", "file", "size_mm", "dark", "light", "comment"});
+    parse_image_texture(r, t, source);
+  } else {
+    r.only({"type", "inner_corners", "square_mm", "dark", "light", "border_squares", "comment"});
+    const auto ic = r.numbers<2>("inner_corners", std::nullopt, "[cols, rows] inner corners");
+    if (r.errors().ok()) {
+      for (double c : ic)
+        if (!(c >= 2 && c <= 100 && c == std::floor(c))) {
+          r.fail("inner_corners", "both counts must be integers in [2, 100], got [" + FieldReader::num_str(ic[0]) +
+                                      ", " + FieldReader::num_str(ic[1]) + "]");
+          return t;
+        }
+      t.cols = static_cast<int>(ic[0]);
+      t.rows = static_cast<int>(ic[1]);
+    }
+    t.square_mm = r.number("square_mm", std::nullopt, "edge of one square, mm", 0.1, 1000.0);
+    t.border_squares = static_cast<int>(r.integer("border_squares", 1, 0, 100));
   }
-  t.square_mm = r.number("square_mm", std::nullopt, "edge of one square, mm", 0.1, 1000.0);
   t.dark = r.number("dark", 0.05, "albedo of the dark squares", 0.0, 1.0);
   t.light = r.number("light", 0.9, "albedo of the light squares and the border", 0.0, 1.0);
-  t.border_squares = static_cast<int>(r.integer("border_squares", 1, 0, 100));
   if (!r.errors().ok()) return t;
   if (m.translucent() || m.sheet()) {
     obj.fail("texture", "a texture needs an opaque material (no mean_free_path_mm, no transmittance)");
@@ -403,7 +430,8 @@ Result<Scene> parse_scene(const nlohmann::json& j, const std::string& source) {
           break;
         }
         o.material = parse_material(r);
-        if (r.has("texture") && errors.ok()) o.texture = parse_texture(r, std::get<Plane>(o.shape), o.material);
+        if (r.has("texture") && errors.ok())
+          o.texture = parse_texture(r, std::get<Plane>(o.shape), o.material, source);
         scene.objects.push_back(std::move(o));
       }
     }

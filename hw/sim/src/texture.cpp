@@ -4,12 +4,20 @@
 #include "procam/hw/sim/texture.hpp"
 
 #include <cmath>
+#include <fstream>
 
 #include "procam/hw/sim/scene.hpp"
 
 namespace procam::sim {
 
 double ChessboardTexture::albedo_at(double a_mm, double b_mm, double outside) const {
+  if (image) {
+    const double x = std::floor((a_mm / image_width_mm + 0.5) * image->width);
+    const double y = std::floor((0.5 - b_mm / image_height_mm) * image->height);  // row 0 at +b
+    if (!(x >= 0 && x < image->width && y >= 0 && y < image->height)) return outside;  // NaN lands here too
+    const uint8_t v = image->pixels[static_cast<size_t>(y) * image->width + static_cast<size_t>(x)];
+    return dark + (light - dark) * (v / 255.0);
+  }
   const double nx = cols + 1, ny = rows + 1;  // squares
   const double i = std::floor(a_mm / square_mm + 0.5 * nx);
   const double j = std::floor(b_mm / square_mm + 0.5 * ny);
@@ -18,6 +26,35 @@ double ChessboardTexture::albedo_at(double a_mm, double b_mm, double outside) co
   const double bs = border_squares;
   if (i >= -bs && i < nx + bs && j >= -bs && j < ny + bs) return light;
   return outside;
+}
+
+Result<GreyBitmap> read_pgm(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error(Code::not_found, "texture image '" + path + "' cannot be opened", "check the path");
+  const std::string hint = "write an 8-bit binary PGM (P5, maxval 255), e.g. cv::imwrite(\"board.pgm\", grey)";
+  std::string magic;
+  in >> magic;
+  // Header tokens, skipping # comments.
+  auto next = [&in](long& v) {
+    while (in >> std::ws && in.peek() == '#') in.ignore(1 << 20, '\n');
+    return static_cast<bool>(in >> v);
+  };
+  long w = 0, h = 0, maxval = 0;
+  if (magic != "P5" || !next(w) || !next(h) || !next(maxval))
+    return Error(Code::invalid_argument, "texture image '" + path + "' is not a binary PGM", hint);
+  if (maxval != 255 || w < 1 || h < 1 || w > 65536 || h > 65536)
+    return Error(Code::invalid_argument,
+                 "texture image '" + path + "': need 1..65536 px each way and maxval 255, got " + std::to_string(w) +
+                     " x " + std::to_string(h) + " maxval " + std::to_string(maxval),
+                 hint);
+  in.get();  // the single whitespace after maxval
+  GreyBitmap b;
+  b.width = static_cast<uint32_t>(w);
+  b.height = static_cast<uint32_t>(h);
+  b.pixels.resize(static_cast<size_t>(w) * static_cast<size_t>(h));
+  if (!in.read(reinterpret_cast<char*>(b.pixels.data()), static_cast<std::streamsize>(b.pixels.size())))
+    return Error(Code::invalid_argument, "texture image '" + path + "' is truncated", hint);
+  return b;
 }
 
 Vec3 board_corner_world(const ChessboardTexture& tex, const Plane& plane, int c, int r) {

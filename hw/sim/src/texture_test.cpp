@@ -99,6 +99,49 @@ TEST(Texture, AlbedoPattern) {
   EXPECT_DOUBLE_EQ(b, -90);
 }
 
+// An image texture: a 4 x 2 PGM printed 40 x 20 mm, relative to the scene
+// file's folder. Column 0 at -a, row 0 at +b (unmirrored from the front); albedo dark + (light - dark)
+// value / 255, nearest pixel; the material beyond.
+TEST(TextureParse, ImageTextureFromAPgm) {
+  const std::string dir = temp_dir("imgtex");
+  const std::string pgm = std::string("P5\n# comment\n4 2\n255\n") + std::string("\x00\xff\x00\xff\xff\x00\xff\x33", 8);
+  write_text(dir, "b.pgm", pgm);
+  const auto j = nlohmann::json::parse(
+      "{\"name\":\"t\",\"objects\":" +
+      board_plane(R"({"type":"image","file":"b.pgm","size_mm":[40,20],"dark":0.1,"light":0.7})") + "}");
+  auto s = parse_scene(j, dir + "/t.json");
+  ASSERT_TRUE(s.ok()) << s.status().to_string();
+  const ChessboardTexture& t = *s->objects[0].texture;
+  ASSERT_TRUE(t.image);
+  EXPECT_DOUBLE_EQ(t.half_width_mm(), 20);
+  EXPECT_DOUBLE_EQ(t.half_height_mm(), 10);
+  EXPECT_DOUBLE_EQ(t.albedo_at(-15, 5, 0.3), 0.1);    // pixel (0, 0) = 0
+  EXPECT_DOUBLE_EQ(t.albedo_at(-5, 5, 0.3), 0.7);     // pixel (1, 0) = 255
+  EXPECT_DOUBLE_EQ(t.albedo_at(-15, -5, 0.3), 0.7);   // pixel (0, 1) = 255
+  EXPECT_NEAR(t.albedo_at(15, -5, 0.3), 0.1 + 0.6 * 0x33 / 255.0, 1e-12);  // pixel (3, 1)
+  EXPECT_DOUBLE_EQ(t.albedo_at(21, 0, 0.3), 0.3);     // beyond the bitmap
+  EXPECT_DOUBLE_EQ(t.albedo_at(0, -10.5, 0.3), 0.3);
+  EXPECT_DOUBLE_EQ(t.albedo_at(std::nan(""), 0, 0.3), 0.3);
+
+  write_text(dir, "bad.pgm", "P2\n4 2\n255\n0 0 0 0 0 0 0 0\n");
+  write_text(dir, "short.pgm", "P5\n4 2\n255\n\x01\x02");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"({"type":"image","file":"none.pgm","size_mm":[40,20]})", "cannot be opened"},
+      {R"({"type":"image","file":"bad.pgm","size_mm":[40,20]})", "is not a binary PGM"},
+      {R"({"type":"image","file":"short.pgm","size_mm":[40,20]})", "is truncated"},
+      {R"({"type":"image","file":"b.pgm","size_mm":[400,20]})", "must hold the board"},
+      {R"({"type":"image","file":"b.pgm","size_mm":[0,20]})", "both extents must be > 0"},
+      {R"({"type":"image","file":"b.pgm","size_mm":[40,20],"square_mm":3})", "square_mm: unknown field"},
+  };
+  for (const auto& [tex, needle] : cases) {
+    auto bad = parse_scene(nlohmann::json::parse("{\"name\":\"t\",\"objects\":" + board_plane(tex) + "}"),
+                           dir + "/t.json");
+    ASSERT_FALSE(bad.ok()) << needle;
+    EXPECT_NE(bad.status().message().find(needle), std::string::npos)
+        << "want '" << needle << "' in: " << bad.status().message();
+  }
+}
+
 // Fronto-parallel board, pinhole camera: a pixel's footprint is the square
 // [(u - 0.5 - cx) z / fx, (u + 0.5 - cx) z / fx] x (the same in v), so the
 // box-filtered albedo over a vertical edge at a = 0 is the area fraction.

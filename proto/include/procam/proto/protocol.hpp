@@ -119,12 +119,21 @@ inline constexpr size_t kMaxCalibrationScans = 50;
 // saved frames, one board pose each. Runs as a calibration "scan" record.
 struct CalibrateGeometry {
   std::vector<std::string> scans;  // kMinCalibrationScans..kMaxCalibrationScans scan ids, no repeats
-  int board_cols = 0, board_rows = 0;  // inner corners, 2..100 each
+  int board_cols = 0, board_rows = 0;  // inner corners, 2..100 each (ChArUco: squares - 1)
   double square_mm = 0;                // > 0, <= 1000
   bool events = false;
   std::string label;  // "" when not sent
+  // The board's type; for "charuco", board_cols/rows are its squares - 1.
+  std::string board_type = "chessboard";  // or "charuco"
+  double marker_mm = 0;                   // charuco: marker side, in (0, square_mm)
+  std::string dictionary;                 // charuco: OpenCV dictionary name, e.g. "DICT_5X5_100"
   bool operator==(const CalibrateGeometry&) const = default;
 };
+
+// The request's "board" object (PROTOCOL.md 5.12): {"type": "chessboard",
+// "inner_corners": [c, r], "square_mm": s} or {"type": "charuco", "squares":
+// [c + 1, r + 1], "square_mm": s, "marker_mm": m, "dictionary": d}.
+nlohmann::json board_json(const CalibrateGeometry& c);
 
 using RequestBody = std::variant<Hello, ListPlugins, DescribeRig, Scan, StatusQuery, ResultQuery,
                                  Fetch, Cancel, Ping, ListScans, ListRigOptions, CalibrateGeometry>;

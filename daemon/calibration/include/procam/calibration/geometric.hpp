@@ -5,7 +5,9 @@
 // Method (Moreno & Taubin 2012, "Simple, accurate, and robust projector-camera
 // calibration"):
 //  1. camera: the board's inner corners in each view's white image
-//     (cv::findChessboardCorners + cornerSubPix);
+//     (chessboard: cv::findChessboardCorners + cornerSubPix, all corners;
+//     ChArUco: cv::aruco::detectMarkers + interpolateCornersCharuco, the
+//     corners the view shows, each with its id -> board point);
 //  2. projector: around each corner, the decoded projector column/row of every
 //     valid camera pixel in a (2r+1)^2 window define a local homography
 //     camera -> projector (least squares over the window, RANSAC-guarded); the
@@ -14,8 +16,9 @@
 //  3. cv::calibrateCamera for camera and projector separately (intrinsics and
 //     5 distortion coefficients k1 k2 p1 p2 k3), then cv::stereoCalibrate with
 //     those as the initial guess, giving cam_from_proj (x_cam = R x_proj + t).
-// Views are rejected, each with a reason, when the board is not found, when
-// fewer than min_corner_fraction of its corners have a projector position (a
+// Views are rejected, each with a reason, when the board is not found (ChArUco:
+// fewer than min_charuco_corners corners, or all on one board row/column), when
+// fewer than min_corner_fraction of its found corners have a projector position (a
 // board partly outside the projector's light is used with the corners it
 // has: all of them for the camera, the lit ones for the projector and the
 // joint fit), or when the view's reprojection
@@ -40,10 +43,43 @@
 
 namespace procam::calibration {
 
+// The printed target. Both types are described by their inner-corner grid
+// (cols x rows; a board of 10 x 8 squares has 9 x 7), so corner (c, r) sits
+// at (c, r) * square_mm on the board and has index r * cols + c.
+//  - chessboard: every corner must be found in a view
+//    (cv::findChessboardCorners);
+//  - ChArUco (OpenCV's aruco module): ArUco markers of side marker_mm in the
+//    light squares of a (cols + 1) x (rows + 1)-square board; corners come
+//    from cv::aruco::detectMarkers + interpolateCornersCharuco, so a view may
+//    show part of the board (each corner is identified by its marker
+//    neighbours). OpenCV's ChArUco corner id is this index.
+enum class BoardType { chessboard, charuco };
+
 struct BoardSpec {
   int cols = 9, rows = 7;   // inner corners per row / per column
   double square_mm = 75.0;  // edge of one square
+  BoardType type = BoardType::chessboard;
+  double marker_mm = 0;                 // ChArUco: marker side, < square_mm
+  std::string dictionary = "DICT_5X5_100";  // ChArUco: OpenCV predefined dictionary name
 };
+
+// Parses the command line's board: "9x7" (chessboard inner corners; the
+// square size comes from `square_mm`) or
+// "charuco:SXxSY:SQUARE_MM:MARKER_MM:DICT" (ChArUco, SX x SY *squares*, e.g.
+// "charuco:5x7:40:30:DICT_5X5_100"). Validates like check_board.
+Result<BoardSpec> parse_board(const std::string& text, double square_mm);
+
+// Checks a board: >= 3x3 inner corners (ChArUco: >= 3x3 squares) up to 100,
+// square in (0, 1000] mm, ChArUco marker in (0, square), a known dictionary
+// with enough markers for the board. invalid_argument saying what to give.
+Status check_board(const BoardSpec& board);
+
+// The board as JSON: {"type": "chessboard", "inner_corners": [c, r],
+// "square_mm": s} or {"type": "charuco", "squares": [c + 1, r + 1],
+// "square_mm": s, "marker_mm": m, "dictionary": "DICT_..."}; and back
+// (a missing "type" is a chessboard), validated by check_board.
+nlohmann::json board_to_json(const BoardSpec& board);
+Result<BoardSpec> board_from_json(const nlohmann::json& j);
 
 // Intrinsics + OpenCV's 5-coefficient distortion (k1, k2, p1, p2, k3).
 struct LensModel {
@@ -67,13 +103,14 @@ struct Options {
   double min_corner_fraction = 0.5;  // corners with a projector position, per view
   double max_view_rms_px = 2.0;    // reject a view above this after the joint fit
   int min_views = 3;
+  int min_charuco_corners = 6;     // ChArUco: fewer interpolated corners reject the view
 };
 
 struct ViewReport {
   std::string name;
   bool used = false;
   std::string rejected_because;  // empty when used
-  int corners = 0;               // board corners found in the camera image
+  int corners = 0;               // board corners found in the camera image (ChArUco: interpolated)
   int projector_corners = 0;     // of which with a projector position
   double camera_rms_px = 0, projector_rms_px = 0;  // after the joint fit (used views)
   // The corners with a projector position: board index (row * cols + col),

@@ -62,6 +62,9 @@ struct GeometryCalibrationJob {
   std::vector<std::string> scan_dirs;  // their folders (frame-r1-*.png inside), same order
   int board_cols = 0, board_rows = 0;  // inner corners
   double square_mm = 0;
+  // The request's board object as sent (PROTOCOL.md 5.12: chessboard or
+  // ChArUco); procam::calibration::board_from_json reads it.
+  nlohmann::json board;
   uint32_t projector_width = 0, projector_height = 0;  // the rig's projector
   std::string out_dir;  // the calibration record's folder: write its result files here
 };
@@ -152,6 +155,10 @@ public:
   Result<nlohmann::json> submit_calibration(const std::vector<std::string>& scan_ids, int board_cols,
                                             int board_rows, double square_mm, const std::string& label,
                                             const std::string& request_id = "");
+  // The same with the request's board object (chessboard or ChArUco,
+  // proto::board_json), passed to the job as sent.
+  Result<nlohmann::json> submit_calibration(const std::vector<std::string>& scan_ids, const nlohmann::json& board,
+                                            const std::string& label, const std::string& request_id = "");
   // Cancels a queued scan (it ends failed/cancelled now) or the running one
   // (it stops before its next frame). → {"scan_id","previous_state","state"};
   // not_found / failed_precondition (already finished).

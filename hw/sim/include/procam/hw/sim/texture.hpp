@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Albedo textures of scene objects (SCENES.md "texture"): a procedural
-// chessboard printed on a plane, for geometric calibration against known
-// truth (docs/calibration-geometry.md).
+// chessboard, or a greyscale bitmap (e.g. a ChArUco board drawn by OpenCV),
+// printed on a plane, for geometric calibration against known truth
+// (docs/calibration-geometry.md).
 //
 // Board frame: origin at the plane's point_mm (the rectangle's centre), a
 // along the plane's u_axis, b along its v_axis (= normal x u_axis), mm. The
@@ -17,27 +18,55 @@
 // so a rendered edge sits where the geometry puts it to a small fraction of
 // a pixel and corner detection is sub-pixel faithful.
 //
+// Image textures: the bitmap covers image_width_mm x image_height_mm centred
+// on the origin, column 0 at -a, row 0 at +b, so it reads unmirrored from the
+// side the plane's normal faces (a right, b up there); each bitmap pixel is a uniform
+// patch of albedo dark + (light - dark) * value / 255 (nearest neighbour, so
+// edges that fall on bitmap pixel boundaries are exact); beyond it the
+// material's albedo. The bitmap is shared, immutable after loading.
+//
 // Threads: plain data and pure functions. Units: mm, albedo 0..1.
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "procam/base/calibration.hpp"
 #include "procam/base/geometry.hpp"
+#include "procam/core/status.hpp"
 
 namespace procam::sim {
 
 struct Plane;
+
+// 8-bit greyscale bitmap, row-major, width * height bytes.
+struct GreyBitmap {
+  uint32_t width = 0, height = 0;
+  std::vector<uint8_t> pixels;
+};
+
+// Reads a binary PGM (P5, maxval 255). invalid_argument / not_found saying
+// what was wrong.
+Result<GreyBitmap> read_pgm(const std::string& path);
 
 struct ChessboardTexture {
   int cols = 9, rows = 7;   // inner corners along a (u_axis) and b (v_axis)
   double square_mm = 30;    // edge of one square
   double dark = 0.05, light = 0.9;  // albedo of the dark / light squares
   int border_squares = 1;   // light squares around the checker
+  // Set: an image texture (cols, rows, square_mm, border_squares unused).
+  std::shared_ptr<const GreyBitmap> image;
+  double image_width_mm = 0, image_height_mm = 0;  // printed size of the bitmap
 
-  // Half extents of the textured area (checker + border), mm.
-  double half_width_mm() const { return 0.5 * (cols + 1 + 2 * border_squares) * square_mm; }
-  double half_height_mm() const { return 0.5 * (rows + 1 + 2 * border_squares) * square_mm; }
+  // Half extents of the textured area (checker + border, or the bitmap), mm.
+  double half_width_mm() const {
+    return image ? 0.5 * image_width_mm : 0.5 * (cols + 1 + 2 * border_squares) * square_mm;
+  }
+  double half_height_mm() const {
+    return image ? 0.5 * image_height_mm : 0.5 * (rows + 1 + 2 * border_squares) * square_mm;
+  }
   // Albedo at board coordinates (a, b) mm; `outside` beyond the border.
   double albedo_at(double a_mm, double b_mm, double outside) const;
   // Inner corner (c, r) in board coordinates (a, b), mm.
