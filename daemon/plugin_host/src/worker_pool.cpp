@@ -8,7 +8,38 @@
 namespace procam::host::detail {
 using Clock = std::chrono::steady_clock;
 
-IdlePool::~IdlePool() = default;  // kills every idle worker
+IdlePool::IdlePool(IsolationOptions o) : options(std::move(o)), reaper_([this] { reaper(); }) {}
+
+IdlePool::~IdlePool() {
+  {
+    std::lock_guard lock(mu);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  reaper_.join();
+  // `idle` goes with the members: every idle worker is killed and reaped.
+}
+
+void IdlePool::reaper() {
+  std::unique_lock lock(mu);
+  while (!stop_) {
+    std::vector<std::unique_ptr<WorkerProxy>> expired;
+    expire_locked(expired);
+    if (!expired.empty()) {
+      lock.unlock();
+      expired.clear();  // killed and reaped unlocked
+      lock.lock();
+      continue;
+    }
+    if (idle.empty()) {
+      wake_.wait(lock);
+    } else {
+      auto first = idle.front().since;
+      for (const Entry& e : idle) first = std::min(first, e.since);
+      wake_.wait_until(lock, first + options.idle_timeout);
+    }
+  }
+}
 
 void IdlePool::expire_locked(std::vector<std::unique_ptr<WorkerProxy>>& out) {
   const auto now = Clock::now();
@@ -56,6 +87,7 @@ void IdlePool::give(std::unique_ptr<WorkerProxy> worker, bool session_clean) {
     dropped.push_back(std::move(worker));
   else
     idle.push_back({std::move(worker), Clock::now()});
+  wake_.notify_all();  // the reaper learns the new deadline
 }
 // (`dropped` is destroyed after the lock_guard: reverse declaration order.)
 

@@ -19,6 +19,8 @@
 #include <sys/types.h>
 
 #include <chrono>
+#include <condition_variable>
+#include <thread>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -47,9 +49,11 @@ struct SparePool {
 // (IsolationOptions::max_idle_workers; README.md "Worker reuse"). PluginHost
 // owns it (shared), each isolated Session points at it weakly: a Session
 // that outlives its PluginHost kills its worker. Thread-safe (`mu`); workers
-// are killed outside the lock.
+// are killed outside the lock. A reaper thread ends idle workers when their
+// idle_timeout passes (so an idle daemon does not keep them); the destructor
+// stops it and kills every idle worker.
 struct IdlePool {
-  explicit IdlePool(IsolationOptions o) : options(std::move(o)) {}
+  explicit IdlePool(IsolationOptions o);
   ~IdlePool();
   // An idle worker of `plugin`, the most recently used first; null if none.
   // Expired workers are ended first.
@@ -70,6 +74,10 @@ struct IdlePool {
   std::vector<Entry> idle;  // oldest first
 
 private:
+  void reaper();
+  std::condition_variable wake_;  // a worker went idle, or stop_
+  bool stop_ = false;
+  std::thread reaper_;            // last member: starts after the rest exists
   // Moves entries past idle_timeout into `out` (killed by the caller, unlocked).
   void expire_locked(std::vector<std::unique_ptr<WorkerProxy>>& out);
 };
