@@ -46,6 +46,7 @@ Session::Session(Session&& o) noexcept
 
 Session& Session::operator=(Session&& o) noexcept {
   if (this != &o) {
+    end_worker();  // the old worker ends or goes idle, judged by the old session's state
     if (session_ != nullptr) plugin_->vtable->session_destroy(session_);
     plugin_ = std::move(o.plugin_);
     session_ = std::exchange(o.session_, nullptr);
@@ -54,7 +55,6 @@ Session& Session::operator=(Session&& o) noexcept {
     finished_ = o.finished_;
     rounds_ = o.rounds_;
     added_ = std::move(o.added_);
-    end_worker();                    // the old worker ends or goes idle
     proxy_ = std::move(o.proxy_);
     idle_ = std::move(o.idle_);
     bridge_ = std::move(o.bridge_);  // after session_destroy of the old session

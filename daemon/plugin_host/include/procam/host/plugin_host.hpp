@@ -277,7 +277,8 @@ public:
   const PluginInfo* find(std::string_view name) const;
 
   // Where create_session runs sessions (default: isolated, see
-  // IsolationOptions). Set before sessions are created.
+  // IsolationOptions). Set before sessions are created, and after load_*:
+  // with max_idle_workers > 0 it starts the idle pool's reaper thread.
   void set_isolation(IsolationOptions options);
   const IsolationOptions& isolation() const { return isolation_; }
   // True when sessions of `plugin` run in a worker process.
