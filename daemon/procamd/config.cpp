@@ -18,7 +18,8 @@ std::string resolve(const std::string& base, const std::string& p) {
 }
 
 // "plugins": {"isolation": "process" | "in_process", "trusted": [names],
-// "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox", "prestart"}.
+// "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox", "prestart",
+// "max_idle_workers", "idle_timeout_ms", "max_sessions_per_worker"}.
 Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, PluginsConfig& out) {
   const char* example =
       "{\"isolation\": \"process\", \"trusted\": [\"structured-light\"], \"memory_limit_mb\": 8192}";
@@ -46,7 +47,8 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
         return Error(Code::invalid_argument, "daemon config: '" + key + "' must be a path to procam-plugin-worker");
       out.worker = resolve(base_dir, v.get<std::string>());
     } else if (it.key() == "call_timeout_ms" || it.key() == "per_frame_timeout_ms" ||
-               it.key() == "memory_limit_mb") {
+               it.key() == "memory_limit_mb" || it.key() == "max_idle_workers" || it.key() == "idle_timeout_ms" ||
+               it.key() == "max_sessions_per_worker") {
       if (!v.is_number_unsigned() || v.get<uint64_t>() > (uint64_t{1} << 32))
         return Error(Code::invalid_argument, "daemon config: '" + key + "' must be an integer 0..4294967296");
       const uint64_t n = v.get<uint64_t>();
@@ -55,13 +57,22 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
         out.call_timeout_ms = n;
       } else if (it.key() == "per_frame_timeout_ms") {
         out.per_frame_timeout_ms = n;
+      } else if (it.key() == "max_idle_workers") {
+        if (n > 64) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be 0..64");
+        out.max_idle_workers = n;
+      } else if (it.key() == "idle_timeout_ms") {
+        out.idle_timeout_ms = n;
+      } else if (it.key() == "max_sessions_per_worker") {
+        if (n == 0) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be > 0",
+                                 "use max_idle_workers 0 to give every scan a fresh worker");
+        out.max_sessions_per_worker = n;
       } else {
         out.memory_limit_mb = n;
       }
     } else if (it.key() != "comment") {
       return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
                    "known keys: isolation, trusted, worker, call_timeout_ms, per_frame_timeout_ms, memory_limit_mb, "
-                   "sandbox, prestart");
+                   "sandbox, prestart, max_idle_workers, idle_timeout_ms, max_sessions_per_worker");
     }
   }
   return {};

@@ -30,6 +30,12 @@ struct PluginsConfig {
   uint64_t memory_limit_mb = 8192;      // worker RLIMIT_AS; 0 = none
   bool sandbox = true;                  // least privilege for workers (scratch folder, Landlock, seccomp)
   bool prestart = true;                 // keep one worker started ahead
+  // Worker reuse (daemon/plugin_host/README.md "Worker reuse"): idle
+  // workers kept per plugin (0: a fresh worker per scan), how long one
+  // waits, how many scans one serves.
+  uint64_t max_idle_workers = 1;
+  uint64_t idle_timeout_ms = 60000;
+  uint64_t max_sessions_per_worker = 100;
 };
 
 struct Config {

@@ -5,6 +5,7 @@
 #include <sys/signalfd.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -117,6 +118,10 @@ int main(int argc, char** argv) {
     iso.memory_limit_mb = cfg->plugins.memory_limit_mb;
     iso.sandbox = cfg->plugins.sandbox;
     iso.prestart = cfg->plugins.prestart;
+    iso.max_idle_workers = static_cast<uint32_t>(cfg->plugins.max_idle_workers);
+    iso.idle_timeout = std::chrono::milliseconds(cfg->plugins.idle_timeout_ms);
+    iso.max_sessions_per_worker = static_cast<uint32_t>(
+        std::min<uint64_t>(cfg->plugins.max_sessions_per_worker, UINT32_MAX));
     plugins.set_isolation(std::move(iso));
     PROCAM_LOG(daemon, info) << "plugin sessions run "
                              << (cfg->plugins.isolated ? "in worker processes" : "in-process")

@@ -120,7 +120,12 @@ TEST(ServiceFaultLoad, EveryFaultUnderFiftyClientsLeavesTheDaemonServingAndQueue
   ConfigOptions o;
   o.max_queue = 64;  // all 50 queue at once
   o.plugin_paths = {std::string(PROCAM_BINARY_DIR) + "/test-plugins-faults"};
-  o.plugins = {{"call_timeout_ms", kCallTimeoutMs}, {"per_frame_timeout_ms", kPerFrameTimeoutMs}};
+  // Worker reuse stays on (procamd's default, one idle worker per plugin):
+  // the gray scans share warm workers; a short idle timeout lets the last
+  // one go before the children are counted below.
+  o.plugins = {{"call_timeout_ms", kCallTimeoutMs},
+               {"per_frame_timeout_ms", kPerFrameTimeoutMs},
+               {"idle_timeout_ms", 300}};
   ServiceDaemon sd(o);
   ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
   const pid_t daemon_pid = sd.d->pid;

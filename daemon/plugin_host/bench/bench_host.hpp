@@ -8,20 +8,24 @@
 #include <cstdlib>
 #include <map>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "procam/host/plugin_host.hpp"
 
 namespace procam::host::bench {
 
-inline PluginHost& host_with(const std::string& plugin_file, Isolation mode) {
-  static auto* hosts = new std::map<std::pair<std::string, Isolation>, PluginHost*>();
-  PluginHost*& h = (*hosts)[{plugin_file, mode}];
+// `max_idle_workers` > 0: isolated sessions reuse warm workers
+// (IsolationOptions::max_idle_workers; README.md "Worker reuse").
+inline PluginHost& host_with(const std::string& plugin_file, Isolation mode, uint32_t max_idle_workers = 0) {
+  static auto* hosts = new std::map<std::tuple<std::string, Isolation, uint32_t>, PluginHost*>();
+  PluginHost*& h = (*hosts)[{plugin_file, mode, max_idle_workers}];
   if (h == nullptr) {
     h = new PluginHost();
     if (!h->load_file(plugin_file).ok()) std::abort();
     IsolationOptions iso;
     iso.mode = mode;
+    iso.max_idle_workers = max_idle_workers;
     h->set_isolation(iso);
   }
   return *h;

@@ -3,7 +3,9 @@
 // structured-light plugin's "ensemble" method (one round, no correction
 // rounds: its plan is 41 frames for a 1024x768 projector, 4 codes x 10 planes
 // + white) on 1920x1200 8-bit camera frames, rig "threads": 2, decoded
-// through the host's Session, in-process (/0) and isolated in a worker (/1).
+// through the host's Session, in-process (/0), isolated in a fresh worker per
+// scan (/1) and isolated in a warm worker reused from the scan before (/2,
+// IsolationOptions::max_idle_workers 1: README.md "Worker reuse").
 //  - BM_EnsembleScan/<backend>: all 41 add_frame calls (the plugin decodes
 //    as frames arrive), end_round, the closing next_plan and outputs() - the
 //    whole decode a scan pays after the session exists. Goal: isolated within
@@ -44,13 +46,13 @@ std::string rig_json() {
       .dump();
 }
 
-PluginHost& host_with(Isolation mode) {
-  return bench::host_with(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so", mode);
+PluginHost& host_with(Isolation mode, uint32_t max_idle_workers = 0) {
+  return bench::host_with(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so", mode, max_idle_workers);
 }
 
 // A session with its plan fetched (frames expected next), or an error.
-Result<Session> planned_session(Isolation mode, uint32_t* frames) {
-  auto s = host_with(mode).create_session("structured-light", "ensemble", "{}", rig_json());
+Result<Session> planned_session(Isolation mode, uint32_t max_idle_workers, uint32_t* frames) {
+  auto s = host_with(mode, max_idle_workers).create_session("structured-light", "ensemble", "{}", rig_json());
   if (!s) return s.status();
   auto plan = s->next_plan();
   if (!plan) return plan.status();
@@ -125,12 +127,13 @@ bool finish(Session& s, benchmark::State& state, Phases& ph) {
 
 void run(benchmark::State& state, bool after_last_only) {
   const auto mode = state.range(0) == 0 ? Isolation::in_process : Isolation::process;
+  const uint32_t max_idle = state.range(0) == 2 ? 1 : 0;
   const auto& px = frames();
   Phases ph;
   for (auto _ : state) {
     state.PauseTiming();
     uint32_t n = 0;
-    auto s = planned_session(mode, &n);
+    auto s = planned_session(mode, max_idle, &n);
     if (!s || n != px.size()) {
       state.SkipWithError(s ? "the plan's frame count changed" : s.status().to_string().c_str());
       break;
@@ -164,14 +167,16 @@ void run(benchmark::State& state, bool after_last_only) {
   state.counters["next_plan_ms"] = per_iter(ph.next_plan);
   state.counters["outputs_ms"] = per_iter(ph.outputs);
   state.counters["output_MB"] = ph.output_bytes / 1e6;
-  state.SetLabel(std::string(mode == Isolation::process ? "isolated" : "in_process") + ", " +
+  state.SetLabel(std::string(mode == Isolation::in_process ? "in_process"
+                             : max_idle > 0             ? "isolated, warm worker reused"
+                                                        : "isolated, fresh worker") + ", " +
                  std::to_string(px.size()) + " frames");
 }
 
 void BM_EnsembleScan(benchmark::State& state) { run(state, false); }
 void BM_EnsembleAfterLastFrame(benchmark::State& state) { run(state, true); }
-BENCHMARK(BM_EnsembleScan)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_EnsembleScan)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

@@ -78,6 +78,9 @@ void PluginHost::load_directories(const std::vector<std::string>& dirs) {
 void PluginHost::set_isolation(IsolationOptions options) {
   isolation_ = std::move(options);
   spare_.reset();  // a spare started with the old options goes
+  idle_.reset();   // so do idle workers (their sessions keep only weak pointers)
+  if (isolation_.mode == Isolation::process && isolation_.max_idle_workers > 0)
+    idle_ = std::make_shared<detail::IdlePool>(isolation_);
   if (isolation_.mode == Isolation::process && isolation_.prestart) {
     spare_ = std::make_unique<detail::SparePool>();
     auto first = detail::WorkerProxy::spawn_spare(isolation_);  // the first scan need not wait either
@@ -271,6 +274,22 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
       // session_create(2) there (README.md "Process model").
       wire::CreateRequest req{info.file, plugin, method, params, rig, inputs};
       bool host_services = false;
+      // A warm worker of this plugin first (README.md "Worker reuse"); one
+      // that fails to take the session is killed, and a fresh one tried.
+      if (idle_) {
+        while (auto warm = idle_->take(plugin)) {
+          Status st = warm->reuse(req, host_services);
+          if (st) {
+            Session s(loaded, std::move(warm), method,
+                      host_services ? std::make_unique<detail::HostBridge>(plugin) : nullptr);
+            s.idle_ = idle_;
+            return s;
+          }
+          // The plugin's own refusal (bad params) would be the same on a
+          // fresh worker; a worker that died while idle is replaced.
+          if (!warm->faulted()) return st;
+        }
+      }
       std::unique_ptr<detail::WorkerProxy> spare;
       if (spare_) {
         std::lock_guard lock(spare_->mu);
@@ -284,7 +303,9 @@ Result<Session> PluginHost::create_session(const std::string& plugin, const std:
       }
       if (!proxy) return proxy.status();
       auto bridge = host_services ? std::make_unique<detail::HostBridge>(plugin) : nullptr;
-      return Session(loaded, std::move(*proxy), method, std::move(bridge));
+      Session s(loaded, std::move(*proxy), method, std::move(bridge));
+      s.idle_ = idle_;
+      return s;
     }
     procam_session* s = nullptr;
     procam_error err{};

@@ -41,10 +41,12 @@ Session::Session(Session&& o) noexcept
       rounds_(o.rounds_),
       added_(std::move(o.added_)),
       bridge_(std::move(o.bridge_)),
-      proxy_(std::move(o.proxy_)) {}
+      proxy_(std::move(o.proxy_)),
+      idle_(std::move(o.idle_)) {}
 
 Session& Session::operator=(Session&& o) noexcept {
   if (this != &o) {
+    end_worker();  // the old worker ends or goes idle, judged by the old session's state
     if (session_ != nullptr) plugin_->vtable->session_destroy(session_);
     plugin_ = std::move(o.plugin_);
     session_ = std::exchange(o.session_, nullptr);
@@ -53,7 +55,8 @@ Session& Session::operator=(Session&& o) noexcept {
     finished_ = o.finished_;
     rounds_ = o.rounds_;
     added_ = std::move(o.added_);
-    proxy_ = std::move(o.proxy_);    // ends the old worker
+    proxy_ = std::move(o.proxy_);
+    idle_ = std::move(o.idle_);
     bridge_ = std::move(o.bridge_);  // after session_destroy of the old session
   }
   return *this;
@@ -61,8 +64,17 @@ Session& Session::operator=(Session&& o) noexcept {
 
 Session::~Session() {
   if (session_ != nullptr) plugin_->vtable->session_destroy(session_);
-  proxy_.reset();  // the worker ends (before the bridge it reports to)
+  end_worker();  // the worker ends or goes idle (before the bridge it reports to)
   // plugin_ (and with it possibly the library) and bridge_ are released after the session.
+}
+
+void Session::end_worker() {
+  if (!proxy_) return;
+  // Clean: the scan ran to its end (or stop()) with no round open; the
+  // proxy itself knows whether any call faulted or was refused.
+  const bool clean = finished_ && !in_round_;
+  if (auto pool = idle_.lock()) pool->give(std::move(proxy_), clean);
+  proxy_.reset();
 }
 
 void Session::set_log_handler(LogHandler handler) {

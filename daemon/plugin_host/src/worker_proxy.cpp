@@ -243,14 +243,52 @@ Result<std::unique_ptr<WorkerProxy>> WorkerProxy::start(const IsolationOptions& 
                                                     "' instead of hello");
   if (Status st = p->read_hello(*hello); !st)
     return p->fail("start", Code::plugin_error, "worker sent a malformed hello (" + st.message() + ")");
+  PROCAM_TRY(p->create(request, host_services));
+  return p;
+}
+
+Status WorkerProxy::create(const wire::CreateRequest& request, bool& host_services) {
   auto blob = wire::make_sealed_blob(wire::encode_create(request), "procam-create");
   if (!blob) return blob.status();
-  auto ok = p->call(wire::Msg::create, "session_create", {}, blob->get(), options.start_timeout);
+  ++sessions_;
+  auto ok = call(wire::Msg::create, "session_create", {}, blob->get(), options_.start_timeout);
   if (!ok) return ok.status();
   wire::Reader r(reinterpret_cast<const uint8_t*>(ok->payload.data()), ok->payload.size());
   host_services = r.u8("host services flag") != 0;
-  if (!r.ok()) return p->fail("session_create", Code::plugin_error, "worker sent a malformed reply (" + r.error() + ")");
-  return p;
+  if (!r.ok()) return fail("session_create", Code::plugin_error, "worker sent a malformed reply (" + r.error() + ")");
+  return {};
+}
+
+Status WorkerProxy::reuse(const wire::CreateRequest& request, bool& host_services) {
+  if (request.plugin_name != plugin_)
+    return Error(Code::internal, "worker of plugin '" + plugin_ + "' offered for plugin '" + request.plugin_name + "'");
+  return create(request, host_services);
+}
+
+bool WorkerProxy::end_session_for_reuse() {
+  bridge_ = nullptr;  // the Session's bridge dies with it
+  plan_blob_ = wire::Mapping();
+  outputs_blob_ = wire::Mapping();
+  last_round_frames_ = 0;
+  if (broken_ || errored_ || sessions_ >= options_.max_sessions_per_worker) return false;
+  if (!call(wire::Msg::end_session, "end_session", {}, -1, options_.call_timeout)) return false;
+  if (errored_) return false;
+  // Nothing of this scan's files for the next one: empty the scratch folder
+  // (kept itself: the worker's Landlock rule is bound to it). remove_all
+  // does not follow the symlinks a plugin may have left there.
+  if (!scratch_.empty()) {
+    std::error_code ec;
+    for (fs::directory_iterator it(scratch_, ec), end; !ec && it != end; it.increment(ec)) {
+      fs::remove_all(it->path(), ec);
+      if (ec) break;
+    }
+    if (ec || !fs::is_empty(scratch_, ec) || ec) {
+      PROCAM_LOG(plugins, warn) << "cannot empty the worker's scratch folder '" << scratch_
+                                << "'; the worker is not reused" << (ec ? ": " + ec.message() : std::string());
+      return false;
+    }
+  }
+  return true;
 }
 
 Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, const std::string& payload, int fd,
@@ -302,6 +340,7 @@ Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, c
         if (Status bad = wire::decode_error(m->payload, st); !bad)
           return fail(call_name, Code::plugin_error,
                       "sent garbage on the control channel (" + bad.message() + "; worker killed)");
+        errored_ = true;  // the plugin refused something: this worker is not reused
         if (options_.memory_limit_mb > 0 && st.message().find("PROCAM_ERR_NO_MEMORY") != std::string::npos)
           st = Error(st.code(), st.message() + " (the worker's address-space limit is " +
                                     std::to_string(options_.memory_limit_mb) + " MiB)", st.hint());

@@ -19,6 +19,8 @@
 #include <sys/types.h>
 
 #include <chrono>
+#include <condition_variable>
+#include <thread>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -43,6 +45,43 @@ struct SparePool {
   ~SparePool();
 };
 
+// Idle workers kept for the next session of the same plugin
+// (IsolationOptions::max_idle_workers; README.md "Worker reuse"). PluginHost
+// owns it (shared), each isolated Session points at it weakly: a Session
+// that outlives its PluginHost kills its worker. Thread-safe (`mu`); workers
+// are killed outside the lock. A reaper thread ends idle workers when their
+// idle_timeout passes (so an idle daemon does not keep them); the destructor
+// stops it and kills every idle worker.
+struct IdlePool {
+  explicit IdlePool(IsolationOptions o);
+  ~IdlePool();
+  // An idle worker of `plugin`, the most recently used first; null if none.
+  // Expired workers are ended first.
+  std::unique_ptr<WorkerProxy> take(const std::string& plugin);
+  // A worker whose session just ended: ends the plugin session there
+  // (end_session), empties its scratch folder and keeps it if
+  // `session_clean`, it is still healthy, under max_sessions_per_worker and
+  // the plugin has fewer than max_idle_workers idle; otherwise kills it.
+  void give(std::unique_ptr<WorkerProxy> worker, bool session_clean);
+  size_t idle_count();  // for tests
+
+  const IsolationOptions options;
+  std::mutex mu;
+  struct Entry {
+    std::unique_ptr<WorkerProxy> worker;
+    std::chrono::steady_clock::time_point since;
+  };
+  std::vector<Entry> idle;  // oldest first
+
+private:
+  void reaper();
+  std::condition_variable wake_;  // a worker went idle, or stop_
+  bool stop_ = false;
+  std::thread reaper_;            // last member: starts after the rest exists
+  // Moves entries past idle_timeout into `out` (killed by the caller, unlocked).
+  void expire_locked(std::vector<std::unique_ptr<WorkerProxy>>& out);
+};
+
 // Where the worker executable is: `configured` if not empty, else
 // $PROCAM_PLUGIN_WORKER, else beside the running executable, else
 // <exe dir>/../libexec/procam/, else the build tree's bin/ (README.md).
@@ -59,6 +98,16 @@ public:
                                                     const wire::CreateRequest& request,
                                                     bool& host_services,
                                                     std::unique_ptr<WorkerProxy> spare = nullptr);
+  // Starts the next session on a worker that ended one cleanly (IdlePool):
+  // the create request again, on the plugin it already has loaded.
+  Status reuse(const wire::CreateRequest& request, bool& host_services);
+  // Ends the plugin session in the worker (end_session) and empties its
+  // scratch folder; true when the worker may serve another session: no
+  // fault and no error reply on any call, and it served fewer than
+  // max_sessions_per_worker sessions. False leaves it to be killed.
+  bool end_session_for_reuse();
+  const std::string& plugin() const { return plugin_; }
+  bool faulted() const { return broken_; }  // killed after a fault
   // Spawns a worker and returns without waiting for it: its exec, dynamic
   // loading and sandbox run while the caller goes on (IsolationOptions::prestart).
   static Result<std::unique_ptr<WorkerProxy>> spawn_spare(const IsolationOptions& options);
@@ -92,6 +141,7 @@ private:
   std::string reap(bool kill_now);  // "" if it exited 0, else how it ended
   std::chrono::milliseconds round_deadline(size_t frames) const;
   Status read_hello(const wire::Message& hello);
+  Status create(const wire::CreateRequest& request, bool& host_services);
 
   IsolationOptions options_;
   std::string plugin_;
@@ -100,6 +150,8 @@ private:
   wire::UniqueFd sock_;
   uint32_t seq_ = 0;
   bool broken_ = false;
+  bool errored_ = false;   // an error reply came: the worker is not reused
+  uint32_t sessions_ = 0;  // sessions created on this worker
   std::string broken_reason_;
   HostBridge* bridge_ = nullptr;
   std::optional<wire::Ring> ring_;

@@ -25,6 +25,7 @@ const char* msg_name(uint16_t type) {
     case Msg::end_round: return "end_round";
     case Msg::get_outputs: return "get_outputs";
     case Msg::stop: return "stop";
+    case Msg::end_session: return "end_session";
     case Msg::hello: return "hello";
     case Msg::ok: return "ok";
     case Msg::error: return "error";

@@ -29,7 +29,7 @@
 namespace procam::host::wire {
 
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
-inline constexpr uint16_t kVersion = 1;
+inline constexpr uint16_t kVersion = 2;
 inline constexpr size_t kHeaderSize = 16;
 inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
 inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
@@ -44,6 +44,7 @@ enum class Msg : uint16_t {
   end_round = 5,
   get_outputs = 6,
   stop = 7,  // no more rounds (host::Session::stop)
+  end_session = 8,  // session_destroy; the worker waits for the next create
   // worker -> daemon
   hello = 64,
   ok = 65,

@@ -66,6 +66,10 @@ void apply_limits(uint64_t memory_limit_mb) {
 }
 
 struct Served {
+  // The plugin stays loaded after a session ends (end_session), so the next
+  // session of the same plugin finds its memory warm (README.md "Worker reuse").
+  std::optional<PluginHost> host;
+  std::string plugin_file;
   std::optional<Session> session;
   wire::Mapping ring;
   uint32_t slots = 0;
@@ -79,13 +83,20 @@ void serve_create(Served& s, const wire::Message& m) {
   if (!blob) return reply_error(blob.status());
   wire::CreateRequest req;
   if (Status st = wire::decode_create(*blob, req); !st) return reply_error(st);
-  LoadOptions lo;
-  lo.probe_in_child = false;  // the daemon probed this file
-  PluginHost host(lo);
-  IsolationOptions here;
-  here.mode = Isolation::in_process;
-  host.set_isolation(here);
-  if (Status st = host.load_file(req.plugin_file); !st) return reply_error(st);
+  if (!s.host) {
+    LoadOptions lo;
+    lo.probe_in_child = false;  // the daemon probed this file
+    s.host.emplace(lo);
+    IsolationOptions here;
+    here.mode = Isolation::in_process;
+    s.host->set_isolation(here);
+    s.plugin_file = req.plugin_file;
+    if (Status st = s.host->load_file(req.plugin_file); !st) return reply_error(st);
+  } else if (req.plugin_file != s.plugin_file) {
+    return reply_error(Error(Code::failed_precondition, "this worker hosts '" + s.plugin_file +
+                                                            "', not '" + req.plugin_file + "'"));
+  }
+  PluginHost& host = *s.host;
   if (host.find(req.plugin_name) == nullptr)
     return reply_error(Error(Code::failed_precondition, "plugin file '" + req.plugin_file +
                                                             "' no longer holds plugin '" + req.plugin_name + "'"));
@@ -198,6 +209,10 @@ int serve(const worker::SandboxReport& sandbox) {
         else reply_ok();
         break;
       }
+      case wire::Msg::end_session:
+        s.session.reset();  // session_destroy; the plugin stays loaded
+        reply_ok();
+        break;
       case wire::Msg::get_outputs: {
         auto outs = s.session->outputs();
         if (!outs) reply_error(outs.status());

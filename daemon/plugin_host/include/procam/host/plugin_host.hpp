@@ -41,6 +41,7 @@ struct LoadedPlugin;  // dlopen handle + vtable; defined in src/plugin_loader.hp
 class HostBridge;     // the session's procam_host_services; src/host_services.hpp
 class WorkerProxy;    // an isolated session's worker process; src/worker_proxy.hpp
 struct SparePool;     // a pre-started worker; src/worker_proxy.hpp
+struct IdlePool;      // workers kept for reuse between sessions; src/worker_proxy.hpp
 }
 
 // One input a method declares in describe()'s "inputs" (plugin_abi.h "Scan
@@ -131,6 +132,18 @@ struct IsolationOptions {
   // plugin), so a session does not wait for process start-up. It is a
   // child process for as long as the PluginHost lives (procamd: on).
   bool prestart = false;
+  // Worker reuse (README.md "Worker reuse"): a worker whose session ended
+  // cleanly (the scan finished, or stop(); no fault and no error from the
+  // plugin on any call) waits idle for the next session of the same plugin,
+  // which then finds the plugin loaded and its memory (the SDK's map cache)
+  // warm. The scratch folder is emptied in between; a plugin's globals carry
+  // over. At most `max_idle_workers` idle workers per plugin (0: no reuse,
+  // every session gets a fresh worker); an idle worker is ended after
+  // `idle_timeout` (checked when a session starts or ends, and when the
+  // PluginHost goes) and after `max_sessions_per_worker` sessions.
+  uint32_t max_idle_workers = 0;
+  std::chrono::milliseconds idle_timeout{60000};
+  uint32_t max_sessions_per_worker = 100;
 };
 
 // One frame of a round: show `pattern` on the projector, capture with `settings`.
@@ -233,6 +246,10 @@ private:
   std::vector<bool> added_;  // per frame of the current plan
   std::unique_ptr<detail::HostBridge> bridge_;  // null: the plugin has no host services
   std::unique_ptr<detail::WorkerProxy> proxy_;  // set: isolated (session_ is null)
+  // Where proxy_ goes when the session ends (IsolationOptions::max_idle_workers);
+  // expired (the PluginHost is gone) or null: the worker is killed.
+  std::weak_ptr<detail::IdlePool> idle_;
+  void end_worker();  // gives proxy_ back to idle_ or kills it
 };
 
 class PluginHost {
@@ -260,7 +277,8 @@ public:
   const PluginInfo* find(std::string_view name) const;
 
   // Where create_session runs sessions (default: isolated, see
-  // IsolationOptions). Set before sessions are created.
+  // IsolationOptions). Set before sessions are created, and after load_*:
+  // with max_idle_workers > 0 it starts the idle pool's reaper thread.
   void set_isolation(IsolationOptions options);
   const IsolationOptions& isolation() const { return isolation_; }
   // True when sessions of `plugin` run in a worker process.
@@ -284,6 +302,7 @@ private:
   LoadOptions options_;
   IsolationOptions isolation_;
   std::unique_ptr<detail::SparePool> spare_;  // IsolationOptions::prestart
+  std::shared_ptr<detail::IdlePool> idle_;    // IsolationOptions::max_idle_workers
   std::vector<PluginInfo> plugins_;
   std::vector<std::shared_ptr<const detail::LoadedPlugin>> loaded_;  // parallel to plugins_
   std::vector<Rejected> rejected_;
