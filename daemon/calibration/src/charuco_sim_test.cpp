@@ -121,54 +121,20 @@ TEST_F(CharucoSimCalibration, CornersMatchTheSceneGeometry) {
   }
   auto r = calibrate(scanned_->views, board, test::kSimProjW, test::kSimProjH);
   ASSERT_TRUE(r.ok()) << r.status().to_string();
-  const nlohmann::json cfg = test::sim_rig_config();
-  Intrinsics K, Kp;
-  from_json(cfg["cameras"][0]["intrinsics"], K);
-  from_json(cfg["projector"]["intrinsics"], Kp);
-  Rigid3 cam_from_proj;
-  from_json(cfg["cameras"][0]["cam_from_proj"], cam_from_proj);
-  const Rigid3 proj_from_cam = cam_from_proj.inverse();
-  double sum2[2] = {0, 0}, worst[2] = {0, 0};
-  size_t n = 0;
+  const test::RigTruth rig = test::RigTruth::load();
+  test::CornerErrors errors;
   for (int k = 0; k < kPoses; ++k) {
     auto scene = sim::load_scene(scenes_ + "/calib/board-" + std::to_string(k) + ".json", {});
     ASSERT_TRUE(scene.ok()) << scene.status().to_string();
     const auto& plane = std::get<sim::Plane>(scene->objects[0].shape);
     std::vector<std::array<double, 4>> truth;  // camera u, v; projector u, v
     for (int rr = 0; rr < board.rows; ++rr)
-      for (int c = 0; c < board.cols; ++c) {
-        const Vec3 X = plane.point_mm + plane.u_axis * ((c - 4) * kSquare) + plane.v_axis * ((rr - 3) * kSquare);
-        std::array<double, 4> t{};
-        K.project(X, t[0], t[1]);
-        Kp.project(proj_from_cam * X, t[2], t[3]);
-        truth.push_back(t);
-      }
-    const ViewReport& v = r->views[static_cast<size_t>(k)];
-    for (size_t i = 0; i < v.cam_corners.size(); ++i) {
-      const double cu = static_cast<double>(v.cam_corners[i][0]), cv_ = static_cast<double>(v.cam_corners[i][1]);
-      const double pu = static_cast<double>(v.proj_corners[i][0]), pv = static_cast<double>(v.proj_corners[i][1]);
-      size_t best = 0;
-      for (size_t j = 1; j < truth.size(); ++j)
-        if (std::hypot(cu - truth[j][0], cv_ - truth[j][1]) < std::hypot(cu - truth[best][0], cv_ - truth[best][1]))
-          best = j;
-      const double e[2] = {std::hypot(cu - truth[best][0], cv_ - truth[best][1]),
-                           std::hypot(pu - truth[best][2], pv - truth[best][3])};
-      for (int dev = 0; dev < 2; ++dev) {
-        sum2[dev] += e[dev] * e[dev];
-        worst[dev] = std::max(worst[dev], e[dev]);
-      }
-      ++n;
-    }
+      for (int c = 0; c < board.cols; ++c)
+        truth.push_back(
+            rig.project(plane.point_mm + plane.u_axis * ((c - 4) * kSquare) + plane.v_axis * ((rr - 3) * kSquare)));
+    errors.add_view(r->views[static_cast<size_t>(k)], truth);
   }
-  const double nn = static_cast<double>(n);
-  std::printf("ChArUco corners vs truth: %zu corners; camera RMS %.3f px, worst %.3f px; projector RMS %.3f px, "
-              "worst %.3f px\n",
-              n, std::sqrt(sum2[0] / nn), worst[0], std::sqrt(sum2[1] / nn), worst[1]);
-  EXPECT_GT(n, 6u * 50u);
-  EXPECT_LT(std::sqrt(sum2[0] / nn), 0.1);
-  EXPECT_LT(worst[0], 0.3);
-  EXPECT_LT(std::sqrt(sum2[1] / nn), 0.3);
-  EXPECT_LT(worst[1], 1.0);
+  errors.expect_within_tolerance("ChArUco", 6u * 50u);
 }
 
 TEST_F(CharucoSimCalibration, RecoversTheRigConfigFromPartialViews) {
@@ -194,32 +160,7 @@ TEST_F(CharucoSimCalibration, RecoversTheRigConfigFromPartialViews) {
   EXPECT_NE(r->views.back().rejected_because.find("0 corners found (need >= 6"), std::string::npos)
       << r->views.back().rejected_because;
 
-  const nlohmann::json cfg = test::sim_rig_config();
-  const LensModel cam = test::lens_of(cfg["cameras"][0]["intrinsics"]);
-  const LensModel proj = test::lens_of(cfg["projector"]["intrinsics"]);
-  test::print_lens("camera", r->camera, cam);
-  test::print_lens("projector", r->projector, proj);
-  test::expect_intrinsics_within(r->camera, cam, 0.005, "camera");
-  test::expect_intrinsics_within(r->projector, proj, 0.005, "projector");
-  const double cam_field = test::distortion_field_error_px(*r, r->camera, cam, false);
-  const double proj_field = test::distortion_field_error_px(*r, r->projector, proj, true);
-  std::printf("distortion field error over the covered points: camera %.3f px, projector %.3f px\n", cam_field,
-              proj_field);
-  EXPECT_LT(cam_field, 0.5);
-  EXPECT_LT(proj_field, 0.5);
-  const auto& e = cfg["cameras"][0]["cam_from_proj"]["euler_deg"];
-  const cv::Matx33d R_true = test::rot(e[0].get<double>(), e[1].get<double>(), e[2].get<double>());
-  const auto& tt = cfg["cameras"][0]["cam_from_proj"]["translation_mm"];
-  const cv::Vec3d t_true(tt[0].get<double>(), tt[1].get<double>(), tt[2].get<double>());
-  const cv::Matx33d R(r->cam_from_proj_rotation.data());
-  const cv::Vec3d t(r->cam_from_proj_translation_mm.data());
-  std::printf("cam_from_proj: rotation off by %.4f deg, translation off by %.3f mm (t = %.2f %.2f %.2f)\n",
-              test::angle_deg(R, R_true), cv::norm(t - t_true), t[0], t[1], t[2]);
-  EXPECT_LT(test::angle_deg(R, R_true), 0.05);
-  EXPECT_LT(cv::norm(t - t_true), 0.5) << t;
-  std::printf("squares triangulated: mean %.3f mm, RMS error %.3f mm (%zu pairs)\n", r->square.mean_mm,
-              r->square.rms_error_mm, r->square.pairs);
-  EXPECT_NEAR(r->square.mean_mm, kSquare, 0.05);
+  test::expect_recovers_rig(*r, kSquare);
 }
 
 // A board given with the wrong dictionary finds no corners anywhere: every
