@@ -6,6 +6,8 @@
 // are checked; then every refusal the request can meet. Accuracy against
 // the rig's truth is geometric_sim_test's job (eight poses); here four poses
 // must give a sane calibration (focal lengths within 1 %, joint RMS < 0.3 px).
+// DaemonCharuco does the same with the ChArUco board charuco_sim_test prints
+// on the plates, one of its views showing only part of the board.
 #include "procam/calibration/daemon_job.hpp"
 
 #include <gtest/gtest.h>
@@ -17,6 +19,7 @@
 #include <iterator>
 #include <thread>
 
+#include "charuco_sim_scenes.hpp"
 #include "procam/engine/service.hpp"
 #include "procam/hw/rig.hpp"
 
@@ -28,6 +31,31 @@ using json = nlohmann::json;
 json rig_config() {
   std::ifstream in(PROCAM_SOURCE_DIR "/configs/rigs/sim-distorted.json");
   return json::parse(in);
+}
+
+// Waits until `id` is done or failed (at most 120 s); returns its manifest.
+json wait_for(engine::ScanService& service, const std::string& id) {
+  for (int i = 0; i < 1200; ++i) {
+    auto s = service.scan_summary(id);
+    if (s.ok() && ((*s)["state"] == "done" || (*s)["state"] == "failed")) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  auto m = service.manifest(id);
+  EXPECT_TRUE(m.ok()) << m.status().to_string();
+  return m.ok() ? *m : json();
+}
+
+// Queues a gray scan of board pose k (finished by wait_for()).
+std::string submit_pose(engine::ScanService& service, int k, json params = {{"rows", true}}, bool save_frames = true) {
+  engine::ScanRequest req;
+  req.plugin = "structured-light";
+  req.method = "gray";
+  req.params = std::move(params);
+  req.rig_options = {{"scene", "calib/board-" + std::to_string(k)}};
+  req.save_frames = save_frames;
+  auto r = service.submit(req);
+  EXPECT_TRUE(r.ok()) << r.status().to_string();
+  return r.ok() ? (*r)["scan_id"].get<std::string>() : std::string();
 }
 
 // One service and one set of pose scans for the suite (scanning is the slow
@@ -62,28 +90,9 @@ class DaemonCalibration : public ::testing::Test {
     delete no_rows_;
     delete no_frames_;
   }
-  // Waits until `id` is done or failed (at most 120 s); returns its manifest.
-  static json wait(const std::string& id) {
-    for (int i = 0; i < 1200; ++i) {
-      auto s = service_->scan_summary(id);
-      if (s.ok() && ((*s)["state"] == "done" || (*s)["state"] == "failed")) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    auto m = service_->manifest(id);
-    EXPECT_TRUE(m.ok()) << m.status().to_string();
-    return m.ok() ? *m : json();
-  }
-  // Queues a gray scan of board pose k (finished by wait()).
+  static json wait(const std::string& id) { return wait_for(*service_, id); }
   static std::string scan_pose(int k, json params = {{"rows", true}}, bool save_frames = true) {
-    engine::ScanRequest req;
-    req.plugin = "structured-light";
-    req.method = "gray";
-    req.params = std::move(params);
-    req.rig_options = {{"scene", "calib/board-" + std::to_string(k)}};
-    req.save_frames = save_frames;
-    auto r = service_->submit(req);
-    EXPECT_TRUE(r.ok()) << r.status().to_string();
-    return r.ok() ? (*r)["scan_id"].get<std::string>() : std::string();
+    return submit_pose(*service_, k, std::move(params), save_frames);
   }
   static std::string* dir_;
   static host::PluginHost* host_;
@@ -178,6 +187,74 @@ TEST_F(DaemonCalibration, RefusalsSayWhatIsWrong) {
             std::string::npos)
       << mb["error"].dump();
   EXPECT_NE(mb["error"]["hint"].get<std::string>().find("DICT_5X5_100"), std::string::npos) << mb["error"].dump();
+}
+
+// The ChArUco flow through the service: four plate poses and one partial
+// view (pose 8, plate 1 moved so part of the board leaves the image) scanned
+// from scenes written to a temp folder, then one calibration request with a
+// ChArUco board. Every view is used, the partial one with fewer corners.
+class DaemonCharuco : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string((fs::temp_directory_path() / ("procam_charuco_daemon_" + std::to_string(::getpid()))).string());
+    fs::remove_all(*dir_);
+    test::write_scenes(*dir_ + "/scenes");
+    host_ = new host::PluginHost(host::LoadOptions{.probe_in_child = false});
+    host_->load_directories({PROCAM_PLUGIN_DIR});
+    auto rig = hw::create_rig(rig_config(), {PROCAM_SOURCE_DIR "/configs/rigs", {*dir_ + "/scenes"}});
+    ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+    engine::ServiceConfig cfg;
+    cfg.results_dir = *dir_ + "/results";
+    cfg.evaluate = false;
+    cfg.calibrate_geometry = [](const engine::GeometryCalibrationJob& job) { return run_daemon_job(*host_, job, 2); };
+    service_ = new engine::ScanService(std::move(*rig), *host_, cfg, nullptr);
+    ASSERT_TRUE(service_->start().ok());
+  }
+  static void TearDownTestSuite() {
+    delete service_;
+    delete host_;
+    std::error_code ec;
+    fs::remove_all(*dir_, ec);
+    delete dir_;
+  }
+  static std::string* dir_;
+  static host::PluginHost* host_;
+  static engine::ScanService* service_;
+};
+std::string* DaemonCharuco::dir_ = nullptr;
+host::PluginHost* DaemonCharuco::host_ = nullptr;
+engine::ScanService* DaemonCharuco::service_ = nullptr;
+
+TEST_F(DaemonCharuco, PoseScansThenOneRequestGiveTheRigCalibration) {
+  std::vector<std::string> ids;
+  for (int k : {0, 1, 3, 5, 8}) ids.push_back(submit_pose(*service_, k));
+  for (const auto& id : ids) ASSERT_EQ(wait_for(*service_, id)["state"], "done") << id;
+  const json board{{"type", "charuco"},
+                   {"squares", {10, 8}},
+                   {"square_mm", test::kSquare},
+                   {"marker_mm", test::kMarker},
+                   {"dictionary", "DICT_4X4_50"}};
+  auto r = service_->submit_calibration(ids, board, "sim ChArUco poses");
+  ASSERT_TRUE(r.ok()) << r.status().to_string();
+  const json m = wait_for(*service_, (*r)["scan_id"]);
+  ASSERT_EQ(m["state"], "done") << m.dump(2);
+  const json& c = m["calibration"];
+  ASSERT_EQ(c["views"].size(), ids.size());
+  for (size_t i = 0; i < ids.size(); ++i) EXPECT_TRUE(c["views"][i]["used"].get<bool>()) << c["views"][i].dump();
+  EXPECT_GE(c["views"][0]["corners"].get<int>(), 60) << "a whole board shows (nearly) all 63 inner corners";
+  EXPECT_LT(c["views"][4]["corners"].get<int>(), 63 * 9 / 10) << "pose 8 shows only part of the board";
+  EXPECT_GE(c["views"][4]["corners"].get<int>(), 6);
+  EXPECT_LT(c["stereo_rms_px"].get<double>(), 0.3);
+  const json cfg = rig_config();
+  EXPECT_NEAR(c["rig"]["cameras"][0]["intrinsics"]["fx"].get<double>(),
+              cfg["cameras"][0]["intrinsics"]["fx"].get<double>(), 0.01 * 900);
+  EXPECT_NEAR(c["rig"]["projector"]["intrinsics"]["fx"].get<double>(),
+              cfg["projector"]["intrinsics"]["fx"].get<double>(), 0.01 * 1125);
+  EXPECT_NEAR(c["square_check"]["mean_mm"].get<double>(), test::kSquare, 0.1);
+  auto path = service_->file_path((*r)["scan_id"], c["result_file"]);
+  ASSERT_TRUE(path.ok()) << path.status().to_string();
+  std::ifstream in(*path);
+  EXPECT_EQ(json::parse(in), c["rig"]);
 }
 
 }  // namespace
