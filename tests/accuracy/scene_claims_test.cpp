@@ -75,6 +75,14 @@ Runs run(const std::string& scene, const std::vector<std::string>& methods, cons
 
 const std::vector<std::string> kBinary = {"gray", "xor02", "xor04", "minsw"};
 
+// The single codes decoded as the thesis decodes them: no one-edge intervals
+// and no noise rule (both added for real captures in issue 16; they let
+// XOR-02 keep blurred marble pixels as intervals, which is what a product
+// wants but not what the thesis's claims about the codes are about).
+const std::string kThesisDecoders =
+    " --param xor02.max_uncertainty_px=0 --param xor04.max_uncertainty_px=0 --param minsw.max_uncertainty_px=0"
+    " --param xor02.noise_k=0 --param xor04.noise_k=0 --param minsw.noise_k=0";
+
 double best_single_wrong(Runs& r) {
   double best = 1;
   for (const auto& m : kBinary) best = std::min(best, r[m].wrong());
@@ -126,7 +134,7 @@ TEST(SceneClaims, ShowerCurtain) {
 // whose base plane is the finest, cannot be decoded; min-SW (finest stripe
 // 8 px) and Gray (only its finest plane is lost, ±1 column) can.
 TEST(SceneClaims, MarbleSlabSubsurface) {
-  auto r = run("marble-slab", {"gray", "xor02", "xor04", "minsw", "ensemble"});
+  auto r = run("marble-slab", {"gray", "xor02", "xor04", "minsw", "ensemble"}, kThesisDecoders);
   EXPECT_GE(r["minsw"].ok, 0.9);
   EXPECT_GE(r["gray"].ok, 0.9);
   EXPECT_LE(r["minsw"].wrong(), 0.005);
@@ -159,7 +167,7 @@ TEST(SceneClaims, BowlOnMarbleEnsembleThesisSetting) {
   const std::vector<std::string> methods = {"gray", "xor02", "xor04", "minsw", "ensemble-nocorr"};
   std::string hard;
   for (const auto& m : methods) hard += " --param " + m + ".min_bit_margin=0";
-  auto r = run("bowl-on-marble", methods, hard);
+  auto r = run("bowl-on-marble", methods, hard + kThesisDecoders);
   const double best = best_single_wrong(r);
   std::printf("bowl-on-marble, margin 0: ensemble wrong %.4f%%, best single code %.4f%%, ratio %.3f\n",
               100 * r["ensemble-nocorr"].wrong(), 100 * best, r["ensemble-nocorr"].wrong() / best);
@@ -173,7 +181,8 @@ TEST(SceneClaims, BowlOnMarbleEnsembleThesisSetting) {
 
 // Product defaults (min_bit_margin 0.1): the single codes reject pixels whose
 // planes lost their margin instead of guessing, so XOR-02/04 have almost no
-// wrong pixels but lose most (XOR-02) or a sixth (XOR-04) of the marble. The
+// wrong pixels but lose part of the marble (XOR-02 keeps most of it only as
+// one-edge intervals, max_uncertainty_px 0.5; without them it lost 80 %). The
 // ensemble keeps the goal against every code that decodes >= 90 % of the lit
 // pixels, and decodes far more than the XOR codes. (It decodes ~2 % less than
 // Gray here: Gray keeps marble pixels through its tolerated finest plane that
@@ -185,7 +194,7 @@ TEST(SceneClaims, BowlOnMarbleEnsembleDefaults) {
       EXPECT_LE(r["ensemble"].wrong(), 0.2 * r[m].wrong()) << m;
     }
   }
-  EXPECT_GE(r["ensemble"].ok, r["xor02"].ok + 0.5);
+  EXPECT_GE(r["ensemble"].ok, r["xor02"].ok + 0.05);
   EXPECT_GE(r["ensemble"].ok, r["xor04"].ok + 0.05);
 }
 
@@ -243,10 +252,27 @@ TEST(SceneClaims, Issue18GlossyPipeRoundPays) { expect_rounds_pay("glossy-pipe",
 // (finest base plane) cannot. (Gray keeps decoding too, but only through its
 // tolerated finest plane: ±1 column, max_weak_error_px.)
 TEST(SceneClaims, DeepSceneDefocus) {
-  auto r = run("deep-scene", {"gray", "xor02", "minsw"});
+  auto r = run("deep-scene", {"gray", "xor02", "minsw"}, kThesisDecoders);
   EXPECT_GE(r["minsw"].ok, r["xor02"].ok + 0.2);
   EXPECT_LE(r["minsw"].wrong(), 0.005);
   EXPECT_GE(r["xor02"].wrong(), 0.01);
+}
+
+// Issue 16: min-SW spreads its 1023 stripe edges evenly over its planes, so
+// every camera pixel lies within half a column of some plane's edge, and a
+// blurred edge fails the margin rule. The product default gives such a pixel
+// the interval of its two columns (max_uncertainty_px 0.5): on the defocused
+// deep scene and on the bowl's marble it must keep clearly more lit pixels
+// (>= 2 points, ~20 000 pixels) than the thesis decoder, with wrong pixels
+// not above it (tolerance 0.02 points of lit pixels). Measured: deep scene
+// 83.5 -> 91.7 %, bowl 94.3 -> 96.8 %.
+TEST(SceneClaims, MinswEdgeIntervalsKeepBlurredPixels) {
+  for (const char* scene : {"deep-scene", "bowl-on-marble"}) {
+    auto product = run(scene, {"minsw"});
+    auto thesis = run(scene, {"minsw"}, kThesisDecoders);
+    EXPECT_GE(product["minsw"].ok, thesis["minsw"].ok + 0.02) << scene;
+    EXPECT_LE(product["minsw"].wrong(), thesis["minsw"].wrong() + 2e-4) << scene;
+  }
 }
 
 }  // namespace

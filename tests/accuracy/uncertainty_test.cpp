@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
-// The gray method's column intervals (proj_col_uncertainty_px, issue 16)
+// The column intervals of gray and of the single codes min-SW and XOR-04
+// (proj_col_uncertainty_px, issue 16)
 // against the sim's ground truth: where a pixel's uncertain planes give an
 // interval (uncertainty > 0), the interval must hold the true column,
 //   |proj_col_px - truth| <= proj_col_uncertainty_px + 0.5
@@ -7,7 +8,13 @@
 // a decoded column c stands for the projector pixel around c),
 // for at least 99 % of those pixels on every scene with global light, with
 // the default rule and with tie_intervals. Exact pixels (uncertainty 0) are
-// the claims tests' business. Scenes: where intervals come from blur
+// the claims tests' business. The single codes' intervals (default half-width
+// 0.5: one blurred stripe edge) hold the truth less often on the wax candle:
+// 97.7 % (min-SW) and 98.6 % (XOR-04) measured, asserted >= 97 / 98 %. Wax
+// scatters light across the edge, which moves its blurred image by more than
+// the half column the interval allows; those pixels are still few (min-SW's
+// gross rate on the candle goes 0.04 -> 0.07 % with intervals, gray's default
+// is 0.11 %; docs/structured-light.md). Scenes: where intervals come from blur
 // (sub-surface scattering, defocus). Not the metal lamp: there long-range
 // specular inter-reflection flips the *certain* planes too, so only ~26 % of
 // its ~10k interval pixels hold the truth (docs/report/real.md) — an
@@ -24,16 +31,18 @@ namespace procam {
 namespace {
 
 struct Case {
+  const char* method;
   const char* scene;
   const char* params;
+  double min_hold = 0.99;  // fraction of interval pixels whose interval holds the truth
 };
 
-class GrayIntervals : public ::testing::TestWithParam<Case> {};
+class Intervals : public ::testing::TestWithParam<Case> {};
 
-TEST_P(GrayIntervals, HoldTheTrueColumn) {
+TEST_P(Intervals, HoldTheTrueColumn) {
   const Case& c = GetParam();
   suite::SimRun run;
-  ASSERT_TRUE(suite::run_on_sim("structured-light", "gray", c.scene, run, c.params));
+  ASSERT_TRUE(suite::run_on_sim("structured-light", c.method, c.scene, run, c.params));
   const host::Output* col = suite::find_output(run.outputs, "proj_col_px");
   const host::Output* unc = suite::find_output(run.outputs, "proj_col_uncertainty_px");
   ASSERT_NE(col, nullptr);
@@ -61,18 +70,21 @@ TEST_P(GrayIntervals, HoldTheTrueColumn) {
     gross_centre += err > 1.0 ? 1u : 0u;
   }
   const double frac = intervals == 0 ? 1.0 : static_cast<double>(hold) / static_cast<double>(intervals);
-  std::printf("%-16s %-28s interval pixels %zu, truth inside %.3f%%, centre > 1 column off %zu\n", c.scene, c.params,
+  std::printf("%-6s %-16s %-28s interval pixels %zu, truth inside %.3f%%, centre > 1 column off %zu\n", c.method, c.scene, c.params,
               intervals, 100 * frac, gross_centre);
-  EXPECT_GE(frac, 0.99) << intervals << " interval pixels";
+  EXPECT_GE(frac, c.min_hold) << intervals << " interval pixels";
 }
 
 INSTANTIATE_TEST_SUITE_P(
-    Scenes, GrayIntervals,
-    ::testing::Values(Case{"bowl-on-marble", "{}"}, Case{"wax-candle", "{}"}, Case{"v-groove", "{}"},
-                      Case{"bowl-on-marble", R"({"tie_intervals":true})"},
-                      Case{"wax-candle", R"({"tie_intervals":true})"}),
+    Scenes, Intervals,
+    ::testing::Values(Case{"gray", "bowl-on-marble", "{}"}, Case{"gray", "wax-candle", "{}"},
+                      Case{"gray", "v-groove", "{}"}, Case{"gray", "bowl-on-marble", R"({"tie_intervals":true})"},
+                      Case{"gray", "wax-candle", R"({"tie_intervals":true})"}, Case{"minsw", "bowl-on-marble", "{}"},
+                      Case{"minsw", "wax-candle", "{}", 0.97}, Case{"minsw", "v-groove", "{}"},
+                      Case{"xor04", "bowl-on-marble", "{}"}, Case{"xor04", "wax-candle", "{}", 0.98}),
     [](const ::testing::TestParamInfo<Case>& i) {
-      std::string n = std::string(i.param.scene) + (std::string(i.param.params) == "{}" ? "" : "_ties");
+      std::string n = std::string(i.param.method) + "_" + i.param.scene +
+                      (std::string(i.param.params) == "{}" ? "" : "_ties");
       for (char& ch : n)
         if (ch == '-') ch = '_';
       return n;

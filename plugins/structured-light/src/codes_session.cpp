@@ -45,6 +45,11 @@ struct Config {
   double min_acceptance = 0.25;
   double probe_margin = 0.5;
   uint32_t max_weak_error_px = 1;
+  // Single codes only (the vote has no intervals): the noise rule and
+  // uncertain-plane intervals of gray (decode.hpp, MultiCodeDecoder::
+  // set_uncertain_output).
+  double noise_k = 3.0;
+  double max_uncertainty_px = 0.5;  // one stripe edge; why not gray's 1.5: docs/structured-light.md
 };
 
 const char* model_of(const std::string& m) {
@@ -230,6 +235,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                      cfg_.max_weak_error_px,
                      codes_.size() > 1 ? MultiCodeDecoder::Output::vote
                                        : MultiCodeDecoder::Output::per_code);
+    if (codes_.size() == 1 && cfg_.max_uncertainty_px > 0)
+      decoder_->set_uncertain_output(true, static_cast<float>(cfg_.max_uncertainty_px));
     for (const auto& r : reuse) {
       if (r.second->empty()) return sdk::state_error("a kept frame of the previous round is missing");
       if (sdk::Error e = decoder_->add_frame(r.first, r.second->image()); !e.ok()) return e;
@@ -267,9 +274,12 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     const bool first_pass = step_ != Step::correction;
     stats.kind = step_ == Step::correction ? "correction" : step_ == Step::codes ? "codes" : "first";
     if (codes_.size() == 1) {
-      MultiResult& r = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin);
+      MultiResult& r = decoder_->finish(cfg_.min_contrast, cfg_.min_bit_margin, cfg_.noise_k);
       full_scale_ = r.full_scale;
       weak_[0] += r.weak[0];
+      noise_ = r.noise;
+      noise_k_used_ = r.noise_k;
+      uncertainty_ = std::move(r.codes[0].uncertainty);
       intensity_ = std::move(r.intensity);
       lit_ = std::move(r.lit);
       coord_ = std::move(r.codes[0].coord);
@@ -383,6 +393,11 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
                   w, h, std::move(subpx));
     out.add_image("proj_col_px", "px", "decoded projector column per camera pixel (NaN: invalid)",
                   w, h, std::move(coord_));
+    if (!uncertainty_.empty())
+      out.add_image("proj_col_uncertainty_px", "px",
+                    "half-width of the column interval the uncertain planes allow (proj_col_px is "
+                    "its centre); 0: every plane certain; NaN: invalid",
+                    w, h, std::move(uncertainty_));
     out.add_image("valid", "", "255 where the column decoded validly, 0 where invalid", w, h,
                   std::move(valid_));
     const bool ensemble = codes_.size() > 1;
@@ -479,6 +494,12 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         {"triangulated", depth.has_value()},
         {"camera_index", 0},
     };
+    if (!ensemble) {
+      report["noise_k"] = cfg_.noise_k;
+      report["max_uncertainty_px"] = cfg_.max_uncertainty_px;
+      report["noise"] = {{"measured", noise_.measured}, {"k_used", noise_k_used_}, {"a", noise_.a},
+                         {"b", noise_.b}, {"pairs", noise_.pairs}, {"sample_pixels", noise_.pixels}};
+    }
     if (auto_mode()) {
       report["auto_tolerance"] = cfg_.auto_tolerance;
       report["auto_decision"] = auto_why_;
@@ -580,6 +601,9 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   sdk::Rig rig_;
   std::vector<ProjectedCode> codes_;
   std::vector<float> coord_, confidence_, intensity_;
+  std::vector<float> uncertainty_;  // single codes with intervals: proj_col_uncertainty_px
+  NoiseFit noise_;                  // single codes: the capture's fitted noise
+  double noise_k_used_ = 0;
   std::vector<uint8_t> valid_, cls_, lit_, mask_;
   std::vector<RoundStats> rounds_;
   std::vector<std::vector<float>> stage_maps_;  // per code: first-pass columns (NaN: not projected);
@@ -626,6 +650,23 @@ std::vector<sdk::ParamSpec> common_specs(bool ensemble) {
        "white - black (near ties, blurred or global-light-dominated bits)"},
       {"max_weak_error_px", sdk::ParamType::integer, 1, 0.0, 1024.0, {}, kMaxWeakErrorHelp},
   };
+  if (!ensemble) {
+    s.push_back({"noise_k", sdk::ParamType::number, 3.0, 0.0, 100.0, {},
+                 "a bit is also rejected when |L - L_inv| <= noise_k * sigma_d, sigma_d^2 = a + b * "
+                 "(white + black) fitted to this capture's pattern/inverse pairs; 3 lets a pure-noise "
+                 "bit through 0.27% of the time (Gaussian). 0 = off; binarize=white has no pairs to "
+                 "measure and skips it (as for gray)"});
+    s.push_back({"max_uncertainty_px", sdk::ParamType::number, 0.5, 0.0, 512.0, {},
+                 "a pixel with uncertain planes (at most 3 strict ones, plus the tolerated weak "
+                 "ones) gets the interval of every column its uncertain bits allow when the "
+                 "candidates are neighbouring code words and the half-width is at most this "
+                 "(proj_col_px = its centre, proj_col_uncertainty_px = the half-width), and is "
+                 "invalid otherwise; min-SW spreads its stripe edges over all planes, so without "
+                 "this every pixel near any edge is lost. 0.5 = one blurred stripe edge (two "
+                 "neighbouring columns, centre within a column of the truth): on the sim it keeps "
+                 "up to 8 points more of min-SW's lit pixels without raising gross errors; 1.5 "
+                 "keeps more but raises them (docs/structured-light.md). 0 = exact pixels only"});
+  }
   if (ensemble) {
     s.push_back({"black_frame", sdk::ParamType::boolean, false, -kInf, kInf, {},
                  "also project a black frame (B for the synthetic inverse); off by default as in "
@@ -726,6 +767,8 @@ sdk::MethodDescription describe_codes_method(const std::string& method) {
   if (method == "ensemble" || method == "auto") {
     d.outputs.push_back("transport_class");
     d.outputs.push_back("transport_class_legend");
+  } else {
+    d.outputs.push_back("proj_col_uncertainty_px");  // absent with max_uncertainty_px = 0
   }
   d.rounds = 1;
   if (method == "ensemble") d.rounds_formula = "1 + up to correction_rounds";
@@ -751,6 +794,10 @@ sdk::Error create_codes_session(const sdk::CreateArgs& args, std::unique_ptr<sdk
   cfg.min_contrast = params.get_number("min_contrast");
   cfg.min_bit_margin = params.get_number("min_bit_margin");
   cfg.max_weak_error_px = static_cast<uint32_t>(params.get_int("max_weak_error_px"));
+  if (args.method != "ensemble" && args.method != "auto") {
+    cfg.noise_k = params.get_number("noise_k");
+    cfg.max_uncertainty_px = params.get_number("max_uncertainty_px");
+  }
   if (args.method == "ensemble" || args.method == "auto") {
     if (args.method == "auto") cfg.auto_tolerance = params.get_number("auto_tolerance");
     cfg.agree_px = params.get_number("agree_px");

@@ -115,6 +115,7 @@ void recycle_maps(MultiResult&& r) noexcept {
     sdk::give_map(std::move(m.coord));
     sdk::give_map(std::move(m.valid));
     sdk::give_map(std::move(m.confidence));
+    sdk::give_map(std::move(m.uncertainty));
   }
   sdk::give_map(std::move(r.vote.coord));
   sdk::give_map(std::move(r.vote.valid));
@@ -158,19 +159,40 @@ DecodeThresholds MultiCodeDecoder::thresholds(double min_contrast, double min_bi
   return t;
 }
 
-MultiResult& MultiCodeDecoder::finish(double min_contrast, double min_bit_margin) {
+MultiResult& MultiCodeDecoder::finish(double min_contrast, double min_bit_margin, double noise_k) {
   stream_.require_complete("MultiCodeDecoder");
   allocate_result(Output::per_code);  // no-op unless a caller moved maps out
   MultiResult& r = result_;
   r.full_scale = static_cast<double>(stream_.full_scale());
-  const DecodeContext ctx(stream_, thresholds(min_contrast, min_bit_margin));
+  DecodeThresholds t = thresholds(min_contrast, min_bit_margin);
+  r.noise = NoiseFit{};
+  r.noise_k = 0;
+  if (noise_k > 0 && layout_.inverse) {
+    r.noise = stream_.fit_noise();
+    if (r.noise.measured) {
+      r.noise_k = noise_k;
+      t.noise_k = static_cast<float>(noise_k);
+      t.noise_a = static_cast<float>(r.noise.a);
+      t.noise_b = static_cast<float>(r.noise.b);
+    }
+  }
+  const DecodeContext ctx(stream_, t);
   const float nan = std::numeric_limits<float>::quiet_NaN();
+  const size_t n = size_t{width_} * height_;
+  std::vector<UncertainRule> rule(codes_.size());
+  if (uncertain_)
+    for (size_t c = 0; c < codes_.size(); ++c) {
+      sdk::take_map(r.codes[c].uncertainty, n);  // every element written below
+      // In code-index units: a code index spans >= 1 coordinate, so this
+      // bound never rejects what the coordinate bound below would keep.
+      rule[c] = {tolerable_mask(stream_.code(c).tolerable, codes_[c].bits()), max_uncertainty_, false};
+    }
   decode_rows(stream_, ctx, r.lit.data(), stream_.intensity_to_write(r.intensity), codes_.size(),
               r.weak, [&](size_t b, size_t e, const BaseRow& base, int32_t* idx, size_t* weak) {
                 for (size_t c = 0; c < codes_.size(); ++c) {
                   AxisMaps& m = r.codes[c];
-                  weak[c] += decode_code(ctx, c, index_map_[c], b, e, base, idx,
-                                         m.confidence.data() + b);
+                  const size_t tolerated = decode_code(ctx, c, index_map_[c], b, e, base, idx,
+                                                       m.confidence.data() + b);
                   const float* coord_of = codes_[c].coord_of.data();
                   float* coord = m.coord.data() + b;
                   uint8_t* valid = m.valid.data() + b;
@@ -178,6 +200,38 @@ MultiResult& MultiCodeDecoder::finish(double min_contrast, double min_bit_margin
                     const bool ok = idx[k] >= 0;
                     coord[k] = ok ? coord_of[ok ? idx[k] : 0] : nan;
                     valid[k] = ok ? 255 : 0;
+                  }
+                  if (!uncertain_) {
+                    weak[c] += tolerated;
+                    continue;
+                  }
+                  // The interval in code-index space (decode_uncertain writes
+                  // its centre into `centre`; exact pixels keep their value,
+                  // only tested for NaN there), then mapped to projector
+                  // coordinates.
+                  float* unc = m.uncertainty.data() + b;
+                  std::vector<float> centre(coord, coord + (e - b));
+                  weak[c] += decode_uncertain(ctx, c, index_map_[c], rule[c], b, e, base, centre.data(), valid, unc);
+                  const size_t last = codes_[c].coord_of.size() - 1;
+                  for (size_t k = 0; k < e - b; ++k) {
+                    if (valid[k] == 0) {
+                      coord[k] = nan;
+                      unc[k] = nan;
+                      continue;
+                    }
+                    if (!(unc[k] > 0.0f)) continue;  // exact: coord_of[idx] above
+                    const size_t lo = static_cast<size_t>(std::lround(centre[k] - unc[k]));
+                    const size_t hi = std::min(last, static_cast<size_t>(std::lround(centre[k] + unc[k])));
+                    const float half = 0.5f * (coord_of[hi] - coord_of[lo]);
+                    if (half > max_uncertainty_) {
+                      coord[k] = nan;
+                      unc[k] = nan;
+                      valid[k] = 0;
+                      --weak[c];
+                      continue;
+                    }
+                    coord[k] = 0.5f * (coord_of[lo] + coord_of[hi]);
+                    unc[k] = half;
                   }
                 }
                 if (layout_.black || codes_.size() < 2) return;

@@ -70,7 +70,10 @@ struct MultiResult {
   std::vector<uint8_t> lit;      // 255 where W - B passes the contrast rule (decode.hpp rule 1)
   std::vector<float> intensity;  // white / full scale in [0, 1]
   std::vector<size_t> weak;      // per code: valid pixels kept through a tolerated weak plane
+                                 // or (uncertain output) given an interval
   double full_scale = 0;
+  NoiseFit noise;                // finish() with noise_k > 0 and inverse frames
+  double noise_k = 0;            // the noise rule's k (0: off or not measured)
 };
 
 // Gives every map of `r` to the map cache (map_cache.hpp), as the session
@@ -111,7 +114,33 @@ class MultiCodeDecoder {
   // decoder: they are allocated and touched by the constructor (while frames
   // are still being captured), so the work after the last frame does not pay
   // for page faults. Callers may move the maps out; a later call re-allocates.
-  MultiResult& finish(double min_contrast, double min_bit_margin);
+  // noise_k > 0 adds the noise rule (decode.hpp) with the noise fitted to
+  // this capture's pattern/inverse pairs (layouts with inverses only; without
+  // them it is skipped and result.noise.measured stays false).
+  MultiResult& finish(double min_contrast, double min_bit_margin, double noise_k = 0);
+
+  // With true, finish() gives a pixel with uncertain planes (at most
+  // kTrackedPlanes strict ones plus the tolerated weak ones) the interval of
+  // every projector coordinate its uncertain bits allow, when all candidates
+  // are code words of consecutive code indices and the interval's half-width
+  // in projector coordinates is at most max_half (codes[c].coord = its
+  // centre, codes[c].uncertainty = the half-width; 0 where every plane is
+  // certain, NaN where invalid); such a pixel is invalid otherwise. The same
+  // rule as BinaryRoundDecoder's (decode_uncertain), in code-index space and
+  // then mapped through the code's stretched columns (codes.hpp: a min-SW
+  // code column spans 1-2 projector columns on a projector wider than 1024).
+  // Why it matters most for min-SW: adjacent columns differ in one bit and
+  // the code spreads its 1023 bit changes evenly over its planes, so every
+  // camera pixel lies within half a column of *some* plane's stripe edge;
+  // blurred there, that plane's margin is small, and without intervals the
+  // margin rule rejects the pixel (issue 16: 33-54 % of lit pixels kept on
+  // real captures). Call before the first frame; finish() only (the vote
+  // does not use intervals).
+  void set_uncertain_output(bool on, float max_half = 1.5f) {
+    uncertain_ = on;
+    max_uncertainty_ = max_half;
+    stream_.track_single_planes(on);
+  }
   // Shadow rule (both finish functions): without a black frame B = 0 is
   // assumed, so a pixel lit only by ambient light reads "on" in every plane
   // and each code decodes its all-ones word. With two or more codes no
@@ -138,6 +167,8 @@ class MultiCodeDecoder {
   uint32_t width_, height_;
   BitPlaneStream stream_;
   MultiResult result_;  // pre-allocated output maps
+  bool uncertain_ = false;
+  float max_uncertainty_ = 1.5f;
 };
 
 }  // namespace procam::sl

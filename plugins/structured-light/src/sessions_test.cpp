@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "codes.hpp"
 #include "codes_session.hpp"
 #include "gray_session.hpp"
 #include "procam/sdk/map_cache.hpp"
@@ -258,8 +259,9 @@ TEST(Sessions, WeakFinestPlaneToleratedAndReported) {
     if (x >= 30 && x < 40 && label.rfind("xor04 bit 0", 0) == 0) return v > 110.0 ? 115.0 : 105.0;
     return v;
   };
-  const ScanRun tolerant = run("xor04", nlohmann::json::object(), weak);  // default: 1
-  const ScanRun strict = run("xor04", {{"max_weak_error_px", 0}}, weak);
+  // The tolerance rule alone: intervals (max_uncertainty_px, below) off.
+  const ScanRun tolerant = run("xor04", {{"max_uncertainty_px", 0}}, weak);  // max_weak_error_px default: 1
+  const ScanRun strict = run("xor04", {{"max_weak_error_px", 0}, {"max_uncertainty_px", 0}}, weak);
   EXPECT_EQ(tolerant.report["max_weak_error_px"], 1);
   EXPECT_EQ(strict.report["max_weak_error_px"], 0);
   const nlohmann::json& code = tolerant.report["codes"][0];
@@ -277,6 +279,86 @@ TEST(Sessions, WeakFinestPlaneToleratedAndReported) {
       ASSERT_TRUE(std::isnan(cs[i])) << x;
       ASSERT_NEAR(conf[i], 0.05f, 0.01f);
     }
+}
+
+// Single codes give a pixel at a blurred stripe edge the interval of the two
+// columns it lies between (MultiCodeDecoder::set_uncertain_output), as gray
+// does. At camera column x the one plane whose bit changes between projector
+// columns x and x + 1 (and that is not the tolerated finest plane) is pushed
+// to a 5 % margin, right sign: below min_bit_margin (10 %). With intervals
+// (default max_uncertainty_px 0.5) the pixel decodes to x + 0.5 with
+// half-width 0.5, an interval holding the true column x; without them it is
+// invalid. A low margin on a plane with no edge next to x names a far column
+// and stays invalid either way.
+TEST(Sessions, SingleCodesGiveStripeEdgesAnInterval) {
+  // min-SW only: its adjacent columns differ in exactly one plane and its
+  // stripes are >= 8 wide, so both kinds of pixel exist; the XOR codes'
+  // adjacent columns differ in every plane above the base at a base edge,
+  // and no XOR plane is flat over 5 columns.
+  for (const std::string id : {"minsw"}) {
+    SCOPED_TRACE(id);
+    const ProjectedCode pc = make_projected_code(id, kW);
+    const uint32_t bits = pc.bits();
+    // Per camera column: the plane to weaken (-1: none) and whether it sits at an edge.
+    std::vector<int> plane_at(kW, -1);
+    std::vector<uint8_t> at_edge(kW, 0);
+    for (uint32_t x = 8; x + 8 < kW; ++x) {
+      int differ = 0, p_edge = -1;
+      for (uint32_t p = 0; p < bits; ++p)
+        if (pc.bit(p, x) != pc.bit(p, x + 1)) {
+          ++differ;
+          p_edge = static_cast<int>(p);
+        }
+      if (x % 2 == 0) {  // even columns: the edge plane, if it is the only one and not the finest
+        if (differ == 1 && p_edge != static_cast<int>(bits) - 1) {
+          plane_at[x] = p_edge;
+          at_edge[x] = 1;
+        }
+      } else {  // odd columns: a plane with no edge within 2 columns (a flip names a far column)
+        for (uint32_t p = 0; p + 1 < bits && plane_at[x] < 0; ++p) {
+          bool flat = true;
+          for (uint32_t d = x - 2; d <= x + 2; ++d) flat = flat && pc.bit(p, d) == pc.bit(p, x);
+          if (flat) plane_at[x] = static_cast<int>(p);
+        }
+      }
+    }
+    const Distort weaken = [&](uint32_t, const std::string& label, uint32_t x, uint32_t, double v) {
+      if (plane_at[x] < 0) return v;
+      const std::string plane = id + " bit " + std::to_string(bits - 1 - static_cast<uint32_t>(plane_at[x]));
+      if (label != plane && label != plane + " inverse") return v;
+      return v > 110.0 ? 115.0 : 105.0;  // margin 10 of contrast 200
+    };
+    const ScanRun with = run(id, nlohmann::json::object(), weaken);
+    const ScanRun without = run(id, {{"max_uncertainty_px", 0}}, weaken);
+    ASSERT_TRUE(with.maps.count("proj_col_uncertainty_px"));
+    EXPECT_FALSE(without.maps.count("proj_col_uncertainty_px"));
+    const auto& c = with.maps.at("proj_col_px");
+    const auto& u = with.maps.at("proj_col_uncertainty_px");
+    const auto& c0 = without.maps.at("proj_col_px");
+    size_t edges = 0, far = 0;
+    for (uint32_t y = 0; y < kH; ++y)
+      for (uint32_t x = 0; x < kW; ++x) {
+        const size_t i = size_t{y} * kW + x;
+        if (plane_at[x] < 0) {  // untouched: exact
+          ASSERT_EQ(c[i], static_cast<float>(x)) << x;
+          ASSERT_EQ(u[i], 0.0f) << x;
+        } else if (at_edge[x] != 0) {
+          ASSERT_EQ(c[i], static_cast<float>(x) + 0.5f) << x;
+          ASSERT_EQ(u[i], 0.5f) << x;
+          ASSERT_TRUE(std::isnan(c0[i])) << x;
+          ++edges;
+        } else {
+          ASSERT_TRUE(std::isnan(c[i])) << x;
+          ASSERT_TRUE(std::isnan(u[i])) << x;
+          ASSERT_TRUE(std::isnan(c0[i])) << x;
+          ++far;
+        }
+      }
+    EXPECT_GT(edges, 20u * kH);
+    EXPECT_GT(far, 20u * kH);
+    EXPECT_EQ(with.report["max_uncertainty_px"], 0.5);
+    EXPECT_EQ(with.report["noise_k"], 3.0);
+  }
 }
 
 TEST(Sessions, BadParamsAreRejected) {
