@@ -67,7 +67,7 @@ class SweepSession final : public sdk::Session {
     Validity rule = config_.validity;
     rule.black_dn = config_.black_fraction * full_scale();
     switch (method_) {
-      case Method::multi_focal: cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_); break;
+      case Method::multi_focal: cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_, &peak_); break;
       case Method::invariance: cue_valid_ = fbar_map(*acc_, rule, th, cue_); break;
       case Method::two_focal: cue_valid_ = omega_map(*acc_, 0, 1, rule, th, cue_); break;
       case Method::single_focal: cue_valid_ = modulation_map(*acc_, 0, rule, th, cue_); break;
@@ -142,10 +142,12 @@ class SweepSession final : public sdk::Session {
                       w, h, acc_->e3(f));
       report["pairs"] = invariance_summary(*acc_, pairs_);
     } else {
-      std::vector<float> peak(n, 0.f);
-      for (uint32_t f = 0; f < acc_->focus_count(); ++f)
-        for (size_t i = 0; i < n; ++i) peak[i] = std::max(peak[i], acc_->e3(f)[i]);
-      out.add_image("e3_peak_dn", "DN", "largest E(3, f) over the focus settings (pattern contrast)", w, h, peak);
+      if (peak_.size() != n) {  // the multi-focal kernel made it in end_round; the other methods here
+        peak_.assign(n, 0.f);
+        for (uint32_t f = 0; f < acc_->focus_count(); ++f)
+          for (size_t i = 0; i < n; ++i) peak_[i] = std::max(peak_[i], acc_->e3(f)[i]);
+      }
+      out.add_image("e3_peak_dn", "DN", "largest E(3, f) over the focus settings (pattern contrast)", w, h, peak_);
     }
     out.add_image("mean_dn", "DN", "mean of the temporal profile (focus setting 0)", w, h, acc_->mean());
     out.add_image("valid", "", "255 where the method's result is valid, else 0", w, h, valid_map);
@@ -168,7 +170,7 @@ class SweepSession final : public sdk::Session {
   std::vector<float> plane_depth_;  // calibrate-*: the plane's depth (input depth_mm)
   sdk::Error table_error_;
   std::unique_ptr<E3Accumulator> acc_;
-  std::vector<float> cue_, depth_;
+  std::vector<float> cue_, depth_, peak_;  // peak_: max_f E(3, f)
   size_t cue_valid_ = 0;
   bool planned_ = false;
   double decode_ms_ = 0;
