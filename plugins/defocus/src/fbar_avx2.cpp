@@ -43,13 +43,13 @@ PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
                                                        _mm256_cmp_ps(x, _mm256_set1_ps(t.hi), _CMP_LE_OQ)));
   __m256i b = _mm256_cvttps_epi32(_mm256_mul_ps(_mm256_sub_ps(x, _mm256_set1_ps(t.x0)), _mm256_set1_ps(t.inv_dx)));
   b = _mm256_min_epi32(_mm256_max_epi32(b, _mm256_setzero_si256()), _mm256_set1_epi32(t.last_bin));
-  __m256i k = _mm256_i32gather_epi32(t.start.data(), b, 4);
-  const __m256 step = _mm256_i32gather_ps(t.step_x.data(), k, 4);
-  k = _mm256_sub_epi32(k, _mm256_castps_si256(_mm256_cmp_ps(x, step, _CMP_GE_OQ)));  // true lanes are -1
-  const __m256 sx = _mm256_i32gather_ps(t.seg_x.data(), k, 4);
-  const __m256 sy = _mm256_i32gather_ps(t.seg_y.data(), k, 4);
-  const __m256 slope = _mm256_i32gather_ps(t.seg_slope.data(), k, 4);
-  const __m256 y = _mm256_add_ps(sy, _mm256_mul_ps(_mm256_sub_ps(x, sx), slope));
+  const __m256 thr = _mm256_i32gather_ps(t.thr.data(), b, 4);
+  // Line 2b, or 2b + 1 past the bin's breakpoint (true lanes are -1).
+  const __m256i i = _mm256_sub_epi32(_mm256_add_epi32(b, b), _mm256_castps_si256(_mm256_cmp_ps(x, thr, _CMP_GE_OQ)));
+  const __m256 y0 = _mm256_i32gather_ps(t.line_y.data(), i, 4);
+  const __m256 slope = _mm256_i32gather_ps(t.line_slope.data(), i, 4);
+  const __m256 xb = _mm256_add_ps(_mm256_set1_ps(t.x0), _mm256_mul_ps(_mm256_cvtepi32_ps(b), _mm256_set1_ps(t.dx)));
+  const __m256 y = _mm256_add_ps(y0, _mm256_mul_ps(_mm256_sub_ps(x, xb), slope));
   return select8(in, y, _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN()));
 }
 

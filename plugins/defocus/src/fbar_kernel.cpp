@@ -97,22 +97,13 @@ FloatTable::FloatTable(const sdk::CalibrationTable* table) {
   lo = float_at_or_above(s.front().first);
   hi = float_at_or_below(s.back().first);
   if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi)) return;
-  seg_x.resize(n - 1);
-  seg_y.resize(n - 1);
-  seg_slope.resize(n - 1);
-  step_x.resize(n - 1);
+  // step_x[k]: the float threshold of the breakpoint (sample k + 1) between
+  // segments k and k + 1; +inf after the last segment.
+  std::vector<float> step_x(n - 1);
   double min_gap = s.back().first - s.front().first;
   for (size_t k = 0; k + 1 < n; ++k) {
-    const auto& a = s[k];
-    const auto& b = s[k + 1];
-    const double slope = (b.second - a.second) / (b.first - a.first);
-    seg_x[k] = static_cast<float>(a.first);
-    // y at the rounded seg_x on the true line: steep segments keep their accuracy.
-    seg_y[k] = static_cast<float>(a.second + (double(seg_x[k]) - a.first) * slope);
-    seg_slope[k] = static_cast<float>(slope);
-    // The breakpoint between segments k and k + 1 is sample k + 1.
-    step_x[k] = k + 2 < n ? float_at_or_above(b.first) : std::numeric_limits<float>::infinity();
-    min_gap = std::min(min_gap, b.first - a.first);
+    step_x[k] = k + 2 < n ? float_at_or_above(s[k + 1].first) : std::numeric_limits<float>::infinity();
+    min_gap = std::min(min_gap, s[k + 1].first - s[k].first);
   }
   // Bins of about half the smallest gap; grow until no two breakpoints share
   // a bin under the float bin() the kernels use.
@@ -121,22 +112,38 @@ FloatTable::FloatTable(const sdk::CalibrationTable* table) {
   for (; bins <= kMaxBins; bins *= 2) {
     x0 = lo;
     inv_dx = static_cast<float>(bins / (double(hi) - double(lo)));
+    dx = static_cast<float>((double(hi) - double(lo)) / bins);
     const float top = (hi - x0) * inv_dx;  // bin(hi), unclamped
     if (!(top >= 0.f) || !(top <= float(2 * kMaxBins))) continue;
     last_bin = static_cast<int32_t>(top);
     bool separated = true;
-    for (size_t k = 0; k + 2 < n && separated; ++k) {  // breakpoint between segments k and k + 1
+    for (size_t k = 0; k + 2 < n && separated; ++k) {
       const float v = (step_x[k] - x0) * inv_dx;
       breakpoint_bin[k] = v <= top ? static_cast<int32_t>(v) : last_bin + 1;
       separated = breakpoint_bin[k] <= last_bin && (k == 0 || breakpoint_bin[k] > breakpoint_bin[k - 1]);
     }
     if (!separated) continue;
-    // start[b] = the number of breakpoints in bins below b = the segment at the bin's lowest x.
-    start.assign(size_t(last_bin) + 1, 0);
-    size_t j = 0;
-    for (int32_t b = 0; b <= last_bin; ++b) {
-      while (j < breakpoint_bin.size() && breakpoint_bin[j] < b) ++j;
-      start[size_t(b)] = static_cast<int32_t>(j);
+    // Per bin b: its first segment k = the number of breakpoints in lower bins,
+    // the threshold of the next breakpoint, and both lines (k and k + 1) as
+    // y at the bin's left edge xb + slope (the lines are the table's own,
+    // evaluated in double at the float xb the kernels compute).
+    const auto nb = size_t(last_bin) + 1;
+    thr.resize(nb);
+    line_y.resize(2 * nb);
+    line_slope.resize(2 * nb);
+    size_t k = 0;
+    for (size_t b = 0; b < nb; ++b) {
+      while (k < breakpoint_bin.size() && breakpoint_bin[k] < int32_t(b)) ++k;
+      thr[b] = step_x[k];
+      const float xb = x0 + static_cast<float>(b) * dx;
+      for (size_t side = 0; side < 2; ++side) {
+        const size_t seg = std::min(k + side, n - 2);
+        const auto& p = s[seg];
+        const auto& q = s[seg + 1];
+        const double slope = (q.second - p.second) / (q.first - p.first);
+        line_y[2 * b + side] = static_cast<float>(p.second + (double(xb) - p.first) * slope);
+        line_slope[2 * b + side] = static_cast<float>(slope);
+      }
     }
     usable = true;
     return;
@@ -153,9 +160,10 @@ int32_t FloatTable::bin(float x) const noexcept {
 
 float FloatTable::lookup(float x) const noexcept {
   if (!(x >= lo) || !(x <= hi)) return kNaN;
-  auto k = static_cast<size_t>(start[size_t(bin(x))]);
-  k += x >= step_x[k] ? 1u : 0u;
-  return seg_y[k] + (x - seg_x[k]) * seg_slope[k];
+  const int32_t b = bin(x);
+  const size_t i = 2 * size_t(b) + (x >= thr[size_t(b)] ? 1u : 0u);
+  const float xb = x0 + static_cast<float>(b) * dx;
+  return line_y[i] + (x - xb) * line_slope[i];
 }
 
 size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {
