@@ -3,6 +3,7 @@
 // float operations in the same order (no FMA), so bit-identical results.
 // Compiled with __attribute__((target("avx2"))) and called only where
 // sdk::cpu_has_avx2() (sdk/simd.hpp): no -march flags.
+#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -53,6 +54,19 @@ PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
   return select8(in, y, _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN()));
 }
 
+// Stores 8 lanes at p: non-temporal (two 16-byte halves; no read-for-
+// ownership of output lines the pass never reads) when `stream`, else plain.
+PROCAM_AVX2 void store8(float* p, __m256 v, bool stream) {
+  if (stream) {
+    _mm_stream_ps(p, _mm256_castps256_ps128(v));
+    _mm_stream_ps(p + 4, _mm256_extractf128_ps(v, 1));
+  } else {
+    _mm256_storeu_ps(p, v);
+  }
+}
+
+bool aligned16(const float* p) { return p == nullptr || (reinterpret_cast<uintptr_t>(p) & 15u) == 0; }
+
 }  // namespace
 
 __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {
@@ -64,6 +78,9 @@ __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t 
   const __m256 vmin = _mm256_set1_ps(a.min_mod), vblack = _mm256_set1_ps(a.black);
   const __m256 vlast = _mm256_set1_ps(static_cast<float>(a.F - 1));
   const __m256i bit_of_lane = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+  // Output rows are streamed past the cache where 16-byte aligned (x_begin is a multiple of 8).
+  const bool stream = aligned16(a.fbar + x_begin) && aligned16(a.depth ? a.depth + x_begin : nullptr) &&
+                      aligned16(a.peak ? a.peak + x_begin : nullptr);
   for (; x + 8 <= x_end; x += 8) {
     // Running argmax (first maximum wins); k as float (exact small integers).
     __m256 b = _mm256_loadu_ps(a.e[0] + x), prev = b, l = zero, r = zero, k = zero;
@@ -101,11 +118,12 @@ __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t 
                                     _mm256_and_ps(in_range, unsaturated));
     const __m256 clamped = _mm256_min_ps(_mm256_max_ps(off, _mm256_set1_ps(-0.5f)), half);
     const __m256 fbar = select8(ok, _mm256_add_ps(k, clamped), nan);
-    _mm256_storeu_ps(a.fbar + x, fbar);
+    store8(a.fbar + x, fbar, stream);
     count += static_cast<size_t>(__builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(ok))));
-    if (a.peak != nullptr) _mm256_storeu_ps(a.peak + x, b);
-    if (a.table != nullptr) _mm256_storeu_ps(a.depth + x, lookup8(*a.table, fbar, ok));
+    if (a.peak != nullptr) store8(a.peak + x, b, stream);
+    if (a.table != nullptr) store8(a.depth + x, lookup8(*a.table, fbar, ok), stream);
   }
+  if (stream) _mm_sfence();  // the streamed rows are visible before the pass reports done
   return count + fbar_row_scalar(a, x, x_end);
 }
 
