@@ -10,8 +10,10 @@
 #include <vector>
 
 #include "calibration.hpp"
+#include "defocus_session.hpp"
 #include "e3_accumulator.hpp"
 #include "focus_measures.hpp"
+#include "sweep_plan.hpp"
 
 namespace procam::defocus {
 namespace {
@@ -21,14 +23,19 @@ constexpr uint32_t kW = 1920, kH = 1200, kF = 6, kThreads = 2;
 // Frame (focus f, shift t): a blurred stripe profile whose contrast peaks at a
 // focus index that varies across the image (a tilted plane).
 std::vector<uint8_t> make_frame(uint32_t f, uint32_t t) {
+  // The profile depends on x only (exp and cos once per column, not per pixel:
+  // the set-up of 144 frames would otherwise take minutes).
+  std::vector<double> profile(kW);
+  for (uint32_t x = 0; x < kW; ++x) {
+    const double peak = 0.5 + 4.0 * x / kW;
+    const double c = std::exp(-0.5 * (f - peak) * (f - peak));
+    const double s = std::cos(2 * M_PI * 3 * ((double(x) - t) / 24.0));
+    profile[x] = 110 + 90 * c * s;
+  }
   std::vector<uint8_t> v(size_t{kW} * kH);
   for (uint32_t y = 0; y < kH; ++y)
-    for (uint32_t x = 0; x < kW; ++x) {
-      const double peak = 0.5 + 4.0 * x / kW;
-      const double c = std::exp(-0.5 * (f - peak) * (f - peak));
-      const double s = std::cos(2 * M_PI * 3 * ((double(x) - t) / 24.0));
-      v[size_t{y} * kW + x] = static_cast<uint8_t>(std::lround(110 + 90 * c * s + (x * 7 + y * 13) % 3));
-    }
+    for (uint32_t x = 0; x < kW; ++x)
+      v[size_t{y} * kW + x] = static_cast<uint8_t>(std::lround(profile[x] + (x * 7 + y * 13) % 3));
   return v;
 }
 
@@ -71,6 +78,50 @@ void BM_MultiFocalAfterLastFrame(benchmark::State& state) {
     benchmark::DoNotOptimize(fbar_depth_map(acc, rule, lookup ? &table : nullptr, threads, fbar, lookup ? &depth : nullptr));
 }
 BENCHMARK(BM_MultiFocalAfterLastFrame)->Args({2, 1})->Args({1, 1})->Args({2, 0})->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
+
+// What a scan waits for after the last frame, through the session: the last
+// frame's add (with the fold of the last focus setting), end_round (fbar +
+// depth) and outputs (the maps handed over). Each iteration replays the first
+// 143 frames into a fresh session, untimed.
+void BM_MultiFocalSessionLastFrame(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  std::vector<std::vector<uint8_t>> frames;
+  for (uint32_t f = 0; f < kF; ++f)
+    for (uint32_t t = 0; t < 24; ++t) frames.push_back(make_frame(f, t));
+  const std::vector<double> focus = focus_sweep_mm(600, 1200, kF);
+  sdk::CalibrationTable table;
+  table.name = kMultiFocal.table_name;
+  table.x_name = kMultiFocal.x_name;
+  table.x_unit = kMultiFocal.x_unit;
+  table.extra = {{"focus_mm", focus}};
+  const double a = 1 / focus.front(), step = (1 / focus.front() - 1 / focus.back()) / double(kF - 1);
+  for (int k = 0; k <= 40; ++k) table.samples.emplace_back(0.5 + 0.1 * k, 1 / (a - (0.5 + 0.1 * k) * step));
+  const nlohmann::json rig = {{"projector", {{"width", kW}, {"height", kH}}},
+                              {"cameras", {{{"width", kW}, {"height", kH}, {"bit_depth", 8}}}},
+                              {"threads", threads},
+                              {"calibration_tables", {{kMultiFocal.table_name, sdk::to_json(table)}}}};
+  const uint32_t last = kF * 24 - 1;
+  for (auto _ : state) {
+    state.PauseTiming();
+    std::unique_ptr<sdk::Session> s;
+    if (!create_session({"multi-focal", nlohmann::json::object(), rig}, s).ok()) std::abort();
+    sdk::Plan plan;
+    bool has = false;
+    if (!s->next_plan(plan, has).ok()) std::abort();
+    for (uint32_t i = 0; i < last; ++i)
+      if (!s->add_frame(i, sdk::gray_view(frames[i].data(), kW, kH, 8)).ok()) std::abort();
+    state.ResumeTiming();
+    if (!s->add_frame(last, sdk::gray_view(frames[last].data(), kW, kH, 8)).ok()) std::abort();
+    if (!s->end_round().ok()) std::abort();
+    sdk::Outputs out;
+    if (!s->outputs(out).ok()) std::abort();
+    benchmark::DoNotOptimize(out.view());
+    state.PauseTiming();
+    s.reset();
+    state.ResumeTiming();
+  }
+}
+BENCHMARK(BM_MultiFocalSessionLastFrame)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(5)->Repetitions(3);
 
 }  // namespace
 }  // namespace procam::defocus

@@ -66,8 +66,14 @@ class SweepSession final : public sdk::Session {
     const uint32_t th = rig_.threads;
     Validity rule = config_.validity;
     rule.black_dn = config_.black_fraction * full_scale();
+    // Map storage from the SDK's cache (pages already mapped when the last
+    // scan's maps came back): every element is written below.
+    const size_t n = size_t{acc_->width()} * acc_->height();
+    sdk::take_map(cue_, n);
+    if (cue_of(method_) != nullptr) sdk::take_map(depth_, n);
+    if (method_ == Method::multi_focal) sdk::take_map(peak_, n);
     switch (method_) {
-      case Method::multi_focal: cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_); break;
+      case Method::multi_focal: cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_, &peak_); break;
       case Method::invariance: cue_valid_ = fbar_map(*acc_, rule, th, cue_); break;
       case Method::two_focal: cue_valid_ = omega_map(*acc_, 0, 1, rule, th, cue_); break;
       case Method::single_focal: cue_valid_ = modulation_map(*acc_, 0, rule, th, cue_); break;
@@ -94,7 +100,11 @@ class SweepSession final : public sdk::Session {
                              {"black_dn", config_.black_fraction * full_scale()},
                              {"min_modulation", config_.validity.min_modulation}};
     size_t valid = 0;
-    std::vector<uint8_t> valid_map(n, 0);
+    // The maps move into `out` (outputs() runs once per round) and go back to
+    // the SDK's map cache when the host destroys the session.
+    out.set_release(sdk::give_map, sdk::give_map);
+    std::vector<uint8_t> valid_map;
+    sdk::take_map(valid_map, n);  // stale contents: every branch below writes every element
     if (calibrating()) {
       // A plane that gives no table (unlit, flat, out of the sweep) is a
       // finished scan without calibration_table; the report says why.
@@ -112,10 +122,10 @@ class SweepSession final : public sdk::Session {
         report["table"] = {{"name", table_.name}, {"samples", table_.samples.size()},
                            {"x_range", {table_.x_min(), table_.x_max()}}};
     } else if (const CueKind* kind = cue_of(method_)) {
-      out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
-                                          " table; NaN: invalid", w, h, depth_);
       for (size_t i = 0; i < n; ++i) valid_map[i] = std::isfinite(depth_[i]) ? 255 : 0;
       valid = static_cast<size_t>(std::count(valid_map.begin(), valid_map.end(), uint8_t{255}));
+      out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
+                                          " table; NaN: invalid", w, h, std::move(depth_));
       report["table"] = {{"name", table_.name}, {"x_range", {table_.x_min(), table_.x_max()}}, {"made", table_.made}};
       report["cue_valid_pixels"] = cue_valid_;
     } else {
@@ -125,13 +135,13 @@ class SweepSession final : public sdk::Session {
     switch (method_) {
       case Method::multi_focal:
       case Method::invariance:
-        out.add_image("fbar", "index", "focus index of the peak of E(3, f) (Eq. 2.9, Gaussian interpolation); NaN: no peak inside the sweep or no pattern", w, h, cue_);
+        out.add_image("fbar", "index", "focus index of the peak of E(3, f) (Eq. 2.9, Gaussian interpolation); NaN: no peak inside the sweep or no pattern", w, h, std::move(cue_));
         break;
       case Method::two_focal:
-        out.add_image("omega", "", "E(3, f2) / E(3, f1) (Eq. 2.10); NaN: a setting without measurable pattern", w, h, cue_);
+        out.add_image("omega", "", "E(3, f2) / E(3, f1) (Eq. 2.10); NaN: a setting without measurable pattern", w, h, std::move(cue_));
         break;
       case Method::single_focal:
-        out.add_image("modulation", "", "E(3, f) / mean at the one focus setting (Zhang & Nayar 2006); NaN: invalid", w, h, cue_);
+        out.add_image("modulation", "", "E(3, f) / mean at the one focus setting (Zhang & Nayar 2006); NaN: invalid", w, h, std::move(cue_));
         break;
     }
     if (method_ == Method::invariance) {
@@ -142,13 +152,18 @@ class SweepSession final : public sdk::Session {
                       w, h, acc_->e3(f));
       report["pairs"] = invariance_summary(*acc_, pairs_);
     } else {
-      std::vector<float> peak(n, 0.f);
-      for (uint32_t f = 0; f < acc_->focus_count(); ++f)
-        for (size_t i = 0; i < n; ++i) peak[i] = std::max(peak[i], acc_->e3(f)[i]);
-      out.add_image("e3_peak_dn", "DN", "largest E(3, f) over the focus settings (pattern contrast)", w, h, peak);
+      if (method_ != Method::multi_focal) {  // the multi-focal kernel made it in end_round
+        peak_.assign(n, 0.f);
+        for (uint32_t f = 0; f < acc_->focus_count(); ++f)
+          for (size_t i = 0; i < n; ++i) peak_[i] = std::max(peak_[i], acc_->e3(f)[i]);
+      }
+      out.add_image("e3_peak_dn", "DN", "largest E(3, f) over the focus settings (pattern contrast)", w, h, std::move(peak_));
     }
-    out.add_image("mean_dn", "DN", "mean of the temporal profile (focus setting 0)", w, h, acc_->mean());
-    out.add_image("valid", "", "255 where the method's result is valid, else 0", w, h, valid_map);
+    std::vector<float> mean;
+    sdk::take_map(mean, n);
+    std::copy(acc_->mean().begin(), acc_->mean().end(), mean.begin());
+    out.add_image("mean_dn", "DN", "mean of the temporal profile (focus setting 0)", w, h, std::move(mean));
+    out.add_image("valid", "", "255 where the method's result is valid, else 0", w, h, std::move(valid_map));
     sdk::StandardOutputs std_out;
     std_out.decode_ms = decode_ms_;
     std_out.pattern_count = config_.focus_mm.size() * kPeriodPx;
@@ -168,7 +183,7 @@ class SweepSession final : public sdk::Session {
   std::vector<float> plane_depth_;  // calibrate-*: the plane's depth (input depth_mm)
   sdk::Error table_error_;
   std::unique_ptr<E3Accumulator> acc_;
-  std::vector<float> cue_, depth_;
+  std::vector<float> cue_, depth_, peak_;  // peak_: max_f E(3, f)
   size_t cue_valid_ = 0;
   bool planned_ = false;
   double decode_ms_ = 0;

@@ -19,10 +19,13 @@ struct E3Accumulator::Buckets {
   std::vector<int16_t> i16;
   std::vector<int32_t> i32;
   std::vector<float> f32;
-  void zero(uint32_t type, size_t n) {
-    if (type == PROCAM_PIXEL_U8) i16.assign(4 * n, 0);
-    else if (type == PROCAM_PIXEL_U16) i32.assign(4 * n, 0);
-    else f32.assign(4 * n, 0.f);
+  // Sized for 4 buckets of n pixels. Not cleared: the first frame of each
+  // bucket overwrites it (add_rows' `first`), which saves a 4n-element
+  // memset per focus setting and one read per pixel of those frames.
+  void size_for(uint32_t type, size_t n) {
+    if (type == PROCAM_PIXEL_U8) i16.resize(4 * n);
+    else if (type == PROCAM_PIXEL_U16) i32.resize(4 * n);
+    else f32.resize(4 * n);
   }
 };
 
@@ -51,23 +54,31 @@ void saturation_bits(const In* row, uint32_t w, In sat, uint8_t* bits) {
     if (!(row[x] < sat)) bits[x / 8] |= static_cast<uint8_t>(1u << (x % 8));
 }
 
-// One band of rows of a frame into bucket `d` (+ or - by `negative`), the DC
-// sum (when dc != nullptr) and the saturation bits (`bit_stride` bytes per
-// row). Separate simple loops per row so each vectorises.
+// One band of rows of a frame into bucket `d` (+ or - by `negative`; the
+// bucket's first frame, `first`, overwrites it), the DC sum (when
+// dc != nullptr; `dc_first` overwrites) and the saturation bits (`bit_stride`
+// bytes per row). Separate simple loops per row so each vectorises.
 template <class In, class Acc>
-void add_rows(const procam_image& frame, Acc* d, bool negative, float* dc, uint8_t* bits, size_t bit_stride,
-              In saturated_at, uint32_t y0, uint32_t y1) {
+void add_rows(const procam_image& frame, Acc* d, bool negative, bool first, float* dc, bool dc_first, uint8_t* bits,
+              size_t bit_stride, In saturated_at, uint32_t y0, uint32_t y1) {
   const uint32_t w = frame.width;
   for (uint32_t y = y0; y < y1; ++y) {
     const In* row = reinterpret_cast<const In*>(sdk::row_bytes(frame, y));
     Acc* b = d + size_t{y} * w;
-    if (negative)
+    if (first && negative)
+      for (uint32_t x = 0; x < w; ++x) b[x] = static_cast<Acc>(-static_cast<Acc>(row[x]));
+    else if (first)
+      for (uint32_t x = 0; x < w; ++x) b[x] = static_cast<Acc>(row[x]);
+    else if (negative)
       for (uint32_t x = 0; x < w; ++x) b[x] = static_cast<Acc>(b[x] - static_cast<Acc>(row[x]));
     else
       for (uint32_t x = 0; x < w; ++x) b[x] = static_cast<Acc>(b[x] + static_cast<Acc>(row[x]));
     if (dc != nullptr) {
       float* s = dc + size_t{y} * w;
-      for (uint32_t x = 0; x < w; ++x) s[x] += static_cast<float>(row[x]);
+      if (dc_first)
+        for (uint32_t x = 0; x < w; ++x) s[x] = static_cast<float>(row[x]);
+      else
+        for (uint32_t x = 0; x < w; ++x) s[x] += static_cast<float>(row[x]);
     }
     saturation_bits(row, w, saturated_at, bits + size_t{y} * bit_stride);
   }
@@ -144,22 +155,25 @@ sdk::Error E3Accumulator::add(uint32_t focus, uint32_t shift, const procam_image
     } else {
       active_[focus] = std::make_unique<Buckets>();
     }
-    active_[focus]->zero(pixel_type_, n);
+    active_[focus]->size_for(pixel_type_, n);
   }
   Buckets& bk = *active_[focus];
   const uint32_t b = shift % 4;
   const bool negative = (shift % 8) >= 4;
+  // Bucket b takes shifts b, b + 4, ..., b + 20: the first of them to arrive overwrites it.
+  const bool first = (seen_[focus] & (0x111111u << b)) == 0;
   float* dc = focus == 0 ? dc_.data() : nullptr;
+  const bool dc_first = seen_[focus] == 0;
   uint8_t* bits = sat_bits_.data();
   sdk::parallel_rows(height_, threads_, [&](uint32_t y0, uint32_t y1) {
     if (pixel_type_ == PROCAM_PIXEL_U8) {
       const auto sat = static_cast<uint8_t>(std::min(255.0, full_scale_));
-      add_rows<uint8_t, int16_t>(frame, bk.i16.data() + b * n, negative, dc, bits, bit_stride_, sat, y0, y1);
+      add_rows<uint8_t, int16_t>(frame, bk.i16.data() + b * n, negative, first, dc, dc_first, bits, bit_stride_, sat, y0, y1);
     } else if (pixel_type_ == PROCAM_PIXEL_U16) {
       const auto sat = static_cast<uint16_t>(std::min(65535.0, full_scale_));
-      add_rows<uint16_t, int32_t>(frame, bk.i32.data() + b * n, negative, dc, bits, bit_stride_, sat, y0, y1);
+      add_rows<uint16_t, int32_t>(frame, bk.i32.data() + b * n, negative, first, dc, dc_first, bits, bit_stride_, sat, y0, y1);
     } else {
-      add_rows<float, float>(frame, bk.f32.data() + b * n, negative, dc, bits, bit_stride_,
+      add_rows<float, float>(frame, bk.f32.data() + b * n, negative, first, dc, dc_first, bits, bit_stride_,
                               static_cast<float>(full_scale_), y0, y1);
     }
   });

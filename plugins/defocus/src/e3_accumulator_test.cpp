@@ -148,3 +148,36 @@ TEST(E3Accumulator, RejectsDuplicatesOutOfRangeAndWrongFormatWithoutChangingStat
 
 }  // namespace
 }  // namespace procam::defocus
+
+namespace procam::defocus {
+namespace {
+
+// Buckets are not cleared between focus settings: the first frame of each
+// bucket overwrites it. Settings with different amplitudes, the later two
+// interleaved in a scrambled order (one of them on recycled buckets holding
+// setting 0's sums), must each give their own closed-form E3 and the mean.
+TEST(E3Accumulator, ScrambledInterleavedSettingsOnRecycledBuckets) {
+  const uint32_t w = 5, h = 2, F = 3;
+  const double amp[F] = {9.0, 31.0, 17.0};
+  E3Accumulator acc(w, h, F, PROCAM_PIXEL_U16, 65535, 2);
+  std::vector<std::pair<uint32_t, uint32_t>> order;
+  for (uint32_t t = 0; t < 24; ++t) order.emplace_back(0, (t * 7) % 24);
+  for (uint32_t t = 0; t < 24; ++t) {
+    order.emplace_back(1, (t * 5 + 3) % 24);
+    order.emplace_back(2, (t * 11 + 1) % 24);
+  }
+  for (const auto& [f, t] : order) {
+    auto frame = make_frame<uint16_t>(w, h, t, [&, f = f](size_t i, uint32_t tt) {
+      return 1000.0 + 10.0 * double(i) + amp[f] * 16.0 * std::cos(2 * kPi * 3 * tt / 24.0 + 0.2 * double(i));
+    });
+    ASSERT_TRUE(acc.add(f, t, view_of(frame, w, h)).ok());
+  }
+  ASSERT_TRUE(acc.complete());
+  for (size_t i = 0; i < size_t{w} * h; ++i) {
+    for (uint32_t f = 0; f < F; ++f) EXPECT_NEAR(acc.e3(f)[i], amp[f] * 16.0, 1.0) << i << " f " << f;
+    EXPECT_NEAR(acc.mean()[i], 1000.0 + 10.0 * double(i), 0.5) << i;
+  }
+}
+
+}  // namespace
+}  // namespace procam::defocus

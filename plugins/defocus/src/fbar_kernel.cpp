@@ -1,23 +1,21 @@
 // SPDX-License-Identifier: MIT
-// The multi-focal hot path after the last frame: fbar (thesis Eq. 2.9 with
-// Gaussian interpolation) and the table lookup for a whole image, written for
-// the vectoriser: per row, the argmax over focus settings runs setting by
-// setting over the row (branch-free selects), the interpolation uses a
-// polynomial logarithm, and only the table lookup is scalar (through a
-// uniform-grid index of the table's segments: O(1) per pixel, same result as
-// CalibrationTable::lookup).
+// The multi-focal hot path after the last frame (see fbar_kernel.hpp): fbar
+// (thesis Eq. 2.9 with Gaussian interpolation) and the table lookup for a
+// whole image, one fused pass per row. This file holds the scalar kernel, the
+// float table and the driver, which runs the AVX2 twin (fbar_avx2.cpp) where
+// the CPU has it.
+#include "fbar_kernel.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "focus_measures.hpp"
+#include "procam/sdk/simd.hpp"
 
 namespace procam::defocus {
+namespace detail {
 namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -40,30 +38,10 @@ inline float fast_ln(float x) {
   return static_cast<float>(e) * 0.69314718f + series;
 }
 
-#if defined(__SSE2__)
-inline __m128 select_ps(__m128 m, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
-
-// fast_ln on 4 lanes (same arithmetic, so the same results up to rounding order).
-inline __m128 fast_ln_ps(__m128 x) {
-  const __m128i bits = _mm_castps_si128(x);
-  __m128i e = _mm_sub_epi32(_mm_and_si128(_mm_srli_epi32(bits, 23), _mm_set1_epi32(0xff)), _mm_set1_epi32(127));
-  __m128 m = _mm_castsi128_ps(
-      _mm_or_si128(_mm_and_si128(bits, _mm_set1_epi32(0x007fffff)), _mm_set1_epi32(0x3f800000)));
-  const __m128 big = _mm_cmpgt_ps(m, _mm_set1_ps(1.41421356f));
-  m = select_ps(big, _mm_mul_ps(m, _mm_set1_ps(0.5f)), m);
-  e = _mm_sub_epi32(e, _mm_castps_si128(big));  // big lanes are -1: e + 1
-  const __m128 one = _mm_set1_ps(1.f);
-  const __m128 t = _mm_div_ps(_mm_sub_ps(m, one), _mm_add_ps(m, one)), t2 = _mm_mul_ps(t, t);
-  __m128 p = _mm_add_ps(_mm_set1_ps(2.f / 5.f), _mm_mul_ps(t2, _mm_set1_ps(2.f / 7.f)));
-  p = _mm_add_ps(_mm_set1_ps(2.f / 3.f), _mm_mul_ps(t2, p));
-  p = _mm_add_ps(_mm_set1_ps(2.f), _mm_mul_ps(t2, p));
-  return _mm_add_ps(_mm_mul_ps(_mm_cvtepi32_ps(e), _mm_set1_ps(0.69314718f)), _mm_mul_ps(t, p));
-}
-#endif
-
-// Uniform-grid index over a table's x range: bin b holds the last sample k
-// with x_k <= x0 + b dx, so a lookup starts there and steps at most a few
-// samples forward.
+// Uniform-grid index over a table's x range (double, any spacing): bin b
+// holds the last sample k with x_k <= x0 + b dx, so a lookup starts there and
+// steps forward. The fallback when no FloatTable grid separates the
+// breakpoints (samples closer than range / 2^16).
 struct TableIndex {
   const sdk::CalibrationTable* table = nullptr;
   double x0 = 0, inv_dx = 0;
@@ -97,138 +75,171 @@ struct TableIndex {
   }
 };
 
+// The smallest float >= v (v finite): then float x >= result <=> double(x) >= v.
+float float_at_or_above(double v) {
+  auto f = static_cast<float>(v);
+  if (double(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+// The largest float <= v.
+float float_at_or_below(double v) {
+  auto f = static_cast<float>(v);
+  if (double(f) > v) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
 }  // namespace
 
+FloatTable::FloatTable(const sdk::CalibrationTable* table) {
+  if (table == nullptr || table->samples.size() < 2) return;
+  const auto& s = table->samples;
+  const size_t n = s.size();
+  lo = float_at_or_above(s.front().first);
+  hi = float_at_or_below(s.back().first);
+  if (!(hi > lo) || !std::isfinite(lo) || !std::isfinite(hi)) return;
+  // step_x[k]: the float threshold of the breakpoint (sample k + 1) between
+  // segments k and k + 1; +inf after the last segment.
+  std::vector<float> step_x(n - 1);
+  double min_gap = s.back().first - s.front().first;
+  for (size_t k = 0; k + 1 < n; ++k) {
+    step_x[k] = k + 2 < n ? float_at_or_above(s[k + 1].first) : std::numeric_limits<float>::infinity();
+    min_gap = std::min(min_gap, s[k + 1].first - s[k].first);
+  }
+  // Bins of about half the smallest gap; grow until no two breakpoints share
+  // a bin under the float bin() the kernels use.
+  double bins = std::ceil(2.0 * (double(hi) - double(lo)) / min_gap);
+  std::vector<int32_t> breakpoint_bin(n - 2);
+  for (; bins <= kMaxBins; bins *= 2) {
+    x0 = lo;
+    inv_dx = static_cast<float>(bins / (double(hi) - double(lo)));
+    dx = static_cast<float>((double(hi) - double(lo)) / bins);
+    const float top = (hi - x0) * inv_dx;  // bin(hi), unclamped
+    if (!(top >= 0.f) || !(top <= float(2 * kMaxBins))) continue;
+    last_bin = static_cast<int32_t>(top);
+    bool separated = true;
+    for (size_t k = 0; k + 2 < n && separated; ++k) {
+      const float v = (step_x[k] - x0) * inv_dx;
+      breakpoint_bin[k] = v <= top ? static_cast<int32_t>(v) : last_bin + 1;
+      separated = breakpoint_bin[k] <= last_bin && (k == 0 || breakpoint_bin[k] > breakpoint_bin[k - 1]);
+    }
+    if (!separated) continue;
+    // Per bin b: its first segment k = the number of breakpoints in lower bins,
+    // the threshold of the next breakpoint, and both lines (k and k + 1) as
+    // y at the bin's left edge xb + slope (the lines are the table's own,
+    // evaluated in double at the float xb the kernels compute).
+    const auto nb = size_t(last_bin) + 1;
+    thr.resize(nb);
+    line_y.resize(2 * nb);
+    line_slope.resize(2 * nb);
+    size_t k = 0;
+    for (size_t b = 0; b < nb; ++b) {
+      while (k < breakpoint_bin.size() && breakpoint_bin[k] < int32_t(b)) ++k;
+      thr[b] = step_x[k];
+      const float xb = x0 + static_cast<float>(b) * dx;
+      for (size_t side = 0; side < 2; ++side) {
+        const size_t seg = std::min(k + side, n - 2);
+        const auto& p = s[seg];
+        const auto& q = s[seg + 1];
+        const double slope = (q.second - p.second) / (q.first - p.first);
+        line_y[2 * b + side] = static_cast<float>(p.second + (double(xb) - p.first) * slope);
+        line_slope[2 * b + side] = static_cast<float>(slope);
+      }
+    }
+    usable = true;
+    return;
+  }
+}
+
+int32_t FloatTable::bin(float x) const noexcept {
+  const float v = (x - x0) * inv_dx;
+  // Out of range and NaN: clamped (the caller masks those lanes anyway).
+  if (!(v >= 0.f)) return 0;
+  if (!(v < float(last_bin))) return last_bin;
+  return static_cast<int32_t>(v);
+}
+
+float FloatTable::lookup(float x) const noexcept {
+  if (!(x >= lo) || !(x <= hi)) return kNaN;
+  const int32_t b = bin(x);
+  const size_t i = 2 * size_t(b) + (x >= thr[size_t(b)] ? 1u : 0u);
+  const float xb = x0 + static_cast<float>(b) * dx;
+  return line_y[i] + (x - xb) * line_slope[i];
+}
+
+size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {
+  const auto last = static_cast<int32_t>(a.F) - 1;
+  size_t count = 0;
+  for (uint32_t x = x_begin; x < x_end; ++x) {
+    // Running argmax (first maximum wins, as fbar_from_e3) with the values
+    // left and right of it.
+    float b = a.e[0][x], l = 0.f, r = 0.f, prev = b;
+    int32_t k = 0;
+    for (uint32_t f = 1; f < a.F; ++f) {
+      const float e = a.e[f][x];
+      const bool better = e > b;
+      const bool right_of_best = !better && k == static_cast<int32_t>(f) - 1;
+      r = right_of_best ? e : r;
+      l = better ? prev : l;
+      b = better ? e : b;
+      k = better ? static_cast<int32_t>(f) : k;
+      prev = e;
+    }
+    // Eq. 2.9, Gaussian interpolation: offset = (ln l - ln r) / (2 (ln l - 2 ln b + ln r)),
+    // with the logs taken of l/b and r/b in (0, 1].
+    const float mean = a.mean[x];
+    const float floor = a.min_mod * mean;
+    const bool inner = (k > 0) & (k < last);
+    const bool strong = (l >= floor) & (r >= floor) & (b >= floor) & (l > 0.f) & (r > 0.f);
+    const bool lit = mean >= a.black;
+    const float bb = b > 0.f ? b : 1.f;
+    const float lm = fast_ln(strong ? l / bb : 1.f), lp = fast_ln(strong ? r / bb : 1.f);
+    const float curv = lm + lp;  // <= 0; < 0 unless flat
+    const bool curved = curv < -1e-9f;
+    const float off = 0.5f * (lm - lp) / (curved ? curv : -1.f);
+    const bool saturated = (a.sat[x / 8] >> (x % 8)) & 1u;
+    const bool ok = inner & strong & lit & curved & (std::fabs(off) <= 0.5f + 1e-4f) & !saturated;
+    const float clamped = off < -0.5f ? -0.5f : (off > 0.5f ? 0.5f : off);
+    const float fbar = ok ? static_cast<float>(k) + clamped : kNaN;
+    a.fbar[x] = fbar;
+    count += ok ? 1u : 0u;
+    if (a.peak != nullptr) a.peak[x] = b;
+    if (a.table != nullptr) a.depth[x] = ok ? a.table->lookup(fbar) : kNaN;
+  }
+  return count;
+}
+
+}  // namespace detail
+
 size_t fbar_depth_map(const E3Accumulator& acc, const Validity& rule, const sdk::CalibrationTable* table,
-                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm) {
+                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm, std::vector<float>* peak) {
   const uint32_t w = acc.width(), h = acc.height(), F = acc.focus_count();
   const size_t n = size_t{w} * h;
   fbar.resize(n);
   if (depth_mm != nullptr) depth_mm->resize(n);
-  const TableIndex index(table);
+  if (peak != nullptr) peak->resize(n);
+  const bool want_depth = depth_mm != nullptr;
+  const detail::FloatTable ftable(want_depth ? table : nullptr);
+  // Tables whose breakpoints no float grid separates: the double path after the pass.
+  const detail::TableIndex index(want_depth && !ftable.usable ? table : nullptr);
+  const bool avx2 = sdk::cpu_has_avx2();
   std::vector<size_t> counts(h, 0);
-  const auto black = static_cast<float>(rule.black_dn);
-  const auto min_mod = static_cast<float>(rule.min_modulation);
-  sdk::parallel_rows(h, threads, [&, w](uint32_t y0, uint32_t y1) {
-    // Every load below is unconditional and every choice a select, so GCC
-    // if-converts and vectorises the loops (-ftrapping-math forbids it to
-    // speculate a conditional division or load itself).
-    std::vector<float> best(w), left(w), right(w);
-    std::vector<int32_t> arg(w);
+  sdk::parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
+    std::vector<const float*> e(F);
     for (uint32_t y = y0; y < y1; ++y) {
       const size_t row = size_t{y} * w;
-      float* __restrict b = best.data();
-      float* __restrict l = left.data();
-      float* __restrict r = right.data();
-      int32_t* __restrict k = arg.data();
-      const float* __restrict e0 = acc.e3(0).data() + row;
-      for (uint32_t x = 0; x < w; ++x) {
-        b[x] = e0[x];
-        k[x] = 0;
-        l[x] = 0.f;
-        r[x] = 0.f;
-      }
-      // Running argmax (first maximum wins, as fbar_from_e3) with the values
-      // left and right of it: E(f) arrives setting by setting.
-      for (uint32_t f = 1; f < F; ++f) {
-        const float* __restrict ef = acc.e3(f).data() + row;
-        const float* __restrict eprev = acc.e3(f - 1).data() + row;
-        const auto fi = static_cast<int32_t>(f);
-        uint32_t x0 = 0;
-#if defined(__SSE2__)
-        // 4 pixels per step; select(m, a, b) = (m & a) | (~m & b).
-        const __m128i vf = _mm_set1_epi32(fi), vprev = _mm_set1_epi32(fi - 1);
-        for (; x0 + 4 <= w; x0 += 4) {
-          const __m128 e = _mm_loadu_ps(ef + x0), before = _mm_loadu_ps(eprev + x0);
-          const __m128 bx = _mm_loadu_ps(b + x0), lx = _mm_loadu_ps(l + x0), rx = _mm_loadu_ps(r + x0);
-          const __m128i kx = _mm_loadu_si128(reinterpret_cast<const __m128i*>(k + x0));
-          const __m128 better = _mm_cmpgt_ps(e, bx);
-          const __m128 right_of_best = _mm_andnot_ps(better, _mm_castsi128_ps(_mm_cmpeq_epi32(kx, vprev)));
-          _mm_storeu_ps(r + x0, _mm_or_ps(_mm_and_ps(right_of_best, e), _mm_andnot_ps(right_of_best, rx)));
-          _mm_storeu_ps(l + x0, _mm_or_ps(_mm_and_ps(better, before), _mm_andnot_ps(better, lx)));
-          _mm_storeu_ps(b + x0, _mm_or_ps(_mm_and_ps(better, e), _mm_andnot_ps(better, bx)));
-          const __m128i bi = _mm_castps_si128(better);
-          _mm_storeu_si128(reinterpret_cast<__m128i*>(k + x0),
-                           _mm_or_si128(_mm_and_si128(bi, vf), _mm_andnot_si128(bi, kx)));
-        }
-#endif
-        for (uint32_t x = x0; x < w; ++x) {
-          const float e = ef[x], before = eprev[x], bx = b[x], lx = l[x], rx = r[x];
-          const int32_t kx = k[x];
-          const bool better = e > bx;
-          const bool right_of_best = (!better) & (kx == fi - 1);
-          r[x] = right_of_best ? e : rx;
-          l[x] = better ? before : lx;
-          b[x] = better ? e : bx;
-          k[x] = better ? fi : kx;
-        }
-      }
-      float* __restrict out = fbar.data() + row;
-      const float* __restrict mean = acc.mean().data() + row;
-      const auto last = static_cast<int32_t>(F) - 1;
-      uint32_t x1 = 0;
-#if defined(__SSE2__)
-      {
-        const __m128 vmin = _mm_set1_ps(min_mod), vblack = _mm_set1_ps(black), zero = _mm_setzero_ps();
-        const __m128 one = _mm_set1_ps(1.f), half = _mm_set1_ps(0.5f), nan = _mm_set1_ps(kNaN);
-        const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-        const __m128i vlast = _mm_set1_epi32(last), izero = _mm_setzero_si128();
-        for (; x1 + 4 <= w; x1 += 4) {
-          const __m128 lx = _mm_loadu_ps(l + x1), rx = _mm_loadu_ps(r + x1), bx = _mm_loadu_ps(b + x1);
-          const __m128 mx = _mm_loadu_ps(mean + x1);
-          const __m128i kx = _mm_loadu_si128(reinterpret_cast<const __m128i*>(k + x1));
-          const __m128 floor = _mm_mul_ps(vmin, mx);
-          const __m128 inner = _mm_castsi128_ps(_mm_and_si128(_mm_cmpgt_epi32(kx, izero), _mm_cmplt_epi32(kx, vlast)));
-          __m128 strong = _mm_and_ps(_mm_cmpge_ps(lx, floor), _mm_cmpge_ps(rx, floor));
-          strong = _mm_and_ps(strong, _mm_cmpge_ps(bx, floor));
-          strong = _mm_and_ps(strong, _mm_and_ps(_mm_cmpgt_ps(lx, zero), _mm_cmpgt_ps(rx, zero)));
-          const __m128 lit = _mm_cmpge_ps(mx, vblack);
-          const __m128 bb = select_ps(_mm_cmpgt_ps(bx, zero), bx, one);
-          const __m128 lm = fast_ln_ps(select_ps(strong, _mm_div_ps(lx, bb), one));
-          const __m128 lp = fast_ln_ps(select_ps(strong, _mm_div_ps(rx, bb), one));
-          const __m128 curv = _mm_add_ps(lm, lp);
-          const __m128 curved = _mm_cmplt_ps(curv, _mm_set1_ps(-1e-9f));
-          const __m128 off = _mm_div_ps(_mm_mul_ps(half, _mm_sub_ps(lm, lp)), select_ps(curved, curv, _mm_set1_ps(-1.f)));
-          const __m128 in_range = _mm_cmple_ps(_mm_and_ps(off, abs_mask), _mm_set1_ps(0.5f + 1e-4f));
-          const __m128 ok = _mm_and_ps(_mm_and_ps(_mm_and_ps(inner, strong), _mm_and_ps(lit, curved)), in_range);
-          const __m128 clamped = _mm_min_ps(_mm_max_ps(off, _mm_set1_ps(-0.5f)), half);
-          _mm_storeu_ps(out + x1, select_ps(ok, _mm_add_ps(_mm_cvtepi32_ps(kx), clamped), nan));
-        }
-      }
-#endif
-      for (uint32_t x = x1; x < w; ++x) {
-        // Eq. 2.9, Gaussian interpolation: offset = (ln l - ln r) / (2 (ln l - 2 ln b + ln r)),
-        // with the logs taken of l/b and r/b in (0, 1].
-        // Bitwise & (not &&): no branches, so the loop vectorises.
-        const float floor = min_mod * mean[x];
-        const bool inner = (k[x] > 0) & (k[x] < last);
-        const bool strong = (l[x] >= floor) & (r[x] >= floor) & (b[x] >= floor) & (l[x] > 0.f) & (r[x] > 0.f);
-        const bool lit = mean[x] >= black;
-        const float bb = b[x] > 0.f ? b[x] : 1.f;
-        const float ratio_l = l[x] / bb, ratio_r = r[x] / bb;
-        const float lm = fast_ln(strong ? ratio_l : 1.f), lp = fast_ln(strong ? ratio_r : 1.f);
-        const float curv = lm + lp;  // <= 0; < 0 unless flat
-        const bool curved = curv < -1e-9f;
-        const float denom = curved ? curv : -1.f;
-        const float off = 0.5f * (lm - lp) / denom;
-        const bool ok = inner & strong & lit & curved & (std::fabs(off) <= 0.5f + 1e-4f);
-        const float clamped = off < -0.5f ? -0.5f : (off > 0.5f ? 0.5f : off);
-        out[x] = ok ? static_cast<float>(k[x]) + clamped : kNaN;
-      }
-      const uint8_t* sat = acc.saturation_row(y);
-      size_t c = 0;
-      for (uint32_t x = 0; x < w; ++x) {
-        const bool saturated = (sat[x / 8] >> (x % 8)) & 1u;
-        out[x] = saturated ? kNaN : out[x];
-        c += out[x] == out[x] ? 1u : 0u;
-      }
-      counts[y] = c;
-      if (depth_mm != nullptr) {
+      for (uint32_t f = 0; f < F; ++f) e[f] = acc.e3(f).data() + row;
+      detail::RowArgs a{e.data(), F, acc.mean().data() + row, acc.saturation_row(y),
+                        static_cast<float>(rule.black_dn), static_cast<float>(rule.min_modulation),
+                        ftable.usable ? &ftable : nullptr, fbar.data() + row,
+                        want_depth ? depth_mm->data() + row : nullptr, peak != nullptr ? peak->data() + row : nullptr};
+      counts[y] = avx2 ? detail::fbar_row_avx2(a, 0, w) : detail::fbar_row_scalar(a, 0, w);
+      if (want_depth && !ftable.usable) {
         float* d = depth_mm->data() + row;
-        if (table == nullptr || index.start.empty())
-          std::fill(d, d + w, kNaN);
+        const float* fb = fbar.data() + row;
+        if (index.start.empty())
+          std::fill(d, d + w, detail::kNaN);
         else
-          for (uint32_t x = 0; x < w; ++x) d[x] = std::isnan(out[x]) ? kNaN : index.lookup(out[x]);
+          for (uint32_t x = 0; x < w; ++x) d[x] = std::isnan(fb[x]) ? detail::kNaN : index.lookup(fb[x]);
       }
     }
   });

@@ -58,12 +58,16 @@ size_t modulation_map(const E3Accumulator& acc, uint32_t f, const Validity& rule
 // Whether pixel (x, y) passes the saturation / black tests (not the E tests).
 bool usable(const E3Accumulator& acc, uint32_t x, uint32_t y, const Validity& rule) noexcept;
 
-// fbar_map and, when `table` is not null, depth_mm = table->lookup(fbar) in
-// the same pass (the multi-focal hot path: one read of the E maps, rows in
-// cache). Same results as fbar_from_e3 per pixel up to the fast logarithm
-// (|error| < 1e-6 in fbar) and as CalibrationTable::lookup. Returns the
+// fbar_map and, when `table` and `depth_mm` are not null, depth_mm =
+// table->lookup(fbar) in the same pass, and when `peak` is not null
+// peak = max_f E(3, f) (the multi-focal hot path: one read of the E maps,
+// per pixel in registers; AVX2 where the CPU has it, see fbar_kernel.hpp).
+// Same results as fbar_from_e3 per pixel up to the fast logarithm
+// (|error| < 2e-5 in fbar, tested) and as CalibrationTable::lookup up to
+// float rounding (same validity, |error| <~ 1e-7 x depth). Returns the
 // number of valid fbar values.
 size_t fbar_depth_map(const E3Accumulator& acc, const Validity& rule, const sdk::CalibrationTable* table,
-                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm);
+                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm,
+                      std::vector<float>* peak = nullptr);
 
 }  // namespace procam::defocus

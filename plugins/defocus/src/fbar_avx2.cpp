@@ -1,0 +1,136 @@
+// SPDX-License-Identifier: MIT
+// AVX2 twin of fbar_row_scalar (fbar_kernel.hpp): 8 pixels per step, the same
+// float operations in the same order (no FMA), so bit-identical results.
+// Compiled with __attribute__((target("avx2"))) and called only where
+// sdk::cpu_has_avx2() (sdk/simd.hpp): no -march flags.
+#include <cstdint>
+#include <cstring>
+#include <limits>
+
+#include "fbar_kernel.hpp"
+#include "procam/sdk/simd.hpp"
+
+namespace procam::defocus::detail {
+
+#ifdef PROCAM_SDK_X86
+namespace {
+
+#define PROCAM_AVX2 __attribute__((target("avx2"), always_inline)) inline
+
+PROCAM_AVX2 __m256 select8(__m256 m, __m256 a, __m256 b) { return _mm256_blendv_ps(b, a, m); }
+
+// fast_ln of fbar_kernel.cpp on 8 lanes: x = m 2^e, m in [sqrt(1/2), sqrt(2)),
+// ln m = 2 atanh(t), t = (m - 1)/(m + 1), four odd terms.
+PROCAM_AVX2 __m256 fast_ln8(__m256 x) {
+  const __m256i bits = _mm256_castps_si256(x);
+  __m256i e = _mm256_sub_epi32(_mm256_and_si256(_mm256_srli_epi32(bits, 23), _mm256_set1_epi32(0xff)),
+                               _mm256_set1_epi32(127));
+  __m256 m = _mm256_castsi256_ps(
+      _mm256_or_si256(_mm256_and_si256(bits, _mm256_set1_epi32(0x007fffff)), _mm256_set1_epi32(0x3f800000)));
+  const __m256 big = _mm256_cmp_ps(m, _mm256_set1_ps(1.41421356f), _CMP_GT_OQ);
+  m = select8(big, _mm256_mul_ps(m, _mm256_set1_ps(0.5f)), m);
+  e = _mm256_sub_epi32(e, _mm256_castps_si256(big));  // big lanes are -1: e + 1
+  const __m256 one = _mm256_set1_ps(1.f);
+  const __m256 t = _mm256_div_ps(_mm256_sub_ps(m, one), _mm256_add_ps(m, one)), t2 = _mm256_mul_ps(t, t);
+  __m256 p = _mm256_add_ps(_mm256_set1_ps(2.f / 5.f), _mm256_mul_ps(t2, _mm256_set1_ps(2.f / 7.f)));
+  p = _mm256_add_ps(_mm256_set1_ps(2.f / 3.f), _mm256_mul_ps(t2, p));
+  p = _mm256_add_ps(_mm256_set1_ps(2.f), _mm256_mul_ps(t2, p));
+  return _mm256_add_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(e), _mm256_set1_ps(0.69314718f)), _mm256_mul_ps(t, p));
+}
+
+// FloatTable::lookup on 8 lanes where `valid`, NaN elsewhere.
+PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
+  const __m256 in = _mm256_and_ps(valid, _mm256_and_ps(_mm256_cmp_ps(x, _mm256_set1_ps(t.lo), _CMP_GE_OQ),
+                                                       _mm256_cmp_ps(x, _mm256_set1_ps(t.hi), _CMP_LE_OQ)));
+  __m256i b = _mm256_cvttps_epi32(_mm256_mul_ps(_mm256_sub_ps(x, _mm256_set1_ps(t.x0)), _mm256_set1_ps(t.inv_dx)));
+  b = _mm256_min_epi32(_mm256_max_epi32(b, _mm256_setzero_si256()), _mm256_set1_epi32(t.last_bin));
+  const __m256 thr = _mm256_i32gather_ps(t.thr.data(), b, 4);
+  // Line 2b, or 2b + 1 past the bin's breakpoint (true lanes are -1).
+  const __m256i i = _mm256_sub_epi32(_mm256_add_epi32(b, b), _mm256_castps_si256(_mm256_cmp_ps(x, thr, _CMP_GE_OQ)));
+  const __m256 y0 = _mm256_i32gather_ps(t.line_y.data(), i, 4);
+  const __m256 slope = _mm256_i32gather_ps(t.line_slope.data(), i, 4);
+  const __m256 xb = _mm256_add_ps(_mm256_set1_ps(t.x0), _mm256_mul_ps(_mm256_cvtepi32_ps(b), _mm256_set1_ps(t.dx)));
+  const __m256 y = _mm256_add_ps(y0, _mm256_mul_ps(_mm256_sub_ps(x, xb), slope));
+  return select8(in, y, _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN()));
+}
+
+// Stores 8 lanes at p: non-temporal (two 16-byte halves; no read-for-
+// ownership of output lines the pass never reads) when `stream`, else plain.
+PROCAM_AVX2 void store8(float* p, __m256 v, bool stream) {
+  if (stream) {
+    _mm_stream_ps(p, _mm256_castps256_ps128(v));
+    _mm_stream_ps(p + 4, _mm256_extractf128_ps(v, 1));
+  } else {
+    _mm256_storeu_ps(p, v);
+  }
+}
+
+bool aligned16(const float* p) { return p == nullptr || (reinterpret_cast<uintptr_t>(p) & 15u) == 0; }
+
+}  // namespace
+
+__attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {
+  size_t count = 0;
+  uint32_t x = x_begin;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.f), half = _mm256_set1_ps(0.5f);
+  const __m256 nan = _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN());
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 vmin = _mm256_set1_ps(a.min_mod), vblack = _mm256_set1_ps(a.black);
+  const __m256 vlast = _mm256_set1_ps(static_cast<float>(a.F - 1));
+  const __m256i bit_of_lane = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+  // Output rows are streamed past the cache where 16-byte aligned (x_begin is a multiple of 8).
+  const bool stream = aligned16(a.fbar + x_begin) && aligned16(a.depth ? a.depth + x_begin : nullptr) &&
+                      aligned16(a.peak ? a.peak + x_begin : nullptr);
+  for (; x + 8 <= x_end; x += 8) {
+    // Running argmax (first maximum wins); k as float (exact small integers).
+    __m256 b = _mm256_loadu_ps(a.e[0] + x), prev = b, l = zero, r = zero, k = zero;
+    for (uint32_t f = 1; f < a.F; ++f) {
+      const __m256 e = _mm256_loadu_ps(a.e[f] + x);
+      const __m256 better = _mm256_cmp_ps(e, b, _CMP_GT_OQ);
+      const __m256 was_prev = _mm256_cmp_ps(k, _mm256_set1_ps(static_cast<float>(f - 1)), _CMP_EQ_OQ);
+      const __m256 right_of_best = _mm256_andnot_ps(better, was_prev);
+      r = select8(right_of_best, e, r);
+      l = select8(better, prev, l);
+      b = select8(better, e, b);
+      k = select8(better, _mm256_set1_ps(static_cast<float>(f)), k);
+      prev = e;
+    }
+    // Eq. 2.9 as in fbar_row_scalar.
+    const __m256 mean = _mm256_loadu_ps(a.mean + x);
+    const __m256 floor = _mm256_mul_ps(vmin, mean);
+    const __m256 inner = _mm256_and_ps(_mm256_cmp_ps(k, zero, _CMP_GT_OQ), _mm256_cmp_ps(k, vlast, _CMP_LT_OQ));
+    __m256 strong = _mm256_and_ps(_mm256_cmp_ps(l, floor, _CMP_GE_OQ), _mm256_cmp_ps(r, floor, _CMP_GE_OQ));
+    strong = _mm256_and_ps(strong, _mm256_cmp_ps(b, floor, _CMP_GE_OQ));
+    strong = _mm256_and_ps(strong, _mm256_and_ps(_mm256_cmp_ps(l, zero, _CMP_GT_OQ), _mm256_cmp_ps(r, zero, _CMP_GT_OQ)));
+    const __m256 lit = _mm256_cmp_ps(mean, vblack, _CMP_GE_OQ);
+    const __m256 bb = select8(_mm256_cmp_ps(b, zero, _CMP_GT_OQ), b, one);
+    const __m256 lm = fast_ln8(select8(strong, _mm256_div_ps(l, bb), one));
+    const __m256 lp = fast_ln8(select8(strong, _mm256_div_ps(r, bb), one));
+    const __m256 curv = _mm256_add_ps(lm, lp);
+    const __m256 curved = _mm256_cmp_ps(curv, _mm256_set1_ps(-1e-9f), _CMP_LT_OQ);
+    const __m256 off = _mm256_div_ps(_mm256_mul_ps(half, _mm256_sub_ps(lm, lp)), select8(curved, curv, _mm256_set1_ps(-1.f)));
+    const __m256 in_range = _mm256_cmp_ps(_mm256_and_ps(off, abs_mask), _mm256_set1_ps(0.5f + 1e-4f), _CMP_LE_OQ);
+    // Saturation: bit x % 8 of byte x / 8, x a multiple of 8 here.
+    const __m256i sat_byte = _mm256_set1_epi32(a.sat[x / 8]);
+    const __m256 unsaturated = _mm256_castsi256_ps(
+        _mm256_cmpeq_epi32(_mm256_and_si256(sat_byte, bit_of_lane), _mm256_setzero_si256()));
+    const __m256 ok = _mm256_and_ps(_mm256_and_ps(_mm256_and_ps(inner, strong), _mm256_and_ps(lit, curved)),
+                                    _mm256_and_ps(in_range, unsaturated));
+    const __m256 clamped = _mm256_min_ps(_mm256_max_ps(off, _mm256_set1_ps(-0.5f)), half);
+    const __m256 fbar = select8(ok, _mm256_add_ps(k, clamped), nan);
+    store8(a.fbar + x, fbar, stream);
+    count += static_cast<size_t>(__builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(ok))));
+    if (a.peak != nullptr) store8(a.peak + x, b, stream);
+    if (a.table != nullptr) store8(a.depth + x, lookup8(*a.table, fbar, ok), stream);
+  }
+  if (stream) _mm_sfence();  // the streamed rows are visible before the pass reports done
+  return count + fbar_row_scalar(a, x, x_end);
+}
+
+#else
+size_t fbar_row_avx2(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {
+  return fbar_row_scalar(a, x_begin, x_end);
+}
+#endif
+
+}  // namespace procam::defocus::detail

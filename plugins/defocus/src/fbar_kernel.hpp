@@ -1,0 +1,69 @@
+// SPDX-License-Identifier: MIT
+// Internals of the multi-focal hot path (fbar_depth_map in focus_measures.hpp):
+// one row of fbar (thesis Eq. 2.9, Gaussian interpolation) + the table lookup,
+// as a scalar kernel and its AVX2 twin (fbar_avx2.cpp) that gives
+// bit-identical results (same float operations in the same order, no FMA);
+// both are tested against each other and against the per-pixel reference
+// (fbar_from_e3 + CalibrationTable::lookup) in focus_measures_test.cpp.
+//
+// Per pixel, in registers: the running argmax over the F settings (first
+// maximum wins) with the values left and right of it, then Eq. 2.9 from the
+// three, the validity tests of focus_measures.hpp, the saturation bit, and
+// depth = table(fbar). One read of the F E-maps, the mean and the bits; no
+// intermediate arrays.
+//
+// Threads: the functions are reentrant; a FloatTable is read-only once built.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "procam/sdk/calibration_table.hpp"
+
+namespace procam::defocus::detail {
+
+// CalibrationTable::lookup in float, vectorisable: a uniform grid over x whose
+// bins hold at most one breakpoint each, so x picks one of its bin's two
+// lines with one compare (three gathers per 8 pixels in the AVX2 kernel).
+// Thresholds are rounded so the float compares decide exactly as the double
+// ones of CalibrationTable::lookup (x_f >= lo  <=>  double(x_f) >= x_min, and
+// likewise at every breakpoint): validity and segment always agree with the
+// reference; the value differs by float rounding only (|error| <~ 1e-7 x
+// |depth|, tested at 2e-6).
+struct FloatTable {
+  bool usable = false;    // false: no table, or no grid <= kMaxBins separates its breakpoints
+  float lo = 0, hi = 0;   // valid x range (see above)
+  float x0 = 0, inv_dx = 0, dx = 0;
+  int32_t last_bin = 0;   // bin(hi)
+  std::vector<float> thr;         // per bin: x >= thr takes the second line
+  std::vector<float> line_y, line_slope;  // per bin 2 lines: y = line_y + (x - xb) * line_slope,
+                                          // xb = x0 + bin * dx (the bin's left edge)
+  static constexpr int32_t kMaxBins = 1 << 16;
+  explicit FloatTable(const sdk::CalibrationTable* table);
+  // The bin of x: the same float operations in both kernels.
+  int32_t bin(float x) const noexcept;
+  // NaN outside [lo, hi] or for NaN x; requires usable.
+  float lookup(float x) const noexcept;
+};
+
+// One row: e[f] points at the row of E(f), f < F (F >= 1).
+struct RowArgs {
+  const float* const* e;
+  uint32_t F;
+  const float* mean;
+  const uint8_t* sat;   // saturation bits of the row (bit x % 8 of byte x / 8)
+  float black, min_mod; // Validity in DN and as a fraction of the mean
+  const FloatTable* table;  // null: no depth
+  float* fbar;          // out: fbar, NaN where invalid
+  float* depth;         // out (when table): depth, NaN where fbar is NaN or outside the table
+  float* peak;          // out (optional): max_f E(f)
+};
+
+// Both write pixels [x_begin, x_end) and return how many got a finite fbar.
+size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept;
+// x_begin must be a multiple of 8 (one byte of saturation bits per step).
+// Call only where sdk::cpu_has_avx2().
+size_t fbar_row_avx2(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept;
+
+}  // namespace procam::defocus::detail
