@@ -308,5 +308,132 @@ INSTANTIATE_TEST_SUITE_P(Fig514, MediaVsClearAir,
                            return s;
                          });
 
+// What the session refuses, and that its message says what to do.
+TEST(MediaStereoRig, SessionRefusesRigsAndParamsItCannotUse) {
+  Fixture f;
+  ASSERT_TRUE(open_rig("media-stereo-rig-plane", f));
+  const nlohmann::json good = engine::plugin_rig_json(*f.rig, 2), p = params(rig_config(), "media");
+  auto refuse = [&](const nlohmann::json& rig, const nlohmann::json& prm, int code, const std::string& says) {
+    std::unique_ptr<sdk::Session> s;
+    const sdk::Error e = create_binocular_session({"binocular", prm, rig, {}}, s);
+    EXPECT_EQ(e.code, code) << e.message;
+    EXPECT_NE(e.message.find(says), std::string::npos) << e.message;
+    EXPECT_FALSE(s);
+  };
+  {
+    std::unique_ptr<sdk::Session> s;
+    EXPECT_TRUE(create_binocular_session({"binocular", p, good, {}}, s).ok());
+  }
+  nlohmann::json one = good;
+  one["cameras"].erase(1);
+  refuse(one, p, PROCAM_ERR_FAILED_PRECONDITION, "two cameras");
+  nlohmann::json uncal = good;
+  uncal["cameras"][1].erase("calibration");
+  refuse(uncal, p, PROCAM_ERR_FAILED_PRECONDITION, "calibrated");
+  nlohmann::json distorted = good;
+  distorted["cameras"][0]["calibration"]["intrinsics"]["distortion"] = {0.1, 0, 0, 0, 0};
+  refuse(distorted, p, PROCAM_ERR_FAILED_PRECONDITION, "undistort");
+  nlohmann::json bad = p;
+  bad["beta_per_mm"] = 0.01;
+  refuse(good, bad, PROCAM_ERR_INVALID_ARGUMENT, "beta_per_mm");
+  bad = p;
+  bad["window"] = 6;
+  refuse(good, bad, PROCAM_ERR_INVALID_ARGUMENT, "odd");
+  bad = p;
+  bad["constraint"] = "fog";
+  refuse(good, bad, PROCAM_ERR_INVALID_ARGUMENT, "constraint");
+}
+
+// Item 4 of the brief: the sim's 12-bit frames of the plane, re-quantised to
+// 8 bits (v >> 4), stretched to 16 bits (v << 4) and as float (v / 4095),
+// through the session in process. Float is the 12-bit data exactly (same
+// full-scale values); 16-bit is the same data scaled by 65535/65520, so the
+// maps agree to a hair; 8-bit loses 4 bits of the signal.
+TEST(MediaStereoRig, EightTwelveSixteenBitAndFloatFramesDecodeAlike) {
+  const nlohmann::json cfg = rig_config();
+  Fixture f;
+  ASSERT_TRUE(open_rig("media-stereo-rig-plane", f));
+  const sdk::CreateArgs args{"binocular", params(cfg, "media"), engine::plugin_rig_json(*f.rig, 2), {}};
+  std::vector<Image> frames;
+  {
+    std::unique_ptr<sdk::Session> s;
+    ASSERT_TRUE(create_binocular_session(args, s).ok());
+    sdk::Plan plan;
+    bool has = false;
+    ASSERT_TRUE(s->next_plan(plan, has).ok());
+    ASSERT_TRUE(has);
+    ASSERT_EQ(plan.size(), 2u);
+    plan.view();
+    for (uint32_t i = 0; i < plan.size(); ++i) {
+      ASSERT_EQ(plan.settings(i).camera_index, static_cast<int32_t>(i));
+      ASSERT_TRUE(f.rig->projector().show(plan.pattern(i), i + 1).ok());
+      auto fr = f.rig->camera(i).capture(std::chrono::milliseconds(2000));
+      ASSERT_TRUE(fr.ok()) << fr.status().to_string();
+      ASSERT_EQ(fr->image.bit_depth(), 12u);
+      frames.push_back(std::move(fr->image));
+    }
+  }
+  const uint32_t w = frames[0].width(), h = frames[0].height();
+  const size_t n = size_t{w} * h;
+  // Runs one session on frames converted by `make` (returns the view of frame i).
+  auto decode = [&](auto make) {
+    std::unique_ptr<sdk::Session> s;
+    EXPECT_TRUE(create_binocular_session(args, s).ok());
+    sdk::Plan plan;
+    bool has = false;
+    EXPECT_TRUE(s->next_plan(plan, has).ok());
+    for (uint32_t i = 0; i < 2; ++i) {
+      const sdk::Error e = s->add_frame(i, make(i));
+      EXPECT_TRUE(e.ok()) << e.message;
+    }
+    EXPECT_TRUE(s->end_round().ok());
+    sdk::Outputs out;
+    EXPECT_TRUE(s->outputs(out).ok());
+    for (size_t k = 0; k < out.size(); ++k)
+      if (std::strcmp(out.view()[k].name, "depth_mm") == 0) {
+        const auto* d = static_cast<const float*>(out.view()[k].image.data);
+        return std::vector<float>(d, d + n);
+      }
+    ADD_FAILURE() << "no depth_mm output";
+    return std::vector<float>(n, NAN);
+  };
+  std::vector<uint16_t> u12[2], u16[2];
+  std::vector<uint8_t> u8[2];
+  std::vector<float> f32[2];
+  for (int i = 0; i < 2; ++i) {
+    const uint16_t* p = frames[static_cast<size_t>(i)].ptr<uint16_t>();
+    u12[i].assign(p, p + n);
+    for (uint16_t v : u12[i]) {
+      u16[i].push_back(static_cast<uint16_t>(v << 4));
+      u8[i].push_back(static_cast<uint8_t>(v >> 4));
+      f32[i].push_back(static_cast<float>(v) / 4095.0f);
+    }
+  }
+  const auto d12 = decode([&](uint32_t i) { return sdk::gray_view(u12[i].data(), w, h, 12); });
+  const auto d16 = decode([&](uint32_t i) { return sdk::gray_view(u16[i].data(), w, h, 16); });
+  const auto d8 = decode([&](uint32_t i) { return sdk::gray_view(u8[i].data(), w, h, 8); });
+  const auto df = decode([&](uint32_t i) { return sdk::gray_view(f32[i].data(), w, h); });
+  const auto mask = stereo_mask(f);
+  const DepthStats s12 = depth_stats(d12, f, mask), s16 = depth_stats(d16, f, mask), s8 = depth_stats(d8, f, mask),
+                   sf = depth_stats(df, f, mask);
+  double max16 = 0, maxf = 0;
+  for (size_t i = 0; i < n; ++i) {  // on the interior stereo-visible pixels (border ones may flip a near-tie)
+    if (!mask[i]) continue;
+    if (std::isfinite(d12[i]) && std::isfinite(d16[i])) max16 = std::max(max16, std::abs(double(d12[i] - d16[i])));
+    if (std::isfinite(d12[i]) && std::isfinite(df[i])) maxf = std::max(maxf, std::abs(double(d12[i] - df[i])));
+  }
+  std::printf("RMS (valid): 8-bit %.2f mm (%.1f %%), 12-bit %.2f mm (%.1f %%), 16-bit %.2f mm (%.1f %%), float %.2f mm "
+              "(%.1f %%); max |16-bit - 12-bit| %.3g mm, max |float - 12-bit| %.3g mm\n",
+              s8.rms, 100 * s8.valid, s12.rms, 100 * s12.valid, s16.rms, 100 * s16.valid, sf.rms, 100 * sf.valid, max16,
+              maxf);
+  for (const auto* d : {&d12, &d16, &d8, &df}) expect_no_bad_values(*d);
+  EXPECT_LT(s12.rms, 0.6);
+  EXPECT_LT(maxf, 1e-3);
+  EXPECT_LT(max16, 0.05);
+  EXPECT_NEAR(s16.valid, s12.valid, 0.002);
+  EXPECT_LT(s8.rms, 0.6);
+  EXPECT_GT(s8.valid, 0.95);
+}
+
 }  // namespace
 }  // namespace procam::media_stereo
