@@ -57,6 +57,7 @@ class BinocularSession final : public sdk::Session {
       const auto& c = rig.cameras[static_cast<size_t>(i)].calibration;
       cams_[i] = pinhole_of(c.intrinsics, cam0_from_proj * c.cam_from_proj.inverse());
       images_[i].assign(size_t{c.intrinsics.width} * c.intrinsics.height, 0.f);
+      rig_bits_[i] = rig.cameras[static_cast<size_t>(i)].bit_depth;
     }
     in_.light = cam0_from_proj.translation_mm;
     LightCone cone;
@@ -100,8 +101,15 @@ class BinocularSession final : public sdk::Session {
                                                                           " (camera " + std::to_string(index) + ")");
         !e.ok())
       return e;
-    // Normalise to full scale (8-, 12-, 16-bit and float frames alike).
-    const double inv = 1.0 / sdk::full_scale(frame);
+    // Normalise to full scale (8-, 12-, 16-bit and float frames alike). An
+    // integer frame claiming more significant bits than the rig's camera has
+    // went through a file that does not keep them (a recorded 12-bit frame
+    // reads back from 16-bit PNG as bit_depth 16, values unchanged): the
+    // camera's bit depth wins.
+    double full = sdk::full_scale(frame);
+    if (frame.pixel_type != PROCAM_PIXEL_F32 && rig_bits_[index] < frame.bit_depth && rig_bits_[index] <= 16)
+      full = std::ldexp(1.0, static_cast<int>(rig_bits_[index])) - 1.0;
+    const double inv = 1.0 / full;
     std::vector<float>& img = images_[index];
     for (uint32_t y = 0; y < c.height; ++y) {
       float* row = img.data() + size_t{y} * c.width;
@@ -152,6 +160,7 @@ class BinocularSession final : public sdk::Session {
   nlohmann::json params_;
   PinholeCamera cams_[2];
   std::vector<float> images_[2];
+  uint32_t rig_bits_[2] = {8, 8};  // significant bits of each camera's integer frames (rig description)
   BinocularInput in_;
   DepthSearch search_;
   bool media_ = true, planned_ = false;

@@ -13,7 +13,10 @@
 //
 // Frames: U8, U16 (any bit depth) or F32, normalised by the frame's full scale
 // (sdk::full_scale) so light_intensity and min_signal are in full-scale units
-// for every bit depth. A sample at/above `saturation` (of full scale) drops out.
+// for every bit depth; an integer frame that claims more bits than the rig's
+// camera (rig "bit_depth") is scaled by the camera's (a 12-bit frame recorded
+// to 16-bit PNG comes back as bit_depth 16). A sample at/above `saturation`
+// (of full scale) drops out.
 // World frame: camera 0's (rig cam_from_proj of camera 0 places the
 // projector); lens distortion is refused (undistort the frames first).
 // Outputs: depth_mm (F32, camera 0's z, NaN invalid), the standard outputs and

@@ -11,7 +11,9 @@
 //  2. The plugin loaded by the plugin host (in process), driven by
 //     engine::run_scan (which picks each frame's camera by
 //     settings.camera_index), against the sim's truth depth of camera 0: the
-//     media constraint against the clear-air one on the same frames.
+//     media constraint against the clear-air one on the same frames (the
+//     scan's recorded frames, decoded again by engine::run_offline, which
+//     must reproduce the live depth map exactly).
 //  3. 8-, 12-, 16-bit and float frames (the sim's 12-bit frames re-quantised).
 //
 // The medium and the light's photometric scale are the plugin's params: the
@@ -26,10 +28,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <unistd.h>
 
 #include "binocular_session.hpp"
 #include "procam/engine/rig_json.hpp"
@@ -214,8 +219,10 @@ struct ScanOut {
   nlohmann::json report;
 };
 
-// Through the plugin host and the engine's scan runner, as procamd runs a scan.
-ScanOut host_scan(hw::Rig& rig, const nlohmann::json& p) {
+// Through the plugin host and the engine's scan runner, as procamd runs a
+// scan. With `record_dir` the frames are recorded there, and `offline` then
+// decodes that folder instead of scanning (engine::run_offline).
+ScanOut host_scan(hw::Rig& rig, const nlohmann::json& p, const std::string& record_dir = "", bool offline = false) {
   ScanOut r;
   host::PluginHost host(host::LoadOptions{.probe_in_child = false});
   const Status loaded = host.load_file(std::string(PROCAM_PLUGIN_DIR) + "/procam-media-stereo.so");
@@ -227,7 +234,10 @@ ScanOut host_scan(hw::Rig& rig, const nlohmann::json& p) {
   EXPECT_TRUE(session.ok()) << session.status().to_string();
   if (!session.ok()) return r;
   std::atomic<bool> cancel{false};
-  auto outcome = engine::run_scan(rig, *session, engine::CaptureOptions{}, nullptr, cancel);
+  engine::CaptureOptions co;
+  co.record_dir = offline ? "" : record_dir;
+  auto outcome = offline ? engine::run_offline(*session, record_dir, nullptr)
+                         : engine::run_scan(rig, *session, co, nullptr, cancel);
   EXPECT_TRUE(outcome.ok()) << outcome.status().to_string();
   if (!outcome.ok()) return r;
   EXPECT_EQ(outcome->patterns, 2u);
@@ -267,8 +277,20 @@ TEST_P(MediaVsClearAir, MediaConstraintBeatsClearAirThroughTheRig) {
   Fixture f;
   ASSERT_TRUE(open_rig(c.scene, f));
   const auto mask = stereo_mask(f);
-  const ScanOut media = host_scan(*f.rig, params(cfg, "media"));
-  const ScanOut clear = host_scan(*f.rig, params(cfg, "clear-air"));
+  const std::string rec = (std::filesystem::temp_directory_path() /
+                           ("procam_media_stereo_" + std::to_string(::getpid()) + "_" + c.scene)).string();
+  std::filesystem::create_directories(rec);
+  const ScanOut media = host_scan(*f.rig, params(cfg, "media"), rec);
+  // The recorded frames (12-bit in 16-bit PNG), decoded offline with the other constraint.
+  const ScanOut clear = host_scan(*f.rig, params(cfg, "clear-air"), rec, true);
+  const ScanOut media_offline = host_scan(*f.rig, params(cfg, "media"), rec, true);
+  std::filesystem::remove_all(rec);
+  ASSERT_EQ(media_offline.depth.size(), media.depth.size());
+  for (size_t i = 0; i < media.depth.size(); ++i) {  // PNG round trip of 12-bit frames is lossless
+    if (!(std::isnan(media.depth[i]) && std::isnan(media_offline.depth[i]))) {
+      ASSERT_EQ(media.depth[i], media_offline.depth[i]) << "offline decode differs at pixel " << i;
+    }
+  }
   ASSERT_EQ(media.depth.size(), mask.size());
   ASSERT_EQ(clear.depth.size(), mask.size());
   expect_no_bad_values(media.depth);
@@ -375,10 +397,13 @@ TEST(MediaStereoRig, EightTwelveSixteenBitAndFloatFramesDecodeAlike) {
   }
   const uint32_t w = frames[0].width(), h = frames[0].height();
   const size_t n = size_t{w} * h;
-  // Runs one session on frames converted by `make` (returns the view of frame i).
-  auto decode = [&](auto make) {
+  // Runs one session on frames converted by `make` (returns the view of frame
+  // i), the rig describing cameras of `bits` significant bits (32: float).
+  auto decode = [&](uint32_t bits, auto make) {
+    sdk::CreateArgs a = args;
+    for (auto& cam : a.rig["cameras"]) cam["bit_depth"] = bits;
     std::unique_ptr<sdk::Session> s;
-    EXPECT_TRUE(create_binocular_session(args, s).ok());
+    EXPECT_TRUE(create_binocular_session(a, s).ok());
     sdk::Plan plan;
     bool has = false;
     EXPECT_TRUE(s->next_plan(plan, has).ok());
@@ -409,10 +434,13 @@ TEST(MediaStereoRig, EightTwelveSixteenBitAndFloatFramesDecodeAlike) {
       f32[i].push_back(static_cast<float>(v) / 4095.0f);
     }
   }
-  const auto d12 = decode([&](uint32_t i) { return sdk::gray_view(u12[i].data(), w, h, 12); });
-  const auto d16 = decode([&](uint32_t i) { return sdk::gray_view(u16[i].data(), w, h, 16); });
-  const auto d8 = decode([&](uint32_t i) { return sdk::gray_view(u8[i].data(), w, h, 8); });
-  const auto df = decode([&](uint32_t i) { return sdk::gray_view(f32[i].data(), w, h); });
+  const auto d12 = decode(12, [&](uint32_t i) { return sdk::gray_view(u12[i].data(), w, h, 12); });
+  const auto d16 = decode(16, [&](uint32_t i) { return sdk::gray_view(u16[i].data(), w, h, 16); });
+  const auto d8 = decode(8, [&](uint32_t i) { return sdk::gray_view(u8[i].data(), w, h, 8); });
+  const auto df = decode(32, [&](uint32_t i) { return sdk::gray_view(f32[i].data(), w, h); });
+  // A 12-bit camera's frames handed over as U16 claiming 16 bits (as a
+  // recorded PNG reads back): scaled by the rig's 12 bits, identical to d12.
+  const auto d12as16 = decode(12, [&](uint32_t i) { return sdk::gray_view(u12[i].data(), w, h, 16); });
   const auto mask = stereo_mask(f);
   const DepthStats s12 = depth_stats(d12, f, mask), s16 = depth_stats(d16, f, mask), s8 = depth_stats(d8, f, mask),
                    sf = depth_stats(df, f, mask);
@@ -427,6 +455,11 @@ TEST(MediaStereoRig, EightTwelveSixteenBitAndFloatFramesDecodeAlike) {
               s8.rms, 100 * s8.valid, s12.rms, 100 * s12.valid, s16.rms, 100 * s16.valid, sf.rms, 100 * sf.valid, max16,
               maxf);
   for (const auto* d : {&d12, &d16, &d8, &df}) expect_no_bad_values(*d);
+  for (size_t i = 0; i < n; ++i) {
+    if (!(std::isnan(d12[i]) && std::isnan(d12as16[i]))) {
+      ASSERT_EQ(d12[i], d12as16[i]) << i;
+    }
+  }
   EXPECT_LT(s12.rms, 0.6);
   EXPECT_LT(maxf, 1e-3);
   EXPECT_LT(max16, 0.05);
