@@ -17,43 +17,36 @@
 namespace procam::media_stereo {
 namespace {
 
-// Independent Eq. 5.16 by the midpoint rule, HG written out here.
-double reference_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
-                             double t, int steps) {
+// Independent Eq. 5.16 by the midpoint rule, HG written out here. With
+// `cone`, the light is a projector (identity rotation, centre l, 320x240
+// image, f 160, principal point (133.3, 82.6)): a sample counts only when it
+// projects inside the image's pixel edges.
+double midpoint_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l, double t,
+                            int steps, bool cone) {
   double sum = 0;
   const double h = t / steps;
   for (int k = 0; k < steps; ++k) {
     const double x = (k + 0.5) * h;
-    const Vec3 y{c.x + dir.x * x, c.y + dir.y * x, c.z + dir.z * x};
-    const double ax = y.x - l.x, ay = y.y - l.y, az = y.z - l.z;
-    const double a = std::sqrt(ax * ax + ay * ay + az * az);
-    const double cosg = -(ax * dir.x + ay * dir.y + az * dir.z) / a;
+    const Vec3 q = c + dir * x - l;
+    if (cone) {
+      if (!(q.z > 0)) continue;
+      const double px = 160.0 * q.x / q.z + 133.3, py = 160.0 * q.y / q.z + 82.6;
+      if (px < -0.5 || px > 319.5 || py < -0.5 || py > 239.5) continue;
+    }
+    const double a = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z);
+    const double cosg = -(q.x * dir.x + q.y * dir.y + q.z * dir.z) / a;
     const double p = (1 - m.g * m.g) / (4 * std::numbers::pi * std::pow(1 + m.g * m.g - 2 * m.g * cosg, 1.5));
     sum += m.beta_per_mm * p * i0 * std::exp(-m.sigma_per_mm * (a + x)) / (a * a) * h;
   }
   return sum;
 }
-
-// The same with a projector as the light (identity rotation, centre l,
-// 320x240 image, f 160, principal point (133.3, 82.6)): a sample counts only
-// when it projects inside the image's pixel edges.
+double reference_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
+                             double t, int steps) {
+  return midpoint_backscatter(m, i0, c, dir, l, t, steps, false);
+}
 double reference_cone_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
                                   double t, int steps) {
-  double sum = 0;
-  const double h = t / steps;
-  for (int k = 0; k < steps; ++k) {
-    const double x = (k + 0.5) * h;
-    const Vec3 y = c + dir * x;
-    const Vec3 q = y - l;
-    if (!(q.z > 0)) continue;
-    const double px = 160.0 * q.x / q.z + 133.3, py = 160.0 * q.y / q.z + 82.6;
-    if (px < -0.5 || px > 319.5 || py < -0.5 || py > 239.5) continue;
-    const double a = norm(q);
-    const double cosg = -dot(q, dir) / a;
-    const double p = (1 - m.g * m.g) / (4 * std::numbers::pi * std::pow(1 + m.g * m.g - 2 * m.g * cosg, 1.5));
-    sum += m.beta_per_mm * p * i0 * std::exp(-m.sigma_per_mm * (a + x)) / (a * a) * h;
-  }
-  return sum;
+  return midpoint_backscatter(m, i0, c, dir, l, t, steps, true);
 }
 
 TEST(ScatterModel, PhaseFunctionIntegratesToOne) {
