@@ -366,6 +366,52 @@ TEST(MediaStereoRig, SessionRefusesRigsAndParamsItCannotUse) {
   refuse(good, bad, PROCAM_ERR_INVALID_ARGUMENT, "constraint");
 }
 
+// Hard cases through the session: black frames (no signal) and
+// saturated frames give no valid pixel (all NaN).
+TEST(MediaStereoRig, BlackAndSaturatedFramesGiveNoDepth) {
+  Fixture f;
+  ASSERT_TRUE(open_rig("media-stereo-rig-plane", f));
+  const sdk::CreateArgs args{"binocular", params(rig_config(), "media"), engine::plugin_rig_json(*f.rig, 2), {}};
+  const uint32_t w = f.k[0].width, h = f.k[0].height;
+  for (uint16_t level : {uint16_t{0}, uint16_t{4095}}) {
+    std::unique_ptr<sdk::Session> s;
+    ASSERT_TRUE(create_binocular_session(args, s).ok());
+    sdk::Plan plan;
+    bool has = false;
+    ASSERT_TRUE(s->next_plan(plan, has).ok());
+    const std::vector<uint16_t> img(size_t{w} * h, level);
+    for (uint32_t i = 0; i < 2; ++i) ASSERT_TRUE(s->add_frame(i, sdk::gray_view(img.data(), w, h, 12)).ok());
+    ASSERT_TRUE(s->end_round().ok());
+    sdk::Outputs out;
+    ASSERT_TRUE(s->outputs(out).ok());
+    bool found = false;
+    for (size_t k = 0; k < out.size(); ++k) {
+      const procam_output& o = out.view()[k];
+      if (std::strcmp(o.name, "depth_mm") == 0) {
+        found = true;
+        const auto* d = static_cast<const float*>(o.image.data);
+        for (size_t i = 0; i < size_t{w} * h; ++i) {
+          ASSERT_TRUE(std::isnan(d[i])) << "level " << level << " px " << i;
+        }
+      }
+      if (std::strcmp(o.name, "valid_fraction") == 0) {
+        EXPECT_EQ(o.scalar, 0.0);
+      }
+    }
+    EXPECT_TRUE(found);
+  }
+  // A frame of the wrong size is refused and may be added again.
+  std::unique_ptr<sdk::Session> s;
+  ASSERT_TRUE(create_binocular_session(args, s).ok());
+  sdk::Plan plan;
+  bool has = false;
+  ASSERT_TRUE(s->next_plan(plan, has).ok());
+  const std::vector<uint16_t> small(size_t{w / 2} * h, 100);
+  const sdk::Error e = s->add_frame(1, sdk::gray_view(small.data(), w / 2, h, 12));
+  EXPECT_EQ(e.code, PROCAM_ERR_BAD_FRAME);
+  EXPECT_NE(e.message.find("camera 1"), std::string::npos) << e.message;
+}
+
 // Item 4 of the brief: the sim's 12-bit frames of the plane, re-quantised to
 // 8 bits (v >> 4), stretched to 16 bits (v << 4) and as float (v / 4095),
 // through the session in process. Float is the 12-bit data exactly (same
