@@ -27,8 +27,9 @@ std::vector<float> binocular_depth(const BinocularInput& in, const DepthSearch& 
   const double step = 2.0;
   BackscatterTable tl, tr;
   if (media && m.beta_per_mm > 0) {
-    tl = backscatter_table(m, in.light_intensity, ca, rays_l, in.light, reach, step);
-    tr = backscatter_table(m, in.light_intensity, cb, rays_r, in.light, reach, step);
+    const LightCone* cone = in.light_cone ? &*in.light_cone : nullptr;
+    tl = backscatter_table(m, in.light_intensity, ca, rays_l, in.light, reach, step, cone);
+    tr = backscatter_table(m, in.light_intensity, cb, rays_r, in.light, reach, step, cone);
   }
   auto b_left = [&](size_t p, double t) { return tl.b.empty() ? 0.0 : tl.at(p, t); };
   auto b_right = [&](double u, double v, double t) {

@@ -25,6 +25,7 @@
 // pure; the inputs are read only during the call.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "scatter_model.hpp"
@@ -41,6 +42,7 @@ struct BinocularInput {
   Vec3 light{};
   double light_intensity = 1;
   MediumParams medium;  // used by Constraint::media only
+  std::optional<LightCone> light_cone;  // a projector as the light: B only inside its image
 };
 
 // Depth map (mm, left camera's z; NaN invalid), left-sized.

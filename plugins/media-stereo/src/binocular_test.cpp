@@ -25,7 +25,7 @@ Scan scan(SceneKind kind, const MediumParams& m) {
   const auto scene = test::scene_of(kind);
   s.left = render(scene, rig.left, rig.light, test::kLightIntensity, m);
   s.right = render(scene, rig.right, rig.light, test::kLightIntensity, m);
-  s.in = {rig.left, rig.right, s.left.image, s.right.image, rig.light, test::kLightIntensity, m};
+  s.in = {rig.left, rig.right, s.left.image, s.right.image, rig.light, test::kLightIntensity, m, std::nullopt};
   return s;
 }
 

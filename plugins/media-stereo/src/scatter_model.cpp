@@ -36,14 +36,55 @@ double gl3(const MediumParams& m, double i0, const Vec3& cam, const Vec3& dir, c
               8.0 / 9.0 * backscatter_integrand(m, i0, cam, dir, light, c) +
               5.0 / 9.0 * backscatter_integrand(m, i0, cam, dir, light, c + h * kNode));
 }
+// Keep the s of [t0, t1] where c0 + c1·s >= 0.
+void clip_halfspace(double c0, double c1, double& t0, double& t1) {
+  if (c1 == 0) {
+    if (c0 < 0) t1 = t0 - 1;
+  } else if (c1 > 0) {
+    t0 = std::max(t0, -c0 / c1);
+  } else {
+    t1 = std::min(t1, -c0 / c1);
+  }
+}
+
+// gl3 over [x0, x1] ∩ [c0, c1] (the cone's interval).
+double gl3_clipped(const MediumParams& m, double i0, const Vec3& cam, const Vec3& dir, const Vec3& light, double x0,
+                   double x1, double c0, double c1) {
+  const double a = std::max(x0, c0), b = std::min(x1, c1);
+  return b > a ? gl3(m, i0, cam, dir, light, a, b) : 0.0;
+}
 }  // namespace
 
+bool cone_interval(const LightCone& c, const Vec3& cam, const Vec3& dir, double& t0, double& t1) {
+  t0 = 0;
+  t1 = std::numeric_limits<double>::infinity();
+  // The point in the light's frame is p0 + p1·s; "projects inside the image"
+  // is linear in s after multiplying by its z (> 0).
+  const Vec3 p0 = c.light_from_world * cam, p1 = c.light_from_world.rotation * dir;
+  const double ax = c.fx * p0.x + c.cx * p0.z, bx = c.fx * p1.x + c.cx * p1.z;
+  const double ay = c.fy * p0.y + c.cy * p0.z, by = c.fy * p1.y + c.cy * p1.z;
+  const double xmax = c.width - 0.5, ymax = c.height - 0.5;
+  clip_halfspace(p0.z - 1e-6, p1.z, t0, t1);
+  clip_halfspace(ax + 0.5 * p0.z, bx + 0.5 * p1.z, t0, t1);
+  clip_halfspace(xmax * p0.z - ax, xmax * p1.z - bx, t0, t1);
+  clip_halfspace(ay + 0.5 * p0.z, by + 0.5 * p1.z, t0, t1);
+  clip_halfspace(ymax * p0.z - ay, ymax * p1.z - by, t0, t1);
+  return t1 > t0;
+}
+
 double backscatter(const MediumParams& m, double light_intensity, const Vec3& cam, const Vec3& dir,
-                   const Vec3& light, double t, double segment_mm) {
+                   const Vec3& light, double t, double segment_mm, const LightCone* cone) {
   if (!(t > 0) || m.beta_per_mm == 0.0) return 0.0;
-  const int n = std::max(1, static_cast<int>(std::ceil(t / std::max(segment_mm, 1e-3))));
+  double c0 = 0, c1 = t;
+  if (cone != nullptr && !cone_interval(*cone, cam, dir, c0, c1)) return 0.0;
+  c1 = std::min(c1, t);
+  if (!(c1 > c0)) return 0.0;
+  // Segments over the lit stretch only, so the cone's edges are segment ends.
+  const double len = c1 - c0;
+  const int n = std::max(1, static_cast<int>(std::ceil(len / std::max(segment_mm, 1e-3))));
   double sum = 0;
-  for (int k = 0; k < n; ++k) sum += gl3(m, light_intensity, cam, dir, light, t * k / n, t * (k + 1) / n);
+  for (int k = 0; k < n; ++k)
+    sum += gl3(m, light_intensity, cam, dir, light, c0 + len * k / n, c0 + len * (k + 1) / n);
   return sum;
 }
 
@@ -61,17 +102,19 @@ double BackscatterTable::at(size_t ray, double t) const {
 }
 
 BackscatterTable backscatter_table(const MediumParams& m, double light_intensity, const Vec3& cam,
-                                   const std::vector<Vec3>& rays, const Vec3& light, double max_mm, double step_mm) {
+                                   const std::vector<Vec3>& rays, const Vec3& light, double max_mm, double step_mm,
+                                   const LightCone* cone) {
   BackscatterTable t;
   t.step_mm = step_mm;
   t.samples = static_cast<uint32_t>(std::ceil(max_mm / step_mm)) + 1;
   t.b.assign(rays.size() * t.samples, 0.0f);
   if (m.beta_per_mm == 0.0) return t;
   for (size_t r = 0; r < rays.size(); ++r) {
-    double acc = 0;
+    double acc = 0, c0 = 0, c1 = std::numeric_limits<double>::infinity();
+    if (cone != nullptr && !cone_interval(*cone, cam, rays[r], c0, c1)) continue;  // never lit: B = 0
     float* out = &t.b[r * t.samples];
     for (uint32_t k = 1; k < t.samples; ++k) {
-      acc += gl3(m, light_intensity, cam, rays[r], light, (k - 1) * step_mm, k * step_mm);
+      acc += gl3_clipped(m, light_intensity, cam, rays[r], light, (k - 1) * step_mm, k * step_mm, c0, c1);
       out[k] = static_cast<float>(acc);
     }
   }

@@ -42,10 +42,26 @@ double hg_phase(double g, double cos_theta);
 double backscatter_integrand(const MediumParams& m, double light_intensity, const Vec3& cam, const Vec3& dir,
                              const Vec3& light, double x);
 
+// The emission cone of a projector used as the light: it lights only the
+// points that project inside its image (pixel centres at integers, the image
+// spanning [-0.5, width-0.5] x [-0.5, height-0.5], as the sim's flood), and
+// isotropically (I0 / d^2) inside it. Without a cone the light is an isotropic
+// point source over the whole sphere.
+struct LightCone {
+  Rigid3 light_from_world{};
+  uint32_t width = 0, height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+};
+
+// [t0, t1] (t0 >= 0) of the ray cam + dir·x inside the cone (a convex set, so
+// one interval); false when the ray misses it.
+bool cone_interval(const LightCone& cone, const Vec3& cam, const Vec3& dir, double& t0, double& t1);
+
 // B(t) of Eq. 5.16 by composite 3-point Gauss-Legendre on segments of at most
-// `segment_mm`. dir must be unit length. t <= 0 gives 0.
+// `segment_mm`, over the part of [0, t] inside `cone` (nullptr: all of it).
+// dir must be unit length. t <= 0 gives 0.
 double backscatter(const MediumParams& m, double light_intensity, const Vec3& cam, const Vec3& dir,
-                   const Vec3& light, double t, double segment_mm = 4.0);
+                   const Vec3& light, double t, double segment_mm = 4.0, const LightCone* cone = nullptr);
 
 // Cumulative backscatter along many rays: B at distances k·step_mm,
 // k = 0..samples-1, per ray (row-major: ray r's samples at [r·samples,
@@ -59,8 +75,10 @@ struct BackscatterTable {
   double at(size_t ray, double t) const;
 };
 
-// Builds the table for `rays` (unit directions from `cam`) out to max_mm.
+// Builds the table for `rays` (unit directions from `cam`) out to max_mm,
+// integrating only inside `cone` when given.
 BackscatterTable backscatter_table(const MediumParams& m, double light_intensity, const Vec3& cam,
-                                   const std::vector<Vec3>& rays, const Vec3& light, double max_mm, double step_mm);
+                                   const std::vector<Vec3>& rays, const Vec3& light, double max_mm, double step_mm,
+                                   const LightCone* cone = nullptr);
 
 }  // namespace procam::media_stereo

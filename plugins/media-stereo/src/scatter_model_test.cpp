@@ -17,21 +17,36 @@
 namespace procam::media_stereo {
 namespace {
 
-// Independent Eq. 5.16 by the midpoint rule, HG written out here.
-double reference_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
-                             double t, int steps) {
+// Independent Eq. 5.16 by the midpoint rule, HG written out here. With
+// `cone`, the light is a projector (identity rotation, centre l, 320x240
+// image, f 160, principal point (133.3, 82.6)): a sample counts only when it
+// projects inside the image's pixel edges.
+double midpoint_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l, double t,
+                            int steps, bool cone) {
   double sum = 0;
   const double h = t / steps;
   for (int k = 0; k < steps; ++k) {
     const double x = (k + 0.5) * h;
-    const Vec3 y{c.x + dir.x * x, c.y + dir.y * x, c.z + dir.z * x};
-    const double ax = y.x - l.x, ay = y.y - l.y, az = y.z - l.z;
-    const double a = std::sqrt(ax * ax + ay * ay + az * az);
-    const double cosg = -(ax * dir.x + ay * dir.y + az * dir.z) / a;
+    const Vec3 q = c + dir * x - l;
+    if (cone) {
+      if (!(q.z > 0)) continue;
+      const double px = 160.0 * q.x / q.z + 133.3, py = 160.0 * q.y / q.z + 82.6;
+      if (px < -0.5 || px > 319.5 || py < -0.5 || py > 239.5) continue;
+    }
+    const double a = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z);
+    const double cosg = -(q.x * dir.x + q.y * dir.y + q.z * dir.z) / a;
     const double p = (1 - m.g * m.g) / (4 * std::numbers::pi * std::pow(1 + m.g * m.g - 2 * m.g * cosg, 1.5));
     sum += m.beta_per_mm * p * i0 * std::exp(-m.sigma_per_mm * (a + x)) / (a * a) * h;
   }
   return sum;
+}
+double reference_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
+                             double t, int steps) {
+  return midpoint_backscatter(m, i0, c, dir, l, t, steps, false);
+}
+double reference_cone_backscatter(const MediumParams& m, double i0, const Vec3& c, const Vec3& dir, const Vec3& l,
+                                  double t, int steps) {
+  return midpoint_backscatter(m, i0, c, dir, l, t, steps, true);
 }
 
 TEST(ScatterModel, PhaseFunctionIntegratesToOne) {
@@ -74,6 +89,47 @@ TEST(ScatterModel, TableInterpolatesTheIntegralTo1e4) {
     }
   EXPECT_TRUE(std::isnan(t.at(0, 905.0)));  // beyond the table
   EXPECT_TRUE(std::isnan(t.at(0, -1.0)));
+}
+
+TEST(ScatterModel, LightConeClipsBackscatterToTheProjectorImage) {
+  const auto m = test::tank_medium();
+  const Vec3 c{0, 0, 0}, l{-10, -120, 0};
+  LightCone cone;
+  cone.light_from_world = Rigid3{Mat3::identity(), Vec3{10, 120, 0}};
+  cone.width = 320;
+  cone.height = 240;
+  cone.fx = cone.fy = 160;
+  cone.cx = 133.3;
+  cone.cy = 82.6;
+  // Rays that enter the cone after 110-130 mm of z (the first stretch is
+  // dark), and one that enters at z 64 and leaves through the image's top
+  // edge at z 315.
+  const std::vector<Vec3> rays = {normalized(Vec3{0.1, 0.05, 1}), normalized(Vec3{-0.2, -0.1, 1}),
+                                  normalized(Vec3{0.0, -0.9, 1})};
+  const auto table = backscatter_table(m, test::kLightIntensity, c, rays, l, 700, 2.0, &cone);
+  for (size_t r = 0; r < rays.size(); ++r) {
+    double t0 = 0, t1 = 0;
+    ASSERT_TRUE(cone_interval(cone, c, rays[r], t0, t1)) << r;
+    EXPECT_GT(t0, 50.0) << "the camera's first stretch lies outside the projector's image";
+    for (double d : {60.0, 300.0, 517.9, 699.0}) {
+      const double ref = reference_cone_backscatter(m, test::kLightIntensity, c, rays[r], l, d, 400000);
+      const double direct = backscatter(m, test::kLightIntensity, c, rays[r], l, d, 4.0, &cone);
+      // The midpoint rule's 1.75 µm steps cut the cone's edges: 2e-5.
+      EXPECT_NEAR(direct, ref, 2e-5 * ref + 1e-12) << r << " " << d;
+      // The table's linear steps straddle the cone's edges: 2e-3 near them.
+      EXPECT_NEAR(table.at(r, d), ref, 2e-3 * ref + 1e-9) << r << " " << d;
+      if (d < t0) {
+        EXPECT_EQ(direct, 0.0);
+      }
+    }
+  }
+  // A ray that never enters the cone (pointing away from the projector) gets B = 0.
+  const Vec3 away = normalized(Vec3{0, 0, -1});
+  EXPECT_EQ(backscatter(m, test::kLightIntensity, c, away, l, 500, 4.0, &cone), 0.0);
+  double t0 = 0, t1 = 0;
+  EXPECT_FALSE(cone_interval(cone, c, away, t0, t1));
+  // Without a cone the first stretch counts: strictly more light.
+  EXPECT_GT(backscatter(m, test::kLightIntensity, c, rays[0], l, 500), table.at(0, 500) * 1.01);
 }
 
 TEST(ScatterModel, ClearAirIsTheMediumFreeClosedForm) {
