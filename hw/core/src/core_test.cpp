@@ -127,6 +127,29 @@ TEST_F(ImageFiles, Png16AndExrRoundTripExactly) {
   EXPECT_EQ(n, 2u);
 }
 
+// A 12-bit camera frame saved as PNG (16-bit samples holding 0..4095, as
+// save_frames records it) reads back as 12-bit with its values unchanged: a
+// plugin scales by 2^bit_depth - 1, and a frame read back as 16-bit would
+// look 16x too dark offline. PNG has no 12-bit samples, so the depth travels
+// in a text chunk (procam:bit_depth). Also for 10 and 14 bits.
+TEST_F(ImageFiles, SubSixteenBitPngKeepsItsBitDepth) {
+  for (uint32_t bits : {10u, 12u, 14u}) {
+    Image img(5, 3, PixelType::u16, 1, bits);
+    const uint16_t top = static_cast<uint16_t>((1u << bits) - 1u);
+    for (uint32_t y = 0; y < 3; ++y)
+      for (uint32_t x = 0; x < 5; ++x) img.at<uint16_t>(x, y) = static_cast<uint16_t>((x * 997 + y * 31) % (top + 1u));
+    img.at<uint16_t>(4, 2) = top;
+    const std::string path = (dir / ("b" + std::to_string(bits) + ".png")).string();
+    ASSERT_TRUE(write_image(path, img).ok());
+    auto back = read_image(path);
+    ASSERT_TRUE(back.ok()) << back.status().to_string();
+    EXPECT_EQ(back->type(), PixelType::u16);
+    EXPECT_EQ(back->bit_depth(), bits);
+    for (uint32_t y = 0; y < 3; ++y)
+      for (uint32_t x = 0; x < 5; ++x) ASSERT_EQ(back->at<uint16_t>(x, y), img.at<uint16_t>(x, y)) << bits;
+  }
+}
+
 TEST_F(ImageFiles, ColourIsConvertedToGreyAndErrorsAreClear) {
   Image rgb(2, 1, PixelType::u8, 3);
   rgb.at<uint8_t>(0, 0, 0) = 255;  // red

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 
 namespace procam {
@@ -64,6 +65,10 @@ Result<Image> read_image(const std::string& path, bool keep_channels) {
   }
   if (type != PixelType::f32) {
     int bps = spec.get_int_attribute("oiio:BitsPerSample", 0);
+    // PNG has no 10/12/14-bit samples: write_image leaves the depth in a
+    // text chunk, which wins over the container's 16.
+    if (const int tagged = std::atoi(spec.get_string_attribute("procam:bit_depth").c_str()); tagged > 0)
+      bps = tagged;
     if (bps > 0 && bps <= static_cast<int>(bits)) bits = static_cast<uint32_t>(bps);
     // OIIO scales sub-16-bit PNG/TIFF data to the full 16-bit range; keep the
     // stored values as they are by asking for the native type and trusting
@@ -106,8 +111,12 @@ Status write_image(const std::string& path, const Image& image,
     return Error(Code::invalid_argument, "PNG cannot hold float data: " + path, "write .exr");
   OIIO::ImageSpec spec(static_cast<int>(image.width()), static_cast<int>(image.height()),
                        static_cast<int>(image.channels()), fmt);
-  if (image.type() != PixelType::f32 && image.bit_depth() != bytes_per_sample(image.type()) * 8)
+  if (image.type() != PixelType::f32 && image.bit_depth() != bytes_per_sample(image.type()) * 8) {
     spec.attribute("oiio:BitsPerSample", static_cast<int>(image.bit_depth()));
+    // Kept by formats without such samples too (PNG: a tEXt chunk), so a
+    // 12-bit frame reads back as 12-bit, values unchanged (read_image).
+    spec.attribute("procam:bit_depth", std::to_string(image.bit_depth()));
+  }
   if (ext == ".exr") spec.attribute("compression", "zip");
   for (const auto& [k, v] : attributes) spec.attribute(k, v);
 
