@@ -377,7 +377,8 @@ void put_image(Writer& w, const procam_image& v) {
 namespace {
 class BlobIn {
 public:
-  explicit BlobIn(const Mapping& m) : p_(m.data()), n_(m.size()) {}
+  explicit BlobIn(const Mapping& m) : BlobIn(m.data(), m.size()) {}
+  BlobIn(const uint8_t* p, size_t n) : p_(p), n_(n), r_(p, n) {}
   Reader& r() { return r_; }
   bool ok() const { return r_.ok(); }
   std::string error() const { return r_.error(); }
@@ -563,7 +564,11 @@ void write_outputs(Writer& w, const std::vector<Output>& outputs) {
 }
 
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out) {
-  BlobIn in(blob);
+  return decode_outputs(blob.data(), blob.size(), out);
+}
+
+Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out) {
+  BlobIn in(data, size);
   const uint32_t n = in.u32("output count");
   if (n > 10000) return Error(Code::corrupt_data, std::to_string(n) + " outputs");
   out.assign(n, procam_output{});

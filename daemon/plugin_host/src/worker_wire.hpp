@@ -29,7 +29,7 @@
 namespace procam::host::wire {
 
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
-inline constexpr uint16_t kVersion = 2;
+inline constexpr uint16_t kVersion = 3;  // 3: outputs through the output arena
 inline constexpr size_t kHeaderSize = 16;
 inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
 inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
@@ -235,6 +235,9 @@ Status decode_plan(const Mapping& blob, AbiPlan& out);
 std::string encode_outputs(const std::vector<Output>& outputs);
 void write_outputs(Writer& w, const std::vector<Output>& outputs);
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out);
+// The same over bytes the caller owns (the daemon's copy of the output
+// arena, output_arena.hpp); views point into them.
+Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out);
 
 // An error reply: code, message, hint.
 std::string encode_error(const Status& st);
