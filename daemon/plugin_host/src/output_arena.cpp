@@ -66,17 +66,12 @@ Result<OutputArena::Written> OutputArena::write(const std::function<void(Writer&
   Written out;
   if (n > map_.size()) {
     const uint64_t size = grown(n);
-    UniqueFd fd(::memfd_create("procam-outputs", MFD_CLOEXEC | MFD_ALLOW_SEALING));
-    if (!fd) return Error(Code::unavailable, std::string("memfd_create: ") + std::strerror(errno));
     // Sealed against shrinking: the daemon's mapping never loses a page.
-    if (::ftruncate(fd.get(), static_cast<off_t>(size)) != 0 ||
-        ::fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) != 0)
-      return Error(Code::unavailable, std::string("sizing the output arena: ") + std::strerror(errno));
     // Pre-faulted for writing: every page exists before the daemon checks.
-    void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd.get(), 0);
-    if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of the output arena: ") + std::strerror(errno));
-    map_ = Mapping(p, size);
-    fd_ = std::move(fd);
+    auto shm = make_fixed_shared("procam-outputs", size, "the output arena");
+    if (!shm) return shm.status();
+    map_ = std::move(shm->map);
+    fd_ = std::move(shm->fd);
     out.new_fd = fd_.get();
   }
   Writer w(reinterpret_cast<char*>(map_.mutable_data()), map_.size());
@@ -96,14 +91,9 @@ Status OutputSnapshot::adopt(int fd) {
   if (::fstat(fd, &st) != 0 || st.st_size <= 0 || static_cast<uint64_t>(st.st_size) > kMaxBlob)
     return Error(Code::corrupt_data, "an output arena of " + std::to_string(st.st_size) + " bytes (1.." +
                                          std::to_string(kMaxBlob) + " allowed)");
-  // Fully written, as a sealed blob must be (map_sealed_blob): the sender
-  // paid for every page this process will read.
-  const uint64_t page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
-  const uint64_t pages = (static_cast<uint64_t>(st.st_size) + page - 1) / page;
-  if (static_cast<uint64_t>(st.st_blocks) * 512 < pages * page)
-    return Error(Code::corrupt_data, "an output arena of " + std::to_string(st.st_size) + " bytes with only " +
-                                         std::to_string(static_cast<uint64_t>(st.st_blocks) * 512) +
-                                         " bytes allocated (a sparse memfd)");
+  // Fully written, as a sealed blob must be: the sender paid for every page
+  // this process will read.
+  PROCAM_TRY(check_fully_written(st, "an output arena"));
   void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_SHARED | MAP_POPULATE, fd, 0);
   if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of the output arena: ") + std::strerror(errno));
   arena_ = Mapping(p, static_cast<size_t>(st.st_size));

@@ -26,6 +26,8 @@
 #include "procam/host/plugin_host.hpp"
 #include "procam/plugin_abi.h"
 
+struct stat;
+
 namespace procam::host::wire {
 
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
@@ -191,8 +193,20 @@ Result<UniqueFd> make_sealed_blob(const std::string& bytes, const char* name);
 // without a growing buffer in between. `encode` must write the same bytes
 // both times (it is a pure function of its data); internal if not.
 Result<UniqueFd> make_sealed_blob(const std::function<void(Writer&)>& encode, const char* name);
+// corrupt_data unless every page of the memfd `st` describes is allocated
+// (no holes); `what` names it in the message.
+Status check_fully_written(const struct stat& st, const char* what);
 // Maps a received blob read-only after checking its seals and size.
 Result<Mapping> map_sealed_blob(int fd, size_t max_size = kMaxBlob);
+
+// A memfd of `size` bytes sealed against resizing (no SIGBUS for anyone who
+// maps it), mapped read-write and pre-faulted here (the frame ring, the
+// output arena). `what` names it in errors.
+struct FixedShared {
+  UniqueFd fd;
+  Mapping map;
+};
+Result<FixedShared> make_fixed_shared(const char* name, uint64_t size, const char* what);
 
 // The frame ring, daemon side: `slots` slots of `slot_size` bytes in a memfd
 // sealed against resizing, mapped read-write here; `worker_fd` is a
