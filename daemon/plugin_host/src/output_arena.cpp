@@ -65,7 +65,9 @@ Result<OutputArena::Written> OutputArena::write(const std::function<void(Writer&
                                              std::to_string(kMaxBlob) + "-byte limit");
   Written out;
   if (n > map_.size()) {
-    const uint64_t size = grown(n);
+    // The first arena fits this reply (a scan's outputs keep their size);
+    // a replacement gets room to grow.
+    const uint64_t size = map_.size() == 0 ? std::max(kMinArena, (n + kRound - 1) / kRound * kRound) : grown(n);
     // Sealed against shrinking: the daemon's mapping never loses a page.
     // Pre-faulted for writing: every page exists before the daemon checks.
     auto shm = make_fixed_shared("procam-outputs", size, "the output arena");

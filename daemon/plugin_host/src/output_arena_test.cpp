@@ -110,7 +110,10 @@ TEST(OutputArenaTest, RefusesWhatItCouldLosePagesOfOrIsSparse) {
 // A plugin thread overwrites the worker's output arena, starting 100 ms
 // after get_outputs, for about a second: the outputs the daemon returned are
 // the plugin's reply (the fixture's closed-form values), before and after.
-TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) {
+// With reuse on the worker keeps a writable arena (the daemon's copy
+// protects the client); with reuse off the outputs travel in a sealed blob
+// and no writable outputs mapping is left in the worker at all.
+void scribble_scan(uint32_t max_idle_workers) {
   const fs::path scratch = fs::temp_directory_path() / ("procam-arena-test-" + std::to_string(::getpid()));
   fs::remove_all(scratch);
   fs::create_directories(scratch);
@@ -118,6 +121,7 @@ TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) {
   ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
   IsolationOptions iso;
   iso.scratch_parent = scratch.string();
+  iso.max_idle_workers = max_idle_workers;
   host.set_isolation(iso);
   {
     auto s = host.create_session("faults", "scribble", "{}", "{}");
@@ -155,14 +159,15 @@ TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) {
     // Wait until the plugin has overwritten the arena at least once (it
     // says so in its scratch folder), so this test cannot pass vacuously.
     fs::path marker;
+    const char* expect = max_idle_workers > 0 ? "scribbled" : "no-arena";
     for (int i = 0; i < 500 && marker.empty(); ++i) {
-      for (const auto& d : fs::directory_iterator(scratch)) {
-        if (fs::exists(d.path() / "no-arena")) FAIL() << "the plugin found no output arena to scribble on";
-        if (fs::exists(d.path() / "scribbled")) marker = d.path() / "scribbled";
-      }
+      for (const auto& d : fs::directory_iterator(scratch))
+        for (const char* name : {"scribbled", "no-arena"})
+          if (fs::exists(d.path() / name)) marker = d.path() / name;
       if (marker.empty()) std::this_thread::sleep_for(10ms);
     }
-    ASSERT_FALSE(marker.empty()) << "the plugin did not scribble within 5 s";
+    ASSERT_FALSE(marker.empty()) << "the plugin's scribbler did not run within 5 s";
+    EXPECT_EQ(marker.filename().string(), expect);
     std::this_thread::sleep_for(100ms);  // and it keeps scribbling meanwhile
     check("after the plugin overwrote its arena");
     // A second outputs() call returns the same copy, not a new read.
@@ -173,6 +178,10 @@ TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) {
   }
   fs::remove_all(scratch);
 }
+
+TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) { scribble_scan(1); }
+
+TEST(OutputArenaTest, WithoutReuseNoWritableOutputsMappingIsLeftInTheWorker) { scribble_scan(0); }
 
 }  // namespace
 }  // namespace procam::host

@@ -303,6 +303,7 @@ bool WorkerProxy::end_session_for_reuse() {
   bridge_ = nullptr;  // the Session's bridge dies with it
   plan_blob_ = wire::Mapping();
   outputs_.reset();  // the Session (and every view of its outputs) is gone
+  outputs_blob_ = wire::Mapping();
   last_round_frames_ = 0;
   if (broken_ || errored_ || sessions_ >= options_.max_sessions_per_worker) return false;
   if (!call(wire::Msg::end_session, "end_session", {}, -1, options_.call_timeout)) return false;
@@ -483,24 +484,37 @@ Result<std::vector<Output>> WorkerProxy::outputs() {
   // Views of the first call stay valid until the session ends: never take a
   // second copy under them.
   if (outputs_) return *outputs_;
-  auto m = call(wire::Msg::get_outputs, "get_outputs", {}, -1, round_deadline(last_round_frames_));
+  // A worker that can serve another session keeps its output arena, which
+  // this side copies from; one that cannot (reuse off) sends a sealed blob,
+  // mapped without a copy (WORKER_PROTOCOL.md "Output arena").
+  const bool arena = options_.max_idle_workers > 0;
+  auto m = call(wire::Msg::get_outputs, "get_outputs", std::string(1, arena ? '\1' : '\0'), -1,
+                round_deadline(last_round_frames_));
   if (!m) return m.status();
   wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
   const bool has = r.u8("outputs flag") != 0;
   const uint64_t used = r.u64("output bytes");
-  if (!r.ok() || !has || !r.at_end())
+  if (!r.ok() || !has || !r.at_end() || (!arena && !m->fd))
     return fail("get_outputs", Code::plugin_error, "sent a malformed outputs reply (worker killed)");
-  if (m->fd) {
-    if (Status s = outputs_copy_.adopt(m->fd.get()); !s)
-      return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
-  }
-  // From here on only the private copy is read: the worker may still write
-  // its arena (output_arena.hpp).
-  if (Status s = outputs_copy_.take(used); !s)
-    return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
   std::vector<procam_output> abi;
-  if (Status s = wire::decode_outputs(outputs_copy_.data(), outputs_copy_.size(), abi); !s)
-    return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+  Status decoded;
+  if (!arena) {
+    auto blob = wire::map_sealed_blob(m->fd.get());
+    if (!blob) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + blob.status().message());
+    outputs_blob_ = std::move(*blob);
+    decoded = wire::decode_outputs(outputs_blob_, abi);
+  } else {
+    if (m->fd) {
+      if (Status s = outputs_copy_.adopt(m->fd.get()); !s)
+        return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+    }
+    // From here on only the private copy is read: the worker may still write
+    // its arena (output_arena.hpp).
+    if (Status s = outputs_copy_.take(used); !s)
+      return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+    decoded = wire::decode_outputs(outputs_copy_.data(), outputs_copy_.size(), abi);
+  }
+  if (!decoded) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + decoded.message());
   auto outs = outputs_from_abi(abi.data(), static_cast<uint32_t>(abi.size()), "plugin '" + plugin_ + "'");
   if (outs) outputs_ = *outs;
   return outs;

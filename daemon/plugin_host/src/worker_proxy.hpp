@@ -175,6 +175,7 @@ private:
   // reused worker; `outputs_` is what this session's outputs() returned
   // (a second call returns it again: the copy is taken once per session).
   wire::OutputSnapshot outputs_copy_;
+  wire::Mapping outputs_blob_;  // instead, with reuse off: a sealed blob per session
   std::optional<std::vector<Output>> outputs_;
 };
 

@@ -234,7 +234,28 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on) {
           reply_error(outs.status());
           break;
         }
-        auto written = s.outputs.write([&](wire::Writer& w) { wire::write_outputs(w, *outs); });
+        const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs); };
+        // Payload u8: 1 = into the output arena (a worker the daemon may
+        // reuse), 0 = a sealed blob of its own (WORKER_PROTOCOL.md).
+        wire::Reader req(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+        const bool arena = req.u8("arena flag") != 0;
+        if (!req.ok()) {
+          reply_error(Error(Code::invalid_argument, "malformed get_outputs: " + req.error()));
+          break;
+        }
+        if (!arena) {
+          auto blob = wire::make_sealed_blob(encode, "procam-outputs-blob");
+          if (!blob) {
+            reply_error(blob.status());
+            break;
+          }
+          wire::Writer w;
+          w.u8(1);
+          w.u64(0);
+          reply_ok(w.bytes(), blob->get());
+          break;
+        }
+        auto written = s.outputs.write(encode);
         if (!written) {
           reply_error(written.status());
           break;
