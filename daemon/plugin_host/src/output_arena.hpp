@@ -61,6 +61,9 @@ public:
   // A new arena from the worker: it must be a memfd sealed against
   // shrinking (so a mapped page never vanishes: no SIGBUS), at most
   // kMaxBlob bytes, fully written (no holes), then it is mapped read-only.
+  // A worker that punches holes later makes take() read zero pages, which
+  // the kernel allocates: at most the arena's size, which it had allocated
+  // itself when it was adopted; the decode checks catch the zeros.
   Status adopt(int fd);
   // Copies bytes [0, used) of the arena into the private buffer (grown as
   // needed); corrupt_data if no arena was adopted or `used` is beyond it.
