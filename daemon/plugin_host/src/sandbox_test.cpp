@@ -43,9 +43,11 @@ protected:
 
   // Runs `method` (sandbox on or off); returns the plugin's log lines and,
   // while the worker lives, its /proc status.
-  std::vector<std::string> run(const std::string& method, bool sandbox, std::string* proc_status = nullptr) {
+  std::vector<std::string> run(const std::string& method, bool sandbox, std::string* proc_status = nullptr,
+                               std::vector<std::string> readable = {}) {
     IsolationOptions iso;
     iso.sandbox = sandbox;
+    iso.readable = std::move(readable);
     iso.scratch_parent = tmp_.string();
     host_.set_isolation(iso);
     std::vector<std::string> lines;
@@ -118,6 +120,14 @@ TEST_F(SandboxTest, NoReadsOutsideThePluginSystemAndScratchFolders) {
   ASSERT_TRUE(has(control, "read_outside: allowed")) << ::testing::PrintToString(control);
   EXPECT_TRUE(has(lines, "read_outside: blocked (Permission denied)")) << ::testing::PrintToString(lines);
   EXPECT_TRUE(has(lines, "read_system: allowed")) << ::testing::PrintToString(lines);
+  // A folder listed in IsolationOptions::readable (procamd.json plugins.readable).
+  const fs::path data = tmp_ / "data";
+  fs::create_directory(data);
+  std::ofstream(data / "lut.txt") << "1 2 3\n";
+  ::setenv("PROCAM_TEST_SECRET", (data / "lut.txt").c_str(), 1);
+  const auto listed = run("try_read", true, nullptr, {data.string()});
+  ::unsetenv("PROCAM_TEST_SECRET");
+  EXPECT_TRUE(has(listed, "read_outside: allowed")) << ::testing::PrintToString(listed);
 }
 
 TEST_F(SandboxTest, NoNewFilesOutsideTheScratchFolder) {

@@ -219,6 +219,10 @@ Status WorkerProxy::spawn(const std::string& worker_path) {
     args.push_back("--scratch-parent");
     args.push_back(options_.scratch_parent);
   }
+  for (const std::string& r : options_.readable) {
+    args.push_back("--readable");
+    args.push_back(r);
+  }
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

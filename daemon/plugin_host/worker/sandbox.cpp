@@ -142,7 +142,8 @@ void allow_beneath(int ruleset, const std::string& path, uint64_t access) {
 
 }  // namespace
 
-std::string restrict_reads(const std::string& plugin_file, const std::string& scratch) {
+std::string restrict_reads(const std::string& plugin_file, const std::string& scratch,
+                           const std::vector<std::string>& readable) {
   const long abi = ::syscall(SYS_landlock_create_ruleset, nullptr, 0, LANDLOCK_CREATE_RULESET_VERSION);
   if (abi < 1) return std::string("Landlock read rule (kernel 5.13+ with landlock in lsm=): ") + std::strerror(errno);
   RulesetAttr attr{};
@@ -163,6 +164,7 @@ std::string restrict_reads(const std::string& plugin_file, const std::string& sc
                                std::string("/dev/urandom"), std::string("/dev/random")})
     allow_beneath(ruleset, p, read);
   if (!scratch.empty()) allow_beneath(ruleset, scratch, read);
+  for (const std::string& p : readable) allow_beneath(ruleset, p, read);
   std::string problem;
   if (::syscall(SYS_landlock_restrict_self, ruleset, 0) != 0)
     problem = std::string("landlock_restrict_self (reads): ") + std::strerror(errno);

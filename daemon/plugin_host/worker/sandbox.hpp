@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace procam::worker {
 
@@ -51,8 +52,10 @@ SandboxReport enter_sandbox(const std::string& scratch_parent);
 // a second Landlock layer lets the worker read and execute files only
 // beneath the plugin file's folder, /usr, /lib, /lib64, /proc, the CPU and
 // cgroup files of /sys, /etc/ld.so.cache, /etc/localtime, /dev/{null,zero,
-// urandom,random} and `scratch`. Returns "" or what could not be applied
-// (the kernel lacks Landlock): the worker runs on without the rule.
-std::string restrict_reads(const std::string& plugin_file, const std::string& scratch);
+// urandom,random}, `scratch` and each of `readable` (IsolationOptions::
+// readable). Returns "" or what could not be applied (the kernel lacks
+// Landlock): the worker runs on without the rule.
+std::string restrict_reads(const std::string& plugin_file, const std::string& scratch,
+                           const std::vector<std::string>& readable);
 
 }  // namespace procam::worker

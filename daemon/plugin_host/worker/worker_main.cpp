@@ -21,6 +21,7 @@
 #include <cstring>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "procam/core/log.hpp"
 #include "procam/host/plugin_host.hpp"
@@ -81,6 +82,7 @@ struct Served {
   // (worker::restrict_reads), with the scratch folder readable.
   bool sandbox = false;
   std::string scratch;
+  std::vector<std::string> readable;  // --readable: more folders to read
   uint32_t slots = 0;
   uint64_t slot_size = 0;
 };
@@ -102,7 +104,7 @@ void serve_create(Served& s, const wire::Message& m) {
     s.plugin_file = req.plugin_file;
     if (Status st = s.host->load_file(req.plugin_file); !st) return reply_error(st);
     if (s.sandbox) {
-      const std::string problem = worker::restrict_reads(req.plugin_file, s.scratch);
+      const std::string problem = worker::restrict_reads(req.plugin_file, s.scratch, s.readable);
       if (!problem.empty()) std::fprintf(stderr, "procam-plugin-worker: partial sandbox: %s\n", problem.c_str());
     }
   } else if (req.plugin_file != s.plugin_file) {
@@ -157,7 +159,7 @@ void serve_add_frame(Served& s, const wire::Message& m) {
   reply_ok();
 }
 
-int serve(const worker::SandboxReport& sandbox, bool sandbox_on) {
+int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std::string> readable) {
   wire::Writer hello;
   hello.u32(sandbox.flags);
   hello.str(sandbox.scratch);
@@ -166,6 +168,7 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on) {
   Served s;
   s.sandbox = sandbox_on;
   s.scratch = sandbox.scratch;
+  s.readable = std::move(readable);
   for (;;) {
     auto m = wire::recv_msg(kSock, -1);
     if (!m) {
@@ -279,6 +282,7 @@ int main(int argc, char** argv) {
   uint64_t memory_limit_mb = 0;
   bool sandbox = true;
   std::string scratch_parent;
+  std::vector<std::string> readable;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--memory-limit-mb" && i + 1 < argc) {
@@ -287,6 +291,8 @@ int main(int argc, char** argv) {
       sandbox = std::string(argv[++i]) != "0";
     } else if (a == "--scratch-parent" && i + 1 < argc) {
       scratch_parent = argv[++i];
+    } else if (a == "--readable" && i + 1 < argc) {
+      readable.emplace_back(argv[++i]);
     } else {
       std::fprintf(stderr,
                    "procam-plugin-worker: unknown argument '%s'\n"
@@ -304,5 +310,5 @@ int main(int argc, char** argv) {
   log::configure("warn,plugins=off");
   // Before any plugin code (its static constructors run in dlopen).
   const worker::SandboxReport report = sandbox ? worker::enter_sandbox(scratch_parent) : worker::SandboxReport{};
-  return serve(report, sandbox);
+  return serve(report, sandbox, std::move(readable));
 }
