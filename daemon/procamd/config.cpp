@@ -19,7 +19,7 @@ std::string resolve(const std::string& base, const std::string& p) {
 
 // "plugins": {"isolation": "process" | "in_process", "trusted": [names],
 // "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox", "prestart",
-// "max_idle_workers", "idle_timeout_ms", "max_sessions_per_worker"}.
+// "max_idle_workers", "idle_timeout_ms", "max_sessions_per_worker", "readable": [folders]}.
 Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, PluginsConfig& out) {
   const char* example =
       "{\"isolation\": \"process\", \"trusted\": [\"structured-light\"], \"memory_limit_mb\": 8192}";
@@ -38,6 +38,14 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
         if (!n.is_string() || n.get<std::string>().empty())
           return Error(Code::invalid_argument, "daemon config: '" + key + "' must hold plugin names (strings)");
         out.trusted.push_back(n.get<std::string>());
+      }
+    } else if (it.key() == "readable") {
+      if (!v.is_array()) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be an array of folders");
+      for (const auto& p : v) {
+        if (!p.is_string() || p.get<std::string>().empty())
+          return Error(Code::invalid_argument, "daemon config: '" + key + "' must hold folder paths (strings)",
+                       "folders plugin workers may read besides the plugin's, the system's and their scratch folder");
+        out.readable.push_back(resolve(base_dir, p.get<std::string>()));
       }
     } else if (it.key() == "sandbox" || it.key() == "prestart") {
       if (!v.is_boolean()) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be true or false");
@@ -72,7 +80,7 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
     } else if (it.key() != "comment") {
       return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
                    "known keys: isolation, trusted, worker, call_timeout_ms, per_frame_timeout_ms, memory_limit_mb, "
-                   "sandbox, prestart, max_idle_workers, idle_timeout_ms, max_sessions_per_worker");
+                   "sandbox, prestart, max_idle_workers, idle_timeout_ms, max_sessions_per_worker, readable");
     }
   }
   return {};

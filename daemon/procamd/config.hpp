@@ -36,6 +36,7 @@ struct PluginsConfig {
   uint64_t max_idle_workers = 1;
   uint64_t idle_timeout_ms = 60000;
   uint64_t max_sessions_per_worker = 100;
+  std::vector<std::string> readable;  // more folders a sandboxed worker may read
 };
 
 struct Config {

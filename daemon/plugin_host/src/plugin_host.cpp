@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <mutex>
 #include <set>
 #include <system_error>
 
@@ -79,6 +80,15 @@ void PluginHost::set_isolation(IsolationOptions options) {
   isolation_ = std::move(options);
   spare_.reset();  // a spare started with the old options goes
   idle_.reset();   // so do idle workers (their sessions keep only weak pointers)
+  // Scratch folders of a daemon killed before it could remove them
+  // (README.md "Least privilege"); once per folder and process.
+  if (isolation_.mode == Isolation::process && isolation_.sandbox) {
+    static std::mutex mu;
+    static std::set<std::string> swept;
+    const std::string parent = detail::scratch_parent_of(isolation_);
+    std::lock_guard<std::mutex> lock(mu);
+    if (swept.insert(parent).second) (void)detail::sweep_stale_scratch(parent);
+  }
   if (isolation_.mode == Isolation::process && isolation_.max_idle_workers > 0)
     idle_ = std::make_shared<detail::IdlePool>(isolation_);
   if (isolation_.mode == Isolation::process && isolation_.prestart) {

@@ -7,9 +7,12 @@
 // from the code under test) are skipped, not passed.
 #include <gtest/gtest.h>
 #include <linux/landlock.h>
+#include <sys/socket.h>
 #include <sys/syscall.h>
+#include <sys/un.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -40,9 +43,11 @@ protected:
 
   // Runs `method` (sandbox on or off); returns the plugin's log lines and,
   // while the worker lives, its /proc status.
-  std::vector<std::string> run(const std::string& method, bool sandbox, std::string* proc_status = nullptr) {
+  std::vector<std::string> run(const std::string& method, bool sandbox, std::string* proc_status = nullptr,
+                               std::vector<std::string> readable = {}) {
     IsolationOptions iso;
     iso.sandbox = sandbox;
+    iso.readable = std::move(readable);
     iso.scratch_parent = tmp_.string();
     host_.set_isolation(iso);
     std::vector<std::string> lines;
@@ -78,6 +83,51 @@ TEST_F(SandboxTest, NoNetworkSockets) {
   const auto lines = run("try_network", true);
   EXPECT_TRUE(has(lines, "udp: blocked (Permission denied)")) << ::testing::PrintToString(lines);
   EXPECT_TRUE(has(lines, "tcp: blocked (Permission denied)")) << ::testing::PrintToString(lines);
+}
+
+// A named Unix socket this test listens on: the control connects, the
+// sandboxed worker cannot even create a socket (seccomp).
+TEST_F(SandboxTest, NoConnectionsToNamedUnixSockets) {
+  const fs::path path = tmp_ / "listening.sock";
+  const int srv = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(srv, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+  ASSERT_EQ(::bind(srv, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(srv, 4), 0);
+  ::setenv("PROCAM_TEST_UNIX", path.c_str(), 1);
+  const auto control = run("try_unix", false);
+  const auto lines = run("try_unix", true);
+  ::unsetenv("PROCAM_TEST_UNIX");
+  ::close(srv);
+  ASSERT_TRUE(has(control, "unix: allowed")) << ::testing::PrintToString(control);
+  EXPECT_TRUE(has(lines, "unix: blocked (Permission denied)")) << ::testing::PrintToString(lines);
+}
+
+// A file the daemon's user can read, outside the plugin's folder, the
+// system folders and the scratch folder: readable in the control, not in
+// the worker (Landlock, applied after the plugin is loaded); a system file
+// stays readable.
+TEST_F(SandboxTest, NoReadsOutsideThePluginSystemAndScratchFolders) {
+  if (landlock_abi() < 1) GTEST_SKIP() << "kernel without Landlock: the read rule is not enforced here";
+  const fs::path secret = tmp_ / "secret.txt";
+  std::ofstream(secret) << "the daemon's secret\n";
+  ::setenv("PROCAM_TEST_SECRET", secret.c_str(), 1);
+  const auto control = run("try_read", false);
+  const auto lines = run("try_read", true);
+  ::unsetenv("PROCAM_TEST_SECRET");
+  ASSERT_TRUE(has(control, "read_outside: allowed")) << ::testing::PrintToString(control);
+  EXPECT_TRUE(has(lines, "read_outside: blocked (Permission denied)")) << ::testing::PrintToString(lines);
+  EXPECT_TRUE(has(lines, "read_system: allowed")) << ::testing::PrintToString(lines);
+  // A folder listed in IsolationOptions::readable (procamd.json plugins.readable).
+  const fs::path data = tmp_ / "data";
+  fs::create_directory(data);
+  std::ofstream(data / "lut.txt") << "1 2 3\n";
+  ::setenv("PROCAM_TEST_SECRET", (data / "lut.txt").c_str(), 1);
+  const auto listed = run("try_read", true, nullptr, {data.string()});
+  ::unsetenv("PROCAM_TEST_SECRET");
+  EXPECT_TRUE(has(listed, "read_outside: allowed")) << ::testing::PrintToString(listed);
 }
 
 TEST_F(SandboxTest, NoNewFilesOutsideTheScratchFolder) {

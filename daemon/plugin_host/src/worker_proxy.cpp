@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <thread>
 #include <atomic>
+#include <string_view>
 
 #include "host_services.hpp"
 #include "procam/core/log.hpp"
@@ -74,6 +75,41 @@ Result<std::string> find_worker(const std::string& configured) {
                "(plugins.isolation \"in_process\")");
 }
 
+std::string scratch_parent_of(const IsolationOptions& options) {
+  if (!options.scratch_parent.empty()) return options.scratch_parent;
+  const char* tmp = std::getenv("TMPDIR");
+  return tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
+}
+
+size_t sweep_stale_scratch(const std::string& parent) {
+  constexpr std::string_view prefix = "procam-worker-";
+  size_t removed = 0;
+  std::error_code ec;
+  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0 || !it->is_directory(ec) || it->is_symlink(ec)) continue;
+    // procam-worker-<daemon pid>-XXXXXX (worker/sandbox.cpp)
+    const size_t dash = name.find('-', prefix.size());
+    if (dash == std::string::npos || dash == prefix.size()) continue;
+    const std::string digits = name.substr(prefix.size(), dash - prefix.size());
+    if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const pid_t owner = static_cast<pid_t>(std::stol(digits));
+    if (owner <= 0 || ::kill(owner, 0) == 0 || errno != ESRCH) continue;  // alive (or not ours to judge)
+    std::error_code rm;
+    fs::remove_all(it->path(), rm);  // does not follow symlinks left inside
+    if (rm) {
+      PROCAM_LOG(plugins, warn) << "cannot remove the stale worker scratch folder '" << it->path().string()
+                                << "': " << rm.message();
+      continue;
+    }
+    ++removed;
+  }
+  if (removed > 0)
+    PROCAM_LOG(plugins, info) << "removed " << removed << " scratch folder(s) of plugin workers whose daemon "
+                              << "is gone (killed?) from '" << parent << "'";
+  return removed;
+}
+
 WorkerProxy::WorkerProxy(const IsolationOptions& options, std::string plugin)
     : options_(options), plugin_(std::move(plugin)) {}
 
@@ -97,9 +133,7 @@ Status WorkerProxy::read_hello(const wire::Message& hello) {
   if (!r.ok()) return Error(Code::corrupt_data, r.error());
   // Only a folder of the name the worker makes, where it makes them.
   const fs::path sp(scratch);
-  const fs::path parent = options_.scratch_parent.empty()
-                              ? fs::path(std::getenv("TMPDIR") && *std::getenv("TMPDIR") ? std::getenv("TMPDIR") : "/tmp")
-                              : fs::path(options_.scratch_parent);
+  const fs::path parent = scratch_parent_of(options_);
   std::error_code ec1, ec2;
   if (!scratch.empty() && fs::weakly_canonical(sp.parent_path(), ec1) == fs::weakly_canonical(parent, ec2) &&
       !ec1 && !ec2 && sp.filename().string().rfind("procam-worker-", 0) == 0)
@@ -185,6 +219,10 @@ Status WorkerProxy::spawn(const std::string& worker_path) {
     args.push_back("--scratch-parent");
     args.push_back(options_.scratch_parent);
   }
+  for (const std::string& r : options_.readable) {
+    args.push_back("--readable");
+    args.push_back(r);
+  }
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -268,6 +306,7 @@ Status WorkerProxy::reuse(const wire::CreateRequest& request, bool& host_service
 bool WorkerProxy::end_session_for_reuse() {
   bridge_ = nullptr;  // the Session's bridge dies with it
   plan_blob_ = wire::Mapping();
+  outputs_.reset();  // the Session (and every view of its outputs) is gone
   outputs_blob_ = wire::Mapping();
   last_round_frames_ = 0;
   if (broken_ || errored_ || sessions_ >= options_.max_sessions_per_worker) return false;
@@ -446,16 +485,43 @@ Status WorkerProxy::stop() {
 }
 
 Result<std::vector<Output>> WorkerProxy::outputs() {
-  auto m = call(wire::Msg::get_outputs, "get_outputs", {}, -1, round_deadline(last_round_frames_));
+  // Views of the first call stay valid until the session ends: never take a
+  // second copy under them.
+  if (outputs_) return *outputs_;
+  // A worker that can serve another session keeps its output arena, which
+  // this side copies from; one that cannot (reuse off) sends a sealed blob,
+  // mapped without a copy (WORKER_PROTOCOL.md "Output arena").
+  const bool arena = options_.max_idle_workers > 0;
+  auto m = call(wire::Msg::get_outputs, "get_outputs", std::string(1, arena ? '\1' : '\0'), -1,
+                round_deadline(last_round_frames_));
   if (!m) return m.status();
-  if (!m->fd) return fail("get_outputs", Code::plugin_error, "sent outputs without their data (worker killed)");
-  auto blob = wire::map_sealed_blob(m->fd.get());
-  if (!blob) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + blob.status().message());
-  outputs_blob_ = std::move(*blob);
+  wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+  const bool has = r.u8("outputs flag") != 0;
+  const uint64_t used = r.u64("output bytes");
+  if (!r.ok() || !has || !r.at_end() || (!arena && !m->fd))
+    return fail("get_outputs", Code::plugin_error, "sent a malformed outputs reply (worker killed)");
   std::vector<procam_output> abi;
-  if (Status s = wire::decode_outputs(outputs_blob_, abi); !s)
-    return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
-  return outputs_from_abi(abi.data(), static_cast<uint32_t>(abi.size()), "plugin '" + plugin_ + "'");
+  Status decoded;
+  if (!arena) {
+    auto blob = wire::map_sealed_blob(m->fd.get());
+    if (!blob) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + blob.status().message());
+    outputs_blob_ = std::move(*blob);
+    decoded = wire::decode_outputs(outputs_blob_, abi);
+  } else {
+    if (m->fd) {
+      if (Status s = outputs_copy_.adopt(m->fd.get()); !s)
+        return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+    }
+    // From here on only the private copy is read: the worker may still write
+    // its arena (output_arena.hpp).
+    if (Status s = outputs_copy_.take(used); !s)
+      return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+    decoded = wire::decode_outputs(outputs_copy_.data(), outputs_copy_.size(), abi);
+  }
+  if (!decoded) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + decoded.message());
+  auto outs = outputs_from_abi(abi.data(), static_cast<uint32_t>(abi.size()), "plugin '" + plugin_ + "'");
+  if (outs) outputs_ = *outs;
+  return outs;
 }
 
 }  // namespace procam::host::detail

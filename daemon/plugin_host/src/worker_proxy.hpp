@@ -30,6 +30,7 @@
 
 #include "procam/core/status.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "output_arena.hpp"
 #include "worker_wire.hpp"
 
 namespace procam::host::detail {
@@ -86,6 +87,17 @@ private:
 // $PROCAM_PLUGIN_WORKER, else beside the running executable, else
 // <exe dir>/../libexec/procam/, else the build tree's bin/ (README.md).
 Result<std::string> find_worker(const std::string& configured);
+
+// The folder workers make their scratch folders in: options.scratch_parent,
+// else $TMPDIR, else /tmp.
+std::string scratch_parent_of(const IsolationOptions& options);
+
+// Removes scratch folders left behind by a daemon that was killed (SIGKILL:
+// no destructor ran): every `procam-worker-<pid>-*` folder directly in
+// `parent` whose <pid> (the daemon that started the worker) no longer
+// exists. Folders of live daemons, of other names, or without a pid are
+// left alone. Returns how many were removed; never throws.
+size_t sweep_stale_scratch(const std::string& parent);
 
 class WorkerProxy {
 public:
@@ -158,7 +170,13 @@ private:
   uint32_t next_slot_ = 0;
   size_t last_round_frames_ = 0;
   wire::Mapping plan_blob_;     // the current plan's patterns
-  wire::Mapping outputs_blob_;  // the outputs' images and points
+  // The outputs' images and points: the daemon's private copy of the
+  // worker's output arena (output_arena.hpp), kept across the sessions of a
+  // reused worker; `outputs_` is what this session's outputs() returned
+  // (a second call returns it again: the copy is taken once per session).
+  wire::OutputSnapshot outputs_copy_;
+  wire::Mapping outputs_blob_;  // instead, with reuse off: a sealed blob per session
+  std::optional<std::vector<Output>> outputs_;
 };
 
 }  // namespace procam::host::detail

@@ -290,6 +290,19 @@ Result<UniqueFd> make_sealed_blob(const std::function<void(Writer&)>& encode, co
   return fd;
 }
 
+Status check_fully_written(const struct stat& st, const char* what) {
+  // Every byte was written, so every page exists: a memfd with holes (a
+  // sparse one) would make this process allocate the pages it reads, up to
+  // kMaxBlob, on the sender's say-so.
+  const uint64_t page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+  const uint64_t pages = (static_cast<uint64_t>(st.st_size) + page - 1) / page;
+  if (static_cast<uint64_t>(st.st_blocks) * 512 < pages * page)
+    return Error(Code::corrupt_data, std::string(what) + " of " + std::to_string(st.st_size) + " bytes with only " +
+                                         std::to_string(static_cast<uint64_t>(st.st_blocks) * 512) +
+                                         " bytes written (a sparse memfd)");
+  return {};
+}
+
 Result<Mapping> map_sealed_blob(int fd, size_t max_size) {
   const int seals = ::fcntl(fd, F_GET_SEALS);
   constexpr int need = F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_WRITE;
@@ -300,15 +313,7 @@ Result<Mapping> map_sealed_blob(int fd, size_t max_size) {
     return Error(Code::corrupt_data, "a data blob of " + std::to_string(st.st_size) + " bytes, over the limit of " +
                                          std::to_string(max_size));
   if (st.st_size == 0) return Mapping();
-  // Every byte was written, so every page exists: a blob with holes (a
-  // sparse memfd) would make this process allocate the pages it reads, up
-  // to kMaxBlob, on the sender's say-so.
-  const uint64_t page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
-  const uint64_t pages = (static_cast<uint64_t>(st.st_size) + page - 1) / page;
-  if (static_cast<uint64_t>(st.st_blocks) * 512 < pages * page)
-    return Error(Code::corrupt_data, "a data blob of " + std::to_string(st.st_size) + " bytes with only " +
-                                         std::to_string(static_cast<uint64_t>(st.st_blocks) * 512) +
-                                         " bytes written (a sparse memfd)");
+  PROCAM_TRY(check_fully_written(st, "a data blob"));
   // Sealed and complete: MAP_POPULATE maps all pages at once (the reader
   // reads everything: checks, then copies to files).
   void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_SHARED | MAP_POPULATE, fd, 0);
@@ -316,21 +321,30 @@ Result<Mapping> map_sealed_blob(int fd, size_t max_size) {
   return Mapping(p, static_cast<size_t>(st.st_size));
 }
 
+Result<FixedShared> make_fixed_shared(const char* name, uint64_t size, const char* what) {
+  FixedShared out;
+  out.fd = UniqueFd(::memfd_create(name, MFD_CLOEXEC | MFD_ALLOW_SEALING));
+  if (!out.fd) return Error(Code::unavailable, std::string("memfd_create: ") + std::strerror(errno));
+  if (::ftruncate(out.fd.get(), static_cast<off_t>(size)) != 0 ||
+      ::fcntl(out.fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) != 0)
+    return Error(Code::unavailable, std::string("sizing ") + what + ": " + std::strerror(errno));
+  void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, out.fd.get(), 0);
+  if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of ") + what + ": " + std::strerror(errno));
+  out.map = Mapping(p, size);
+  return out;
+}
+
 Result<Ring> make_ring(uint32_t slots, uint64_t slot_size) {
   uint64_t total = 0;
   if (slots == 0 || __builtin_mul_overflow(uint64_t{slots}, slot_size, &total) || total > kMaxBlob)
     return Error(Code::invalid_argument, "frame ring of " + std::to_string(slots) + " x " +
                                              std::to_string(slot_size) + " bytes is too large");
-  UniqueFd fd(::memfd_create("procam-frames", MFD_CLOEXEC | MFD_ALLOW_SEALING));
-  if (!fd) return Error(Code::unavailable, std::string("memfd_create: ") + std::strerror(errno));
-  if (::ftruncate(fd.get(), static_cast<off_t>(total)) != 0 ||
-      ::fcntl(fd.get(), F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL) != 0)
-    return Error(Code::unavailable, std::string("sizing the frame ring: ") + std::strerror(errno));
   // Pre-faulted: every frame is copied into it, so all pages get touched anyway.
-  void* p = ::mmap(nullptr, total, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd.get(), 0);
-  if (p == MAP_FAILED) return Error(Code::unavailable, std::string("mmap of the frame ring: ") + std::strerror(errno));
+  auto shm = make_fixed_shared("procam-frames", total, "the frame ring");
+  if (!shm) return shm.status();
+  UniqueFd fd = std::move(shm->fd);
   Ring ring;
-  ring.map = Mapping(p, total);
+  ring.map = std::move(shm->map);
   ring.slots = slots;
   ring.slot_size = slot_size;
   // A read-only descriptor of the same memfd for the worker.
@@ -377,7 +391,8 @@ void put_image(Writer& w, const procam_image& v) {
 namespace {
 class BlobIn {
 public:
-  explicit BlobIn(const Mapping& m) : p_(m.data()), n_(m.size()) {}
+  explicit BlobIn(const Mapping& m) : BlobIn(m.data(), m.size()) {}
+  BlobIn(const uint8_t* p, size_t n) : p_(p), n_(n), r_(p, n) {}
   Reader& r() { return r_; }
   bool ok() const { return r_.ok(); }
   std::string error() const { return r_.error(); }
@@ -563,7 +578,11 @@ void write_outputs(Writer& w, const std::vector<Output>& outputs) {
 }
 
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out) {
-  BlobIn in(blob);
+  return decode_outputs(blob.data(), blob.size(), out);
+}
+
+Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out) {
+  BlobIn in(data, size);
   const uint32_t n = in.u32("output count");
   if (n > 10000) return Error(Code::corrupt_data, std::to_string(n) + " outputs");
   out.assign(n, procam_output{});

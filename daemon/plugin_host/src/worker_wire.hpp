@@ -26,10 +26,12 @@
 #include "procam/host/plugin_host.hpp"
 #include "procam/plugin_abi.h"
 
+struct stat;
+
 namespace procam::host::wire {
 
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
-inline constexpr uint16_t kVersion = 2;
+inline constexpr uint16_t kVersion = 3;  // 3: outputs through the output arena
 inline constexpr size_t kHeaderSize = 16;
 inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
 inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
@@ -191,8 +193,20 @@ Result<UniqueFd> make_sealed_blob(const std::string& bytes, const char* name);
 // without a growing buffer in between. `encode` must write the same bytes
 // both times (it is a pure function of its data); internal if not.
 Result<UniqueFd> make_sealed_blob(const std::function<void(Writer&)>& encode, const char* name);
+// corrupt_data unless every page of the memfd `st` describes is allocated
+// (no holes); `what` names it in the message.
+Status check_fully_written(const struct stat& st, const char* what);
 // Maps a received blob read-only after checking its seals and size.
 Result<Mapping> map_sealed_blob(int fd, size_t max_size = kMaxBlob);
+
+// A memfd of `size` bytes sealed against resizing (no SIGBUS for anyone who
+// maps it), mapped read-write and pre-faulted here (the frame ring, the
+// output arena). `what` names it in errors.
+struct FixedShared {
+  UniqueFd fd;
+  Mapping map;
+};
+Result<FixedShared> make_fixed_shared(const char* name, uint64_t size, const char* what);
 
 // The frame ring, daemon side: `slots` slots of `slot_size` bytes in a memfd
 // sealed against resizing, mapped read-write here; `worker_fd` is a
@@ -235,6 +249,9 @@ Status decode_plan(const Mapping& blob, AbiPlan& out);
 std::string encode_outputs(const std::vector<Output>& outputs);
 void write_outputs(Writer& w, const std::vector<Output>& outputs);
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out);
+// The same over bytes the caller owns (the daemon's copy of the output
+// arena, output_arena.hpp); views point into them.
+Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out);
 
 // An error reply: code, message, hint.
 std::string encode_error(const Status& st);

@@ -24,7 +24,18 @@
  *                (<error>)" or "<rule>: allowed": a UDP and a TCP socket;
  *                creating $PROCAM_TEST_OUTSIDE; creating $TMPDIR/plugin-file;
  *                SIGCONT to the parent process; CapEff of /proc/self/status
- *                ("caps: <hex>")
+ *                ("caps: <hex>"); try_unix: a Unix stream socket connected to
+ *                the named socket $PROCAM_TEST_UNIX ("unix"); try_read:
+ *                reading $PROCAM_TEST_SECRET ("read_outside") and
+ *                /etc/ld.so.cache ("read_system", a file every program
+ *                reads)
+ *   scribble     behaves as "ok", and get_outputs starts a thread that, 100
+ *                ms later, overwrites every writable "procam-outputs"
+ *                mapping of the worker (the output arena, found in
+ *                /proc/self/maps) with changing bytes for about a second,
+ *                creating "scribbled" in its working directory (the
+ *                scratch folder) after the first pass, or "no-arena" if it
+ *                found none: what the daemon returned must not change
  *   stream       plans 4096 frames and does nothing in add_frame: the
  *                per-frame cost of the host itself (bench/worker_bench.cpp)
  * Never load this into a process you care about.
@@ -38,7 +49,10 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
+#include <pthread.h>
 #include <sys/socket.h>
+#include <sys/un.h>
+#include <time.h>
 
 #include "procam/plugin_abi.h"
 
@@ -46,7 +60,7 @@
 
 FX_EXPORT const procam_plugin_info fx_info __asm__(PROCAM_PLUGIN_INFO_SYMBOL) = {
     PROCAM_PLUGIN_MAGIC, PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_info), 0, "faults", "0.0.1",
-    "ok,segv,abort,hang,oom,garbage,write_frame,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps"};
+    "ok,segv,abort,hang,oom,garbage,write_frame,scribble,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps,try_unix,try_read"};
 
 struct procam_session {
   char method[32];
@@ -72,8 +86,9 @@ static int is(const procam_session* s, const char* m) { return strcmp(s->method,
 static const char* fx_describe(void) {
   return "[{\"name\": \"ok\"}, {\"name\": \"segv\"}, {\"name\": \"abort\"}, {\"name\": \"hang\"},"
          " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"},"
-         " {\"name\": \"stream\"}, {\"name\": \"try_network\"}, {\"name\": \"try_write_outside\"},"
-         " {\"name\": \"try_write_scratch\"}, {\"name\": \"try_signal\"}, {\"name\": \"try_caps\"}]";
+         " {\"name\": \"scribble\"}, {\"name\": \"stream\"}, {\"name\": \"try_network\"}, {\"name\": \"try_write_outside\"},"
+         " {\"name\": \"try_write_scratch\"}, {\"name\": \"try_signal\"}, {\"name\": \"try_caps\"},"
+         " {\"name\": \"try_unix\"}, {\"name\": \"try_read\"}]";
 }
 
 static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
@@ -206,6 +221,25 @@ static void fx_try(procam_session* s) {
     fd = open(path, O_CREAT | O_WRONLY | O_TRUNC, 0600);
     fx_verdict(s, is(s, "try_write_outside") ? "write_outside" : "write_scratch", fd >= 0);
     if (fd >= 0) close(fd);
+  } else if (is(s, "try_unix")) {
+    struct sockaddr_un addr;
+    const char* path = getenv("PROCAM_TEST_UNIX");
+    int fd = socket(AF_UNIX, SOCK_STREAM, 0), ok = 0;
+    memset(&addr, 0, sizeof addr);
+    addr.sun_family = AF_UNIX;
+    snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path ? path : "/nonexistent");
+    if (fd >= 0) ok = connect(fd, (const struct sockaddr*)&addr, sizeof addr) == 0;
+    fx_verdict(s, "unix", ok);
+    if (fd >= 0) close(fd);
+  } else if (is(s, "try_read")) {
+    const char* secret = getenv("PROCAM_TEST_SECRET");
+    int fd = open(secret ? secret : "/nonexistent", O_RDONLY);
+    char c;
+    fx_verdict(s, "read_outside", fd >= 0 && read(fd, &c, 1) == 1);
+    if (fd >= 0) close(fd);
+    fd = open("/etc/ld.so.cache", O_RDONLY);
+    fx_verdict(s, "read_system", fd >= 0 && read(fd, &c, 1) == 1);
+    if (fd >= 0) close(fd);
   } else if (is(s, "try_signal")) {
     fx_verdict(s, "signal", kill(getppid(), SIGCONT) == 0);
   } else if (is(s, "try_caps")) {
@@ -257,6 +291,40 @@ static int fx_end_round(procam_session* s, procam_error* err) {
   return PROCAM_OK;
 }
 
+static void fx_sleep_ms(long ms) {
+  struct timespec t = {ms / 1000, (ms % 1000) * 1000000L};
+  nanosleep(&t, NULL);
+}
+
+static void fx_touch(const char* name) {
+  int fd = open(name, O_CREAT | O_WRONLY | O_TRUNC, 0600);
+  if (fd >= 0) close(fd);
+}
+
+/* "scribble": writes over the worker's output arena after the reply. */
+static void* fx_scribbler(void* arg) {
+  int pass, found = 0;
+  (void)arg;
+  fx_sleep_ms(100);
+  for (pass = 0; pass < 50; ++pass) {
+    char line[512];
+    FILE* maps = fopen("/proc/self/maps", "r");
+    while (maps != NULL && fgets(line, sizeof line, maps) != NULL) {
+      unsigned long lo, hi;
+      char perms[8];
+      if (strstr(line, "procam-outputs") == NULL || sscanf(line, "%lx-%lx %7s", &lo, &hi, perms) != 3 ||
+          perms[1] != 'w')
+        continue;
+      memset((void*)lo, 0x40 + pass % 32, hi - lo);
+      found = 1;
+    }
+    if (maps != NULL) fclose(maps);
+    if (pass == 0) fx_touch(found ? "scribbled" : "no-arena");
+    fx_sleep_ms(20);
+  }
+  return NULL;
+}
+
 static int fx_get_outputs(procam_session* s, const procam_output** outs, uint32_t* count, procam_error* err) {
   int i;
   (void)err;
@@ -289,6 +357,10 @@ static int fx_get_outputs(procam_session* s, const procam_output** outs, uint32_
   s->outputs[3].name = "report";
   s->outputs[3].kind = PROCAM_OUTPUT_JSON;
   s->outputs[3].json = "{\"frames\": 3}";
+  if (is(s, "scribble")) {
+    pthread_t t;
+    if (pthread_create(&t, NULL, fx_scribbler, NULL) == 0) pthread_detach(t);
+  }
   *outs = s->outputs;
   *count = 4;
   return PROCAM_OK;

@@ -18,6 +18,7 @@
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 namespace procam::worker {
@@ -45,6 +46,7 @@ struct RulesetAttr {
   uint64_t handled_access_net;  // ABI 4+
   uint64_t scoped;              // ABI 6+
 };
+constexpr uint64_t kFsExecute = 1ull << 0, kFsReadFile = 1ull << 2, kFsReadDir = 1ull << 3;
 constexpr uint64_t kFsWriteFile = 1ull << 1, kFsRemoveDir = 1ull << 4, kFsRemoveFile = 1ull << 5,
                    kFsMakeChar = 1ull << 6, kFsMakeDir = 1ull << 7, kFsMakeReg = 1ull << 8,
                    kFsMakeSock = 1ull << 9, kFsMakeFifo = 1ull << 10, kFsMakeBlock = 1ull << 11,
@@ -114,19 +116,61 @@ void seccomp(SandboxReport& r) {
       BPF_STMT(BPF_LD | BPF_W | BPF_ABS, offsetof(seccomp_data, nr)),
       BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, __NR_io_uring_setup, 0, 1),
       BPF_STMT(BPF_RET | BPF_K, SECCOMP_RET_ERRNO | ENOSYS),
-      BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, __NR_socket, 1, 0),
-      BPF_STMT(BPF_RET | BPF_K, SECCOMP_RET_ALLOW),
-      BPF_STMT(BPF_LD | BPF_W | BPF_ABS, offsetof(seccomp_data, args[0])),  // the family (low 32 bits)
-      BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, AF_UNIX, 0, 1),
-      BPF_STMT(BPF_RET | BPF_K, SECCOMP_RET_ALLOW),
+      // No new sockets of any family: the worker talks only over the
+      // socketpair it inherited. AF_UNIX too, so a plugin cannot connect to
+      // named Unix sockets (the daemon user's D-Bus, an agent, procamd's own).
+      BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, __NR_socket, 0, 1),
       BPF_STMT(BPF_RET | BPF_K, SECCOMP_RET_ERRNO | EACCES),
+      BPF_STMT(BPF_RET | BPF_K, SECCOMP_RET_ALLOW),
   };
   sock_fprog prog{static_cast<unsigned short>(sizeof filter / sizeof filter[0]), filter};
   if (::prctl(PR_SET_SECCOMP, SECCOMP_MODE_FILTER, &prog, 0, 0) == 0) r.flags |= kSeccomp;
   else note(r, "seccomp");
 }
 
+// One Landlock rule: `access` beneath `path` (skipped if it does not exist).
+void allow_beneath(int ruleset, const std::string& path, uint64_t access) {
+  landlock_path_beneath_attr pb{};
+  pb.parent_fd = ::open(path.c_str(), O_PATH | O_CLOEXEC);
+  if (pb.parent_fd < 0) return;
+  struct stat st {};
+  // Directory rights only on directories (the kernel refuses them on files).
+  pb.allowed_access = ::fstat(pb.parent_fd, &st) == 0 && !S_ISDIR(st.st_mode) ? access & ~kFsReadDir : access;
+  (void)::syscall(SYS_landlock_add_rule, ruleset, LANDLOCK_RULE_PATH_BENEATH, &pb, 0);
+  ::close(pb.parent_fd);
+}
+
 }  // namespace
+
+std::string restrict_reads(const std::string& plugin_file, const std::string& scratch,
+                           const std::vector<std::string>& readable) {
+  const long abi = ::syscall(SYS_landlock_create_ruleset, nullptr, 0, LANDLOCK_CREATE_RULESET_VERSION);
+  if (abi < 1) return std::string("Landlock read rule (kernel 5.13+ with landlock in lsm=): ") + std::strerror(errno);
+  RulesetAttr attr{};
+  const uint64_t read = kFsExecute | kFsReadFile | kFsReadDir;
+  attr.handled_access_fs = read;
+  const int ruleset = static_cast<int>(
+      ::syscall(SYS_landlock_create_ruleset, &attr, offsetof(RulesetAttr, handled_access_net), 0));
+  if (ruleset < 0) return std::string("landlock_create_ruleset (reads): ") + std::strerror(errno);
+  std::string dir = std::filesystem::path(plugin_file).parent_path().string();
+  if (dir.empty()) dir = ".";
+  // The plugin's folder (its data files), the system's libraries and data,
+  // the scratch folder; what the C and C++ runtimes read (CPU count,
+  // cgroup limits, the loader cache, time zone, random numbers).
+  for (const std::string& p : {dir, std::string("/usr"), std::string("/lib"), std::string("/lib64"),
+                               std::string("/etc/ld.so.cache"), std::string("/etc/localtime"),
+                               std::string("/proc"), std::string("/sys/devices/system/cpu"),
+                               std::string("/sys/fs/cgroup"), std::string("/dev/null"), std::string("/dev/zero"),
+                               std::string("/dev/urandom"), std::string("/dev/random")})
+    allow_beneath(ruleset, p, read);
+  if (!scratch.empty()) allow_beneath(ruleset, scratch, read);
+  for (const std::string& p : readable) allow_beneath(ruleset, p, read);
+  std::string problem;
+  if (::syscall(SYS_landlock_restrict_self, ruleset, 0) != 0)
+    problem = std::string("landlock_restrict_self (reads): ") + std::strerror(errno);
+  ::close(ruleset);
+  return problem;
+}
 
 SandboxReport enter_sandbox(const std::string& scratch_parent) {
   SandboxReport r;
@@ -135,7 +179,9 @@ SandboxReport enter_sandbox(const std::string& scratch_parent) {
     const char* tmp = std::getenv("TMPDIR");
     parent = tmp != nullptr && *tmp != '\0' ? tmp : "/tmp";
   }
-  std::string tmpl = parent + "/procam-worker-XXXXXX";
+  // The daemon's pid in the name: a daemon that starts sweeps the folders
+  // of daemons that died without cleaning up (sweep_stale_scratch).
+  std::string tmpl = parent + "/procam-worker-" + std::to_string(::getppid()) + "-XXXXXX";
   if (::mkdtemp(tmpl.data()) != nullptr) {
     r.scratch = tmpl;
     r.flags |= kScratch;

@@ -10,9 +10,13 @@
 //     writes to /dev/null); TCP bind/connect denied (ABI 4+); no signals to
 //     and no abstract-socket connections outside the worker (ABI 6+); ptrace
 //     of processes outside the worker denied (every ABI);
-//   - seccomp: socket() for any family but AF_UNIX fails with EACCES (UDP,
-//     raw, netlink: what Landlock does not cover), io_uring_setup fails with
-//     ENOSYS (it could bypass the socket rule).
+//   - seccomp: socket() fails with EACCES for every family, AF_UNIX too (no
+//     network, no connecting to named Unix sockets: the worker needs no
+//     socket but the one it inherited), io_uring_setup fails with ENOSYS
+//     (it could bypass the socket rule);
+//   - after the plugin is loaded (restrict_reads): Landlock file reads and
+//     execution only beneath the plugin's folder, the system's library and
+//     data folders and the scratch folder.
 // What was applied is reported, not assumed: the daemon logs it and the
 // tests skip a rule the kernel cannot enforce.
 // Single-threaded use at worker start; not thread-safe.
@@ -20,6 +24,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace procam::worker {
 
@@ -42,5 +47,15 @@ struct SandboxReport {
 // Creates the scratch folder in `scratch_parent` ("" = $TMPDIR or /tmp) and
 // applies every rule it can. Never fails as a whole: see the report.
 SandboxReport enter_sandbox(const std::string& scratch_parent);
+
+// Once the plugin is loaded (its file and libraries read, dlopen done):
+// a second Landlock layer lets the worker read and execute files only
+// beneath the plugin file's folder, /usr, /lib, /lib64, /proc, the CPU and
+// cgroup files of /sys, /etc/ld.so.cache, /etc/localtime, /dev/{null,zero,
+// urandom,random}, `scratch` and each of `readable` (IsolationOptions::
+// readable). Returns "" or what could not be applied (the kernel lacks
+// Landlock): the worker runs on without the rule.
+std::string restrict_reads(const std::string& plugin_file, const std::string& scratch,
+                           const std::vector<std::string>& readable);
 
 }  // namespace procam::worker

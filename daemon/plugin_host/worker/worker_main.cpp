@@ -8,7 +8,8 @@
 // check, dlopen, vtable and describe() checks; no probe: the daemon did
 // that) and drives it through the same Session, whose checks run here and
 // again in the daemon. Frames are read from the shared ring (mapped
-// read-only); plans and outputs go back as sealed memfd blobs.
+// read-only); plans go back as sealed memfd blobs, outputs through the
+// output arena (output_arena.hpp).
 // Exit: 0 when the daemon closes the socket; 2 on a protocol error from
 // the daemon's side; a plugin crash ends it by that signal.
 #include <signal.h>
@@ -20,9 +21,11 @@
 #include <cstring>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "procam/core/log.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "output_arena.hpp"
 #include "sandbox.hpp"
 #include "worker_wire.hpp"
 
@@ -72,6 +75,14 @@ struct Served {
   std::string plugin_file;
   std::optional<Session> session;
   wire::Mapping ring;
+  // Outputs of every session are written here; the daemon maps it once
+  // (output_arena.hpp; WORKER_PROTOCOL.md "Output arena").
+  wire::OutputArena outputs;
+  // Sandbox on: after the plugin is loaded, reads are restricted too
+  // (worker::restrict_reads), with the scratch folder readable.
+  bool sandbox = false;
+  std::string scratch;
+  std::vector<std::string> readable;  // --readable: more folders to read
   uint32_t slots = 0;
   uint64_t slot_size = 0;
 };
@@ -92,6 +103,10 @@ void serve_create(Served& s, const wire::Message& m) {
     s.host->set_isolation(here);
     s.plugin_file = req.plugin_file;
     if (Status st = s.host->load_file(req.plugin_file); !st) return reply_error(st);
+    if (s.sandbox) {
+      const std::string problem = worker::restrict_reads(req.plugin_file, s.scratch, s.readable);
+      if (!problem.empty()) std::fprintf(stderr, "procam-plugin-worker: partial sandbox: %s\n", problem.c_str());
+    }
   } else if (req.plugin_file != s.plugin_file) {
     return reply_error(Error(Code::failed_precondition, "this worker hosts '" + s.plugin_file +
                                                             "', not '" + req.plugin_file + "'"));
@@ -144,13 +159,16 @@ void serve_add_frame(Served& s, const wire::Message& m) {
   reply_ok();
 }
 
-int serve(const worker::SandboxReport& sandbox) {
+int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std::string> readable) {
   wire::Writer hello;
   hello.u32(sandbox.flags);
   hello.str(sandbox.scratch);
   hello.str(sandbox.problems.substr(0, 4096));
   if (!wire::send_msg(kSock, wire::Msg::hello, 0, hello.bytes())) return 0;
   Served s;
+  s.sandbox = sandbox_on;
+  s.scratch = sandbox.scratch;
+  s.readable = std::move(readable);
   for (;;) {
     auto m = wire::recv_msg(kSock, -1);
     if (!m) {
@@ -215,8 +233,40 @@ int serve(const worker::SandboxReport& sandbox) {
         break;
       case wire::Msg::get_outputs: {
         auto outs = s.session->outputs();
-        if (!outs) reply_error(outs.status());
-        else reply_blob(1, [&](wire::Writer& w) { wire::write_outputs(w, *outs); }, "procam-outputs");
+        if (!outs) {
+          reply_error(outs.status());
+          break;
+        }
+        const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs); };
+        // Payload u8: 1 = into the output arena (a worker the daemon may
+        // reuse), 0 = a sealed blob of its own (WORKER_PROTOCOL.md).
+        wire::Reader req(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+        const bool arena = req.u8("arena flag") != 0;
+        if (!req.ok()) {
+          reply_error(Error(Code::invalid_argument, "malformed get_outputs: " + req.error()));
+          break;
+        }
+        if (!arena) {
+          auto blob = wire::make_sealed_blob(encode, "procam-outputs-blob");
+          if (!blob) {
+            reply_error(blob.status());
+            break;
+          }
+          wire::Writer w;
+          w.u8(1);
+          w.u64(0);
+          reply_ok(w.bytes(), blob->get());
+          break;
+        }
+        auto written = s.outputs.write(encode);
+        if (!written) {
+          reply_error(written.status());
+          break;
+        }
+        wire::Writer w;
+        w.u8(1);
+        w.u64(written->used);
+        reply_ok(w.bytes(), written->new_fd);
         break;
       }
       default:
@@ -232,6 +282,7 @@ int main(int argc, char** argv) {
   uint64_t memory_limit_mb = 0;
   bool sandbox = true;
   std::string scratch_parent;
+  std::vector<std::string> readable;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--memory-limit-mb" && i + 1 < argc) {
@@ -240,6 +291,8 @@ int main(int argc, char** argv) {
       sandbox = std::string(argv[++i]) != "0";
     } else if (a == "--scratch-parent" && i + 1 < argc) {
       scratch_parent = argv[++i];
+    } else if (a == "--readable" && i + 1 < argc) {
+      readable.emplace_back(argv[++i]);
     } else {
       std::fprintf(stderr,
                    "procam-plugin-worker: unknown argument '%s'\n"
@@ -257,5 +310,5 @@ int main(int argc, char** argv) {
   log::configure("warn,plugins=off");
   // Before any plugin code (its static constructors run in dlopen).
   const worker::SandboxReport report = sandbox ? worker::enter_sandbox(scratch_parent) : worker::SandboxReport{};
-  return serve(report);
+  return serve(report, sandbox, std::move(readable));
 }

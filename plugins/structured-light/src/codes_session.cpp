@@ -383,7 +383,11 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     standard.total_pixels = valid_.size();
     const size_t lit = rounds_.empty() ? 0 : rounds_.back().lit;
     const size_t errors = rounds_.empty() ? 0 : rounds_.back().errors;
-    std::vector<float> subpx(coord_.size());
+    // Recycled map storage (map_cache.hpp): refine_columns writes every
+    // pixel, so stale contents are fine, and a fresh 9 MB vector here was
+    // zeroed and page-faulted on every scan's outputs().
+    std::vector<float> subpx;
+    sdk::take_map(subpx, coord_.size());
     sdk::parallel_rows(h, rig_.threads, [&](uint32_t y0, uint32_t y1) {
       refine_columns(coord_.data(), w, y0, y1, SubpixelOptions{}, subpx.data());
     });

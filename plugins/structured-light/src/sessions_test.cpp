@@ -162,6 +162,31 @@ TEST(Sessions, BinaryMethodsExactOnDirectLight) {
   }
 }
 
+// proj_col_subpx is built in recycled map storage (map_cache.hpp): a scan
+// right after another must not show the first scan's values. The second
+// scene is dark on its left half, so the columns there are NaN and the
+// sub-pixel map must be NaN exactly there (and within the refinement's
+// +-1 px clamp of the column elsewhere, subpixel.cpp).
+TEST(Sessions, SubpixelMapOfTheNextScanHoldsNoStaleValues) {
+  const ScanRun first = run("ensemble", nlohmann::json::object());
+  ASSERT_TRUE(first.maps.count("proj_col_subpx"));
+  const ScanRun r = run("ensemble", nlohmann::json::object(),
+                        [](uint32_t, const std::string&, uint32_t x, uint32_t, double v) {
+                          return x < kW / 2 ? 10.0 : v;
+                        });
+  const auto& col = r.maps.at("proj_col_px");
+  const auto& sub = r.maps.at("proj_col_subpx");
+  size_t nan_left = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    ASSERT_EQ(std::isfinite(col[i]), std::isfinite(sub[i])) << "pixel " << i;
+    if (std::isfinite(col[i])) {
+      ASSERT_LE(std::fabs(sub[i] - col[i]), 1.0f) << "pixel " << i;
+    }
+    if (i % kW < kW / 2 && !std::isfinite(sub[i])) ++nan_left;
+  }
+  EXPECT_EQ(nan_left, size_t{kW / 2} * kH);  // the dark half: nothing decoded
+}
+
 TEST(Sessions, AutoStopsAfterFirstPairOnCleanScene) {
   const ScanRun r = run("auto", nlohmann::json::object());
   EXPECT_EQ(r.rounds, 1u);

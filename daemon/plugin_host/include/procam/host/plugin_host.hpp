@@ -122,9 +122,13 @@ struct IsolationOptions {
   // Slots of the shared frame ring (each one camera frame).
   uint32_t frame_slots = 2;
   // Least privilege (README.md "Least privilege"): a private scratch folder,
-  // no capabilities, Landlock (writes only in the scratch folder, no TCP, no
-  // signals out), seccomp (no non-Unix sockets).
+  // no capabilities, Landlock (writes only in the scratch folder, reads only
+  // in the plugin's, system and scratch folders once the plugin is loaded,
+  // no TCP, no signals out), seccomp (no new sockets).
   bool sandbox = true;
+  // Folders (or files) a sandboxed worker may read besides those: where
+  // plugins' parameter files live (e.g. medium's response_lut).
+  std::vector<std::string> readable;
   // Where scratch folders are made ("" = $TMPDIR or /tmp); each is removed
   // when its session ends.
   std::string scratch_parent;

@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: MIT
+// Outputs without a fresh memfd per scan (WORKER_PROTOCOL.md "Output arena",
+// README.md "Speed"): the worker keeps one grow-only shared-memory arena and
+// encodes each session's outputs into it; the daemon maps the arena once and,
+// at each get_outputs reply, copies the used bytes into its own grow-only
+// buffer before decoding and checking them.
+//
+// Why a copy on the daemon side: the worker keeps a writable mapping of the
+// arena (it is reused), and no seal can take that away from a live mapping,
+// so a plugin thread could change bytes after the reply. The daemon decodes,
+// checks and hands out only its private copy, taken once per reply: what it
+// returned cannot change underneath its client, and the header (counts,
+// sizes, offsets) is read from the copy, never twice from shared memory.
+// Both buffers are warm after the first scan of a reused worker, so the
+// kernel's zeroing and page faults of a fresh 32 MB memfd per scan (the cost
+// this replaces) are gone; what remains is two memcpys (worker: maps ->
+// arena; daemon: arena -> copy).
+//
+// Ownership: OutputArena belongs to the worker (one per process, kept across
+// sessions); OutputSnapshot to one WorkerProxy (kept across the sessions of a
+// reused worker). The views into OutputSnapshot::data() are valid until the
+// next take() or destruction.
+// Threads: one thread at a time each. Errors: Status, nothing throws except
+// std::bad_alloc.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+
+#include "procam/core/status.hpp"
+#include "worker_wire.hpp"
+
+namespace procam::host::wire {
+
+// Worker side.
+class OutputArena {
+public:
+  struct Written {
+    uint64_t used = 0;  // bytes of this reply, from offset 0
+    int new_fd = -1;    // the arena's descriptor when it is new (send it), else -1
+  };
+  // Counts what `encode` writes, grows the arena if it does not fit (a new
+  // memfd of 5/4 the size, sealed against shrinking, pre-faulted), then
+  // encodes into it. `encode` must write the same bytes both times.
+  Result<Written> write(const std::function<void(Writer&)>& encode);
+  uint64_t capacity() const { return map_.size(); }
+
+private:
+  UniqueFd fd_;
+  Mapping map_;  // read-write, shared
+};
+
+// Daemon side.
+class OutputSnapshot {
+public:
+  OutputSnapshot() = default;
+  ~OutputSnapshot();  // the copy buffer goes to a small daemon-wide spare list
+  OutputSnapshot(const OutputSnapshot&) = delete;
+  OutputSnapshot& operator=(const OutputSnapshot&) = delete;
+  // A new arena from the worker: it must be a memfd sealed against
+  // shrinking (so a mapped page never vanishes: no SIGBUS), at most
+  // kMaxBlob bytes, fully written (no holes), then it is mapped read-only.
+  // A worker that punches holes later makes take() read zero pages, which
+  // the kernel allocates: at most the arena's size, which it had allocated
+  // itself when it was adopted; the decode checks catch the zeros.
+  Status adopt(int fd);
+  // Copies bytes [0, used) of the arena into the private buffer (grown as
+  // needed); corrupt_data if no arena was adopted or `used` is beyond it.
+  Status take(uint64_t used);
+  const uint8_t* data() const { return copy_.data(); }
+  uint64_t size() const { return used_; }
+  bool has_arena() const { return arena_.size() > 0; }
+
+private:
+  Mapping arena_;  // read-only, shared with the worker
+  Mapping copy_;   // private, anonymous, grow-only
+  uint64_t used_ = 0;
+};
+
+}  // namespace procam::host::wire
