@@ -345,7 +345,7 @@ LegendreMediumSpec parse_legendre_medium(FieldReader& root) {
   if (mj == nullptr) return m;
   FieldReader r(*mj, root.field("legendre_medium"), root.errors());
   r.only({"box_min_mm", "box_max_mm", "n", "density_uniform", "blobs", "swirl_mm_s", "viscosity_mm2_s",
-          "dissipation_per_s", "sigma_t_per_mm", "sigma_s_per_mm", "g", "frame_period_s", "comment"});
+          "dissipation_per_s", "sigma_t_per_mm", "sigma_s_per_mm", "g", "dop_model", "frame_period_s", "comment"});
   m.box_min_mm = r.vec3("box_min_mm", std::nullopt, "mm, world frame");
   m.box_max_mm = r.vec3("box_max_mm", std::nullopt, "mm, world frame");
   m.n = static_cast<int>(r.integer("n", 5, 3, 8));
@@ -357,6 +357,10 @@ LegendreMediumSpec parse_legendre_medium(FieldReader& root) {
   m.sigma_s_per_mm = r.number("sigma_s_per_mm", std::nullopt, "scattering at density 1, 1/mm", 0.0, 10.0);
   m.g = r.number("g", 0.0, "Henyey-Greenstein asymmetry, |g| < 1", -0.999, 0.999);
   m.frame_period_s = r.number("frame_period_s", 1.0 / 30.0, "s per captured frame", 1e-6, 60.0);
+  const std::string dop = r.string("dop_model", std::string("rayleigh"));
+  if (dop == "rayleigh") m.dop_model = Medium::DopModel::rayleigh;
+  else if (dop == "none") m.dop_model = Medium::DopModel::none;
+  else r.fail("dop_model", "unknown model '" + dop + "'", "use \"rayleigh\" or \"none\"");
   if (const nlohmann::json* blobs = r.get("blobs")) {
     if (!blobs->is_array()) r.fail("blobs", std::string("must be an array, got ") + blobs->type_name());
     for (size_t i = 0; r.errors().ok() && blobs->is_array() && i < blobs->size(); ++i) {

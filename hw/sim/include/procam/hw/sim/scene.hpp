@@ -176,6 +176,9 @@ struct LegendreMediumSpec {
   double sigma_t_per_mm = 0;     // extinction at density 1
   double sigma_s_per_mm = 0;     // scattering at density 1
   double g = 0;                  // Henyey-Greenstein asymmetry
+  // Polarization of the air-light: the homogeneous medium's Mueller model
+  // (Medium::DopModel, docs/media.md): rayleigh keeps it, none depolarizes.
+  Medium::DopModel dop_model = Medium::DopModel::rayleigh;
   double frame_period_s = 1.0 / 30.0;  // medium time advanced per captured frame
 };
 
