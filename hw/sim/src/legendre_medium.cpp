@@ -315,9 +315,17 @@ void LegendreMediumComponent::apply(const FrameContext& frame, uint32_t row_begi
         double_angle(ana_axis, par_out, n, c2, s2);
         air = 0.5 * (si + sq * c2 + su * s2);
       }
-      // Eq. 6.4 on both legs of the surface light.
+      // Eq. 6.4 on both legs of the surface light. The projector leg ends
+      // at the surface point or, beyond the box, at the leg's exit from the
+      // box (no medium after it): a point of the lattice's domain.
       double tau_proj = 0.0;
-      if (surface) tau_proj = optical_depth(proj, world_from_cam_ * pc, kSteps / 2);
+      if (surface) {
+        const Vec3 ps = world_from_cam_ * pc, leg = ps - proj;
+        const double len = norm(leg);
+        double a0 = 0, a1 = 0;
+        if (len > 0.0 && medium_interval(box, proj, leg / len, a0, a1) && a0 < len)
+          tau_proj = proj_depth_at(proj + leg * (std::min(a1, len) / len));
+      }
       radiance[i] = static_cast<float>(static_cast<double>(radiance[i]) * std::exp(-sigma * (tau + tau_proj)) + air);
     }
 }

@@ -38,7 +38,10 @@ std::unique_ptr<Renderer> scene_renderer(const Scene& scene, const SimRigConfig&
 }
 
 // Eq. 6.4 on both legs, uniform density 1: every lit surface pixel is dimmed
-// by exactly exp(-sigma (l_cam + l_proj)), the lengths inside the box.
+// by exp(-sigma (l_cam + l_proj)), the lengths inside the box: to 2e-4
+// relative (the projector leg is read from the (kGrid+1)^3 lattice of
+// marched depths, bilinear on the box face it leaves by; a march per pixel
+// gave 2e-5 at ~2x the cost).
 TEST(LegendreMedium, UniformFogAttenuatesLikeTheClosedForm) {
   const SimRigConfig rig = small_rig();
   auto clear = scene_renderer(plane_with_fog(""), rig);
@@ -53,14 +56,17 @@ TEST(LegendreMedium, UniformFogAttenuatesLikeTheClosedForm) {
   box.box_max_mm = {300, 200, 760};
   const Vec3 proj = rig.cameras[0].calibration.cam_from_proj.translation_mm;
   size_t checked = 0;
+  double worst = 0;
   for (size_t i = 0; i < a.size(); ++i) {
     if (!(a[i] > 0)) continue;
     const Vec3 pt = point_of(fog->view(), i);
     const double t = std::exp(-0.002 * (medium_length(box, {0, 0, 0}, pt) + medium_length(box, proj, pt)));
-    EXPECT_NEAR(b[i], a[i] * t, 2e-5 * a[i] + 1e-7) << i;
+    EXPECT_NEAR(b[i], a[i] * t, 2e-4 * a[i] + 1e-7) << i;
+    worst = std::max(worst, std::abs(b[i] - a[i] * t) / a[i]);
     ++checked;
   }
   EXPECT_GT(checked, a.size() / 2);
+  std::cout << "[ measured ] uniform fog attenuation: worst relative error " << worst << "\n";
 }
 
 // Independent reference for the air-light of one camera pixel in a box of
