@@ -108,6 +108,22 @@ void LegendreMediumComponent::reset() {
   fluid_->velocity[1] = legendre::project(
       [&](double x, double y, double) { return s * uy(box.unit_from_box(0, x), box.unit_from_box(1, y)); },
       fluid_->velocity[1].n, box, nodes);
+  fluid_->passive.clear();
+  if (spec_.has_albedo()) {  // omega = beta / sigma, advected with the density
+    const double base = std::isfinite(spec_.albedo_uniform) ? spec_.albedo_uniform
+                        : spec_.sigma_t_per_mm > 0       ? spec_.sigma_s_per_mm / spec_.sigma_t_per_mm
+                                                         : 0.0;
+    fluid_->passive.push_back(legendre::project(
+        [&](double x, double y, double z) {
+          double a = base;
+          for (const auto& b : spec_.albedo_blobs) {
+            const double dx = x - b.center_mm.x, dy = y - b.center_mm.y, dz = z - b.center_mm.z;
+            a += b.peak * std::exp(-(dx * dx + dy * dy + dz * dz) / (b.radius_mm * b.radius_mm));
+          }
+          return std::clamp(a, 0.0, 1.0);
+        },
+        fluid_->density.n, box, nodes));
+  }
   fluid_->project();
   time_s_ = 0.0;
   grid_stale_ = true;
@@ -132,6 +148,12 @@ void LegendreMediumComponent::begin_frame(const FrameContext& frame, int threads
     // Truncation ringing can dip a smooth density slightly below zero
     // between lobes; a negative density is unphysical, so it is clamped.
     for (size_t i = 0; i < g.size(); ++i) grid_[i] = static_cast<float>(std::max(0.0, g[i]));
+    albedo_.clear();
+    if (!fluid_->passive.empty()) {  // an albedo outside [0, 1] (ringing) is unphysical: clamped
+      const std::vector<double> a = legendre::evaluate_grid(fluid_->passive[0], {kGrid, kGrid, kGrid});
+      albedo_.resize(a.size());
+      for (size_t i = 0; i < a.size(); ++i) albedo_[i] = static_cast<float>(std::clamp(a[i], 0.0, 1.0));
+    }
     // The projector leg's optical depth at the lattice nodes (box corners
     // included, so no extrapolation at the faces): ~17^3 marches per frame.
     const size_t m = kGrid + 1;
@@ -171,7 +193,7 @@ double LegendreMediumComponent::proj_depth_at(const Vec3& q) const {
   return (c00 * (1 - t[1]) + c10 * t[1]) * (1 - t[2]) + (c01 * (1 - t[1]) + c11 * t[1]) * t[2];
 }
 
-double LegendreMediumComponent::density_at(const Vec3& q) const {
+double LegendreMediumComponent::grid_at(const std::vector<float>& grid, const Vec3& q) const {
   double f[3];
   size_t i0[3], i1[3];
   double t[3];
@@ -186,7 +208,7 @@ double LegendreMediumComponent::density_at(const Vec3& q) const {
     i1[a] = std::min(i0[a] + 1, kGrid - 1);
     t[a] = f[a] - fl;
   }
-  auto at = [&](size_t x, size_t y, size_t z) { return static_cast<double>(grid_[(z * kGrid + y) * kGrid + x]); };
+  auto at = [&](size_t x, size_t y, size_t z) { return static_cast<double>(grid[(z * kGrid + y) * kGrid + x]); };
   const double c00 = at(i0[0], i0[1], i0[2]) * (1 - t[0]) + at(i1[0], i0[1], i0[2]) * t[0];
   const double c10 = at(i0[0], i1[1], i0[2]) * (1 - t[0]) + at(i1[0], i1[1], i0[2]) * t[0];
   const double c01 = at(i0[0], i0[1], i1[2]) * (1 - t[0]) + at(i1[0], i0[1], i1[2]) * t[0];
@@ -303,7 +325,8 @@ void LegendreMediumComponent::apply(const FrameContext& frame, uint32_t row_begi
         const Mueller3 mm = scattering_mueller(mueller_, dot(l, o));
         double c2 = 0.0, s2 = 0.0;
         if (pol_in) double_angle(pol_axis, cross(n, l), n, c2, s2);
-        const double w = beta * r * intensity_ * e / std::max(d * d, kMinDistSq) *
+        const double b = albedo_.empty() ? beta : sigma * grid_at(albedo_, y);
+        const double w = b * r * intensity_ * e / std::max(d * d, kMinDistSq) *
                          std::exp(-sigma * (tau_mid + proj_depth_at(y))) * ds;
         si += w * (mm.m[0][0] + mm.m[0][1] * c2);
         sq += w * (mm.m[1][0] + mm.m[1][1] * c2);

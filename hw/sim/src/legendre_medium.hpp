@@ -19,6 +19,8 @@
 //    where the projector ray to Y is blocked by a surface: shadow map of the
 //    scene's objects), tau_proj(Y) the projector leg's optical depth
 //    (trilinear in a per-frame (kGrid+1)^3 lattice of marched depths), and
+//    beta = sigma_s_per_mm, or omega(Y) sigma_t_per_mm with the advected
+//    single-scattering albedo omega (LegendreFluid::passive[0]), and
 //    M the homogeneous medium's Mueller matrix (scattering_mueller,
 //    Eq. 5.35-5.36, LegendreMediumSpec::dop_model) acting on the Stokes
 //    vector S_in = (1, cos2chi, sin2chi) of the projector polariser's light
@@ -78,7 +80,9 @@ class LegendreMediumComponent final : public TransportComponent {
  private:
   void reset();
   void build_shadow_map(const Scene& scene, int threads);
-  double density_at(const Vec3& world_mm) const;  // trilinear in the frame's grid; 0 outside
+  double density_at(const Vec3& world_mm) const { return grid_at(grid_, world_mm); }
+  // Trilinear in a kGrid^3 cell-centre grid of the frame; 0 outside the box.
+  double grid_at(const std::vector<float>& grid, const Vec3& world_mm) const;
   double optical_depth(const Vec3& a, const Vec3& b, int steps) const;  // sigma-free int r ds
   double proj_depth_at(const Vec3& world_mm) const;  // tau_proj (sigma-free), trilinear in the lattice; box points
   int march_steps(double length_mm) const;  // ~one sample per grid cell, 4..kSteps
@@ -92,6 +96,7 @@ class LegendreMediumComponent final : public TransportComponent {
   double time_s_ = 0.0;
   bool grid_stale_ = true;
   std::vector<float> grid_;      // kGrid^3 density samples (cell centres)
+  std::vector<float> albedo_;    // kGrid^3 samples of the advected albedo in [0, 1] (spec_.has_albedo())
   std::vector<float> tau_proj_;  // (kGrid+1)^3 lattice nodes (box corners included): projector -> node
   std::vector<float> shadow_;    // per projector pixel: first-hit distance from its centre (mm; inf: none)
 };
