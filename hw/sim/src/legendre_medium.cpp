@@ -31,6 +31,16 @@ Medium box_medium(const LegendreMediumSpec& s) {  // for medium_interval()
   return m;
 }
 
+// Sum of peak * exp(-|x - c|^2 / radius^2) over the blobs (SCENES.md).
+double blob_sum(const std::vector<LegendreMediumSpec::Blob>& blobs, double x, double y, double z) {
+  double s = 0.0;
+  for (const auto& b : blobs) {
+    const double dx = x - b.center_mm.x, dy = y - b.center_mm.y, dz = z - b.center_mm.z;
+    s += b.peak * std::exp(-(dx * dx + dy * dy + dz * dz) / (b.radius_mm * b.radius_mm));
+  }
+  return s;
+}
+
 LegendreMediumSpec spec_of(const Scene& scene) {
   if (!scene.legendre_medium)
     throw std::invalid_argument("LegendreMediumComponent: scene '" + scene.name + "' has no legendre_medium");
@@ -81,14 +91,7 @@ void LegendreMediumComponent::reset() {
   fluid_ = std::make_unique<legendre::LegendreFluid>(3, n, box, p);
   const size_t nodes = 2 * n + 4;
   fluid_->density = legendre::project(
-      [&](double x, double y, double z) {
-        double r = spec_.density_uniform;
-        for (const auto& b : spec_.blobs) {
-          const double dx = x - b.center_mm.x, dy = y - b.center_mm.y, dz = z - b.center_mm.z;
-          r += b.peak * std::exp(-(dx * dx + dy * dy + dz * dz) / (b.radius_mm * b.radius_mm));
-        }
-        return r;
-      },
+      [&](double x, double y, double z) { return spec_.density_uniform + blob_sum(spec_.blobs, x, y, z); },
       fluid_->density.n, box, nodes);
   // Swirl about z: psi = (1-x'^2)^2 (1-y'^2)^2 in unit coordinates,
   // u = (psi_y'/hy, -psi_x'/hx, 0): divergence-free, no flow through the walls.
@@ -114,14 +117,7 @@ void LegendreMediumComponent::reset() {
                         : spec_.sigma_t_per_mm > 0       ? spec_.sigma_s_per_mm / spec_.sigma_t_per_mm
                                                          : 0.0;
     fluid_->passive.push_back(legendre::project(
-        [&](double x, double y, double z) {
-          double a = base;
-          for (const auto& b : spec_.albedo_blobs) {
-            const double dx = x - b.center_mm.x, dy = y - b.center_mm.y, dz = z - b.center_mm.z;
-            a += b.peak * std::exp(-(dx * dx + dy * dy + dz * dz) / (b.radius_mm * b.radius_mm));
-          }
-          return std::clamp(a, 0.0, 1.0);
-        },
+        [&](double x, double y, double z) { return std::clamp(base + blob_sum(spec_.albedo_blobs, x, y, z), 0.0, 1.0); },
         fluid_->density.n, box, nodes));
   }
   fluid_->project();
