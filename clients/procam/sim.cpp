@@ -14,10 +14,13 @@
 // white), depth_mm.exr, proj_col.exr, proj_row.exr, lit.png, info.json.
 // `--frames N` (scenes with a "legendre_medium", docs/legendre.md): also
 // frame_000.png .. frame_N-1.png, the captured frame with the dynamic medium
-// at t = k * frame_period_s (a PNG sequence of the medium's motion).
+// at t = k * frame_period_s (a PNG sequence of the medium's motion), and the
+// same frames as animation.gif (animation.hpp; played at 1/frame_period_s,
+// at most 100 fps).
 // `--pattern gray-errors` prints instead the noise-free binarization error of
 // every Gray bit (pattern vs inverse, thesis Eq. 3.5) on the lit pixels.
 // Errors go to stderr with a non-zero exit status; nothing is thrown.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -25,6 +28,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "animation.hpp"
 #include "cli.hpp"
 #include "procam/core/image_io.hpp"
 #include "procam/hw/sim/global.hpp"
@@ -223,17 +227,24 @@ int cmd_sim(const Args& a) {
     if (!scene->legendre_medium)
       return report(Error(Code::invalid_argument, "sim --frames: scene '" + scene->name + "' has no legendre_medium",
                           "use a scene with a \"legendre_medium\" (e.g. legendre-fog), see hw/sim/SCENES.md"));
+    const double period = scene->legendre_medium->frame_period_s;
+    AnimatedGif gif;
+    Status gs = gif.open(out + "/animation.gif", std::clamp(1.0 / period, 0.01, 100.0));
+    if (!gs.ok()) return report(gs);
     for (int k = 0; k < frames; ++k) {
-      set_legendre_time(r, k * scene->legendre_medium->frame_period_s);
+      set_legendre_time(r, k * period);
       Status fs_st = r.render_radiance(*prepared, full.data(), true);
       if (!fs_st.ok()) return report(fs_st);
       char name[32];
       std::snprintf(name, sizeof name, "/frame_%03d.png", k);
-      Status ws = write_image(out + name, expose(full.data(), w, h, cam.sensor, cam.sensor.exposure_us, cam.sensor.gain_db,
-                                                 frame_noise_seed(rig->seed, 0, static_cast<uint64_t>(k)), threads),
-                              attrs);
+      const Image im = expose(full.data(), w, h, cam.sensor, cam.sensor.exposure_us, cam.sensor.gain_db,
+                              frame_noise_seed(rig->seed, 0, static_cast<uint64_t>(k)), threads);
+      Status ws = write_image(out + name, im, attrs);
+      if (ws.ok()) ws = gif.add(im);
       if (!ws.ok()) return report(ws);
     }
+    gs = gif.close();
+    if (!gs.ok()) return report(gs);
     set_legendre_time(r, 0.0);
   }
   Status gs = write_ground_truth(ground_truth_from_view(r.view()), out, {{"scene", scene->name}});

@@ -75,8 +75,8 @@ Result<std::unique_ptr<Renderer>> make_scene_renderer(const Scene& scene, const 
   if (diff) r->add_component(std::move(diff));
   if (mirror) r->add_component(std::move(mirror));
   if (scene.legendre_medium)  // dynamic medium (docs/legendre.md); the rig sets its time per frame
-    r->add_component(std::make_unique<LegendreMediumComponent>(*scene.legendre_medium, projector, world_from_cam,
-                                                               world_from_proj));
+    r->add_component(
+        std::make_unique<LegendreMediumComponent>(scene, projector, world_from_cam, world_from_proj, threads));
   if (stats) *stats = st;
   return r;
 }

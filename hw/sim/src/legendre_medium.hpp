@@ -11,13 +11,28 @@
 //    radiance buffer is multiplied by exp(-sigma (tau_cam + tau_proj)), the
 //    optical depths of the camera ray up to the surface and of the projector
 //    ray to that surface point (ambient light gets the same factor);
-//  - air-light (Eq. 6.5, single scattering): sum over the ray of
-//    beta r p_HG(theta) I e(x_p(Y)) / d_LY^2 exp(-sigma tau_cam) ds, with
+//  - air-light (Eq. 6.5, single scattering): the Stokes vector
+//      S = sum over the ray of beta r M(theta) S_in I e(x_p(Y)) / d_LY^2
+//          exp(-sigma (tau_cam(Y) + tau_proj(Y))) ds,
 //    e the sharp emitted pattern at the projector pixel that lights the
-//    sample Y (nearest pixel, pinhole projector, 0 outside its image).
-//    Ignored (first model, optically thin): occlusion of the projector ray
-//    by surfaces, the projector leg's attenuation of the air-light, and its
-//    polarization (an analyser passes half of it, as of surface light).
+//    sample Y (nearest pixel, pinhole projector; 0 outside its image and
+//    where the projector ray to Y is blocked by a surface: shadow map of the
+//    scene's objects), tau_proj(Y) the projector leg's optical depth
+//    (trilinear in a per-frame (kGrid+1)^3 lattice of marched depths), and
+//    beta = sigma_s_per_mm, or omega(Y) sigma_t_per_mm with the advected
+//    single-scattering albedo omega (LegendreFluid::passive[0]), and
+//    M the homogeneous medium's Mueller matrix (scattering_mueller,
+//    Eq. 5.35-5.36, LegendreMediumSpec::dop_model) acting on the Stokes
+//    vector S_in = (1, cos2chi, sin2chi) of the projector polariser's light
+//    ((1, 0, 0) without one). One Stokes frame per pixel: the scattering
+//    plane holds the camera ray and the projector centre, so it is the same
+//    for every Y on the ray. An analyser at phi passes
+//    (I + Q cos2phi + U sin2phi)/2 (Malus); surface light stays depolarized
+//    (the renderer's 1/2).
+//    Device angle -> Stokes angle: the polariser's (analyser's) axis in its
+//    own image plane, as a 3D direction, projected perpendicular to the ray
+//    it acts on and measured from the scattering plane's in-plane axis
+//    towards its normal (exact for every ray direction).
 // Rendering marches a per-frame density grid (kGrid^3 samples of the
 // Legendre field, trilinear), not the Legendre image equations of
 // procam::legendre::LegendreRenderer, because the sim's camera is
@@ -41,9 +56,12 @@ namespace procam::sim {
 
 class LegendreMediumComponent final : public TransportComponent {
  public:
-  // Throws std::invalid_argument for a spec the parser should have refused.
-  LegendreMediumComponent(const LegendreMediumSpec& spec, const ProjectorModel& projector,
-                          const Rigid3& world_from_cam, const Rigid3& world_from_proj);
+  // `scene` must hold a legendre_medium (std::invalid_argument otherwise);
+  // its objects give the projector's shadow map, ray-cast here on `threads`
+  // threads (once per renderer). Throws std::invalid_argument for a spec the
+  // parser should have refused.
+  LegendreMediumComponent(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                          const Rigid3& world_from_proj, int threads);
 
   std::string name() const override { return "legendre_medium"; }
   bool is_volume() const override { return true; }
@@ -61,18 +79,26 @@ class LegendreMediumComponent final : public TransportComponent {
 
  private:
   void reset();
-  double density_at(const Vec3& world_mm) const;  // trilinear in the frame's grid; 0 outside
+  void build_shadow_map(const Scene& scene, int threads);
+  double density_at(const Vec3& world_mm) const { return grid_at(grid_, world_mm); }
+  // Trilinear in a kGrid^3 cell-centre grid of the frame; 0 outside the box.
+  double grid_at(const std::vector<float>& grid, const Vec3& world_mm) const;
   double optical_depth(const Vec3& a, const Vec3& b, int steps) const;  // sigma-free int r ds
+  double proj_depth_at(const Vec3& world_mm) const;  // tau_proj (sigma-free), trilinear in the lattice; box points
   int march_steps(double length_mm) const;  // ~one sample per grid cell, 4..kSteps
 
   LegendreMediumSpec spec_;
+  Medium mueller_;    // g and dop_model of spec_, for scattering_mueller()
   double intensity_;  // projector iu*mm^2 per unit emitted
   Intrinsics projector_k_;
   Rigid3 world_from_cam_, world_from_proj_;
   std::unique_ptr<legendre::LegendreFluid> fluid_;
   double time_s_ = 0.0;
   bool grid_stale_ = true;
-  std::vector<float> grid_;  // kGrid^3 density samples (cell centres)
+  std::vector<float> grid_;      // kGrid^3 density samples (cell centres)
+  std::vector<float> albedo_;    // kGrid^3 samples of the advected albedo in [0, 1] (spec_.has_albedo())
+  std::vector<float> tau_proj_;  // (kGrid+1)^3 lattice nodes (box corners included): projector -> node
+  std::vector<float> shadow_;    // per projector pixel: first-hit distance from its centre (mm; inf: none)
 };
 
 }  // namespace procam::sim

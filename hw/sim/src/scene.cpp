@@ -345,7 +345,8 @@ LegendreMediumSpec parse_legendre_medium(FieldReader& root) {
   if (mj == nullptr) return m;
   FieldReader r(*mj, root.field("legendre_medium"), root.errors());
   r.only({"box_min_mm", "box_max_mm", "n", "density_uniform", "blobs", "swirl_mm_s", "viscosity_mm2_s",
-          "dissipation_per_s", "sigma_t_per_mm", "sigma_s_per_mm", "g", "frame_period_s", "comment"});
+          "dissipation_per_s", "sigma_t_per_mm", "sigma_s_per_mm", "g", "dop_model", "albedo_uniform", "albedo_blobs", "frame_period_s",
+          "comment"});
   m.box_min_mm = r.vec3("box_min_mm", std::nullopt, "mm, world frame");
   m.box_max_mm = r.vec3("box_max_mm", std::nullopt, "mm, world frame");
   m.n = static_cast<int>(r.integer("n", 5, 3, 8));
@@ -357,19 +358,29 @@ LegendreMediumSpec parse_legendre_medium(FieldReader& root) {
   m.sigma_s_per_mm = r.number("sigma_s_per_mm", std::nullopt, "scattering at density 1, 1/mm", 0.0, 10.0);
   m.g = r.number("g", 0.0, "Henyey-Greenstein asymmetry, |g| < 1", -0.999, 0.999);
   m.frame_period_s = r.number("frame_period_s", 1.0 / 30.0, "s per captured frame", 1e-6, 60.0);
-  if (const nlohmann::json* blobs = r.get("blobs")) {
-    if (!blobs->is_array()) r.fail("blobs", std::string("must be an array, got ") + blobs->type_name());
+  const std::string dop = r.string("dop_model", std::string("rayleigh"));
+  if (dop == "rayleigh") m.dop_model = Medium::DopModel::rayleigh;
+  else if (dop == "none") m.dop_model = Medium::DopModel::none;
+  else r.fail("dop_model", "unknown model '" + dop + "'", "use \"rayleigh\" or \"none\"");
+  if (r.has("albedo_uniform"))
+    m.albedo_uniform = r.number("albedo_uniform", 0.0, "single-scattering albedo beta/sigma", 0.0, 1.0);
+  auto read_blobs = [&](const char* key, double peak_min, std::vector<LegendreMediumSpec::Blob>& out) {
+    const nlohmann::json* blobs = r.get(key);
+    if (blobs == nullptr) return;
+    if (!blobs->is_array()) r.fail(key, std::string("must be an array, got ") + blobs->type_name());
     for (size_t i = 0; r.errors().ok() && blobs->is_array() && i < blobs->size(); ++i) {
-      FieldReader b((*blobs)[i], r.field("blobs") + "[" + std::to_string(i) + "]", r.errors());
+      FieldReader b((*blobs)[i], r.field(key) + "[" + std::to_string(i) + "]", r.errors());
       if (!r.errors().ok()) break;
       b.only({"center_mm", "radius_mm", "peak", "comment"});
       LegendreMediumSpec::Blob blob;
       blob.center_mm = b.vec3("center_mm", std::nullopt, "mm, world frame");
       blob.radius_mm = b.positive("radius_mm", std::nullopt, "mm");
-      blob.peak = b.number("peak", 1.0, "dimensionless", 0.0, 100.0);
-      m.blobs.push_back(blob);
+      blob.peak = b.number("peak", 1.0, "dimensionless", peak_min, 100.0);
+      out.push_back(blob);
     }
-  }
+  };
+  read_blobs("blobs", 0.0, m.blobs);
+  read_blobs("albedo_blobs", -1.0, m.albedo_blobs);  // may lower the albedo locally
   if (!r.errors().ok()) return m;
   if (!(m.box_max_mm.x > m.box_min_mm.x && m.box_max_mm.y > m.box_min_mm.y && m.box_max_mm.z > m.box_min_mm.z))
     r.fail("box_max_mm", "empty box: box_max_mm must exceed box_min_mm on every axis");

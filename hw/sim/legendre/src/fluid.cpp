@@ -239,6 +239,10 @@ StepReport LegendreFluid::substep(double dt) {
   project();                                         // Eq. 6.19-6.20
   advect(density, dt, f);
   diffuse(density, params_.diffusion * dt);
+  for (Field& q : passive) {  // the same transport as the density, nothing else
+    advect(q, dt, f);
+    diffuse(q, params_.diffusion * dt);
+  }
   const double keep = 1.0 / (1.0 + dt * params_.dissipation);  // Eq. 6.21
   for (double& v : density.c) v *= keep;
   axpy(density, dt, density_source);
@@ -252,6 +256,12 @@ StepReport LegendreFluid::step(double dt) {
     r.error = "LegendreFluid::step: dt must be a positive finite number of seconds";
     return r;
   }
+  for (const Field& q : passive)
+    if (q.n != density.n || q.c.size() != density.c.size()) {
+      r.ok = false;
+      r.error = "LegendreFluid::step: a passive scalar's shape differs from the density's; build it like the density";
+      return r;
+    }
   const auto unprojected = velocity;
   project();  // the advecting velocity must satisfy the wall/divergence constraints
   r.energy_before = kinetic_energy();

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <variant>
@@ -176,6 +177,16 @@ struct LegendreMediumSpec {
   double sigma_t_per_mm = 0;     // extinction at density 1
   double sigma_s_per_mm = 0;     // scattering at density 1
   double g = 0;                  // Henyey-Greenstein asymmetry
+  // Polarization of the air-light: the homogeneous medium's Mueller model
+  // (Medium::DopModel, docs/media.md): rayleigh keeps it, none depolarizes.
+  Medium::DopModel dop_model = Medium::DopModel::rayleigh;
+  // Advected single-scattering albedo omega = beta / sigma (a passive scalar
+  // carried by the swirl like the density): omega(x) = clamp(albedo_uniform
+  // + sum of albedo_blobs, 0, 1), beta(x) = omega(x) sigma_t_per_mm. Unset
+  // (NaN, no blobs): beta = sigma_s_per_mm everywhere.
+  double albedo_uniform = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Blob> albedo_blobs;
+  bool has_albedo() const { return !albedo_blobs.empty() || albedo_uniform == albedo_uniform; }
   double frame_period_s = 1.0 / 30.0;  // medium time advanced per captured frame
 };
 

@@ -72,6 +72,11 @@ class LegendreFluid {
   Field density;
   std::array<Field, 3> force;     // B in Eq. 6.17, constant over a step
   Field density_source;           // S_r in Eq. 6.3
+  // Passive scalars carried by the flow (e.g. an advected single-scattering
+  // albedo): advected and diffused exactly like the density (Eq. 6.13-6.14,
+  // 6.16, same kappa), no dissipation and no source. Each must have the
+  // density's shape (step() refuses otherwise).
+  std::vector<Field> passive;
 
   // Advance by dt (s): advect, diffuse, force, project; density advect,
   // diffuse, dissipate, source. Steps above the CFL limit are sub-stepped
