@@ -85,6 +85,19 @@ float noise_threshold(const DecodeThresholds& t, float S) {
   return t.noise_k > 0.0f && var > 0.0f ? t.noise_k * std::sqrt(var) : 0.0f;
 }
 
+NoiseFit apply_noise_rule(const BitPlaneStream& s, double noise_k, DecodeThresholds& t, double& k_used) {
+  k_used = 0;
+  if (!(noise_k > 0)) return NoiseFit{};
+  const NoiseFit fit = s.fit_noise();
+  if (fit.measured) {
+    k_used = noise_k;
+    t.noise_k = static_cast<float>(noise_k);
+    t.noise_a = static_cast<float>(fit.a);
+    t.noise_b = static_cast<float>(fit.b);
+  }
+  return fit;
+}
+
 DecodeContext::DecodeContext(const BitPlaneStream& stream, const DecodeThresholds& thresholds)
     : s(stream), t(thresholds), inv_scale(1.0f / stream.full_scale()) {
   if (!s.u8()) return;

@@ -75,6 +75,10 @@ struct DecodeThresholds {
 
 // noise_k * sigma_d for S = W + B (0 where the rule is off or the variance is <= 0).
 float noise_threshold(const DecodeThresholds& t, float S);
+// Fits the capture's noise (BitPlaneStream::fit_noise) when noise_k > 0 and
+// turns the noise rule on in `t` when it was measured; returns the fit and
+// sets k_used to noise_k then, else to 0 (rule off).
+NoiseFit apply_noise_rule(const BitPlaneStream& s, double noise_k, DecodeThresholds& t, double& k_used);
 
 // error_bound[k] per bit position k (k = 0: least significant): max over
 // projector coordinates x whose projected word w(x) XOR (1 << k) is a code

@@ -165,17 +165,7 @@ MultiResult& MultiCodeDecoder::finish(double min_contrast, double min_bit_margin
   MultiResult& r = result_;
   r.full_scale = static_cast<double>(stream_.full_scale());
   DecodeThresholds t = thresholds(min_contrast, min_bit_margin);
-  r.noise = NoiseFit{};
-  r.noise_k = 0;
-  if (noise_k > 0 && layout_.inverse) {
-    r.noise = stream_.fit_noise();
-    if (r.noise.measured) {
-      r.noise_k = noise_k;
-      t.noise_k = static_cast<float>(noise_k);
-      t.noise_a = static_cast<float>(r.noise.a);
-      t.noise_b = static_cast<float>(r.noise.b);
-    }
-  }
+  r.noise = apply_noise_rule(stream_, layout_.inverse ? noise_k : 0.0, t, r.noise_k);
   const DecodeContext ctx(stream_, t);
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const size_t n = size_t{width_} * height_;

@@ -81,15 +81,7 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
   DecodeThresholds t;
   t.min_contrast_abs = static_cast<float>(min_contrast * r.full_scale);
   t.min_bit_margin = static_cast<float>(min_bit_margin);
-  if (noise_k > 0) {
-    r.noise = stream_.fit_noise();
-    if (r.noise.measured) {
-      r.noise_k = noise_k;
-      t.noise_k = static_cast<float>(noise_k);
-      t.noise_a = static_cast<float>(r.noise.a);
-      t.noise_b = static_cast<float>(r.noise.b);
-    }
-  }
+  r.noise = apply_noise_rule(stream_, noise_k, t, r.noise_k);
   const DecodeContext ctx(stream_, t);
   const WordMap maps[2] = {word_map(cols_), has_rows_ ? word_map(rows_) : WordMap{}};
   const bool uncertain[2] = {uncertain_, uncertain_ && has_rows_};
