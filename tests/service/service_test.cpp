@@ -549,6 +549,27 @@ TEST(ServicePersistence, QueuedScansSurviveKillNineAndRunAfterTheRestart) {
     for (const auto& f : (*m)["manifest"]["files"]) EXPECT_NE(f["name"], "request.json");
   }
   EXPECT_TRUE(std::is_sorted(finished.begin(), finished.end())) << "they ran in their old order";
+  // The three were accepted within about a second, and created_utc has whole
+  // seconds: their acceptance order survives the restart through
+  // accepted_unix_ns (before it, ties fell back to the random part of the
+  // ids). list_scans gives them newest first, so in reverse submission order.
+  {
+    auto listed = c.call(proto::ListScans{});
+    ASSERT_TRUE(listed.ok()) << listed.status().to_string();
+    std::vector<std::string> order;
+    for (const auto& sc : (*listed)["scans"])
+      if (std::find(k.queued.begin(), k.queued.end(), sc["scan_id"].get<std::string>()) != k.queued.end())
+        order.push_back(sc["scan_id"]);
+    EXPECT_EQ(order, std::vector<std::string>(k.queued.rbegin(), k.queued.rend()));
+    uint64_t prev = 0;
+    for (const auto& id : k.queued) {
+      auto m = c.call(proto::ResultQuery{id});
+      ASSERT_TRUE(m.ok());
+      const uint64_t ns = (*m)["manifest"].value("accepted_unix_ns", uint64_t{0});
+      EXPECT_GT(ns, prev) << id << ": accepted_unix_ns increases in submission order";
+      prev = ns;
+    }
+  }
   EXPECT_NE(sd.d->log().find("3 queued again, 0 failed"), std::string::npos) << sd.d->log();
   EXPECT_EQ(sd.d->stop(), 0);
   // A second restart finds them finished: nothing runs twice.

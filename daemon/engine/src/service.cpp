@@ -11,6 +11,7 @@
 #include <ctime>
 
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <random>
 #include <vector>
@@ -167,6 +168,16 @@ Result<nlohmann::json> ScanService::submit(const ScanRequest& req, const std::st
   rec->id = new_scan_id();
   rec->req = req;
   rec->created_utc = utc_now();
+  {
+    static std::atomic<uint64_t> last{0};
+    const auto now = static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                               std::chrono::system_clock::now().time_since_epoch())
+                                               .count());
+    uint64_t prev = last.load();
+    uint64_t next = std::max(now, prev + 1);
+    while (!last.compare_exchange_weak(prev, next)) next = std::max(now, prev + 1);
+    rec->accepted_ns = next;
+  }
   {
     // Reserve the id (state "queued", not yet in the queue: a cancel now is
     // "just starting", retry), persist the request outside the lock, then queue.

@@ -28,6 +28,12 @@ struct ScanService::Record {
   ScanRequest req;
   std::string state = "queued";
   std::string created_utc, finished_utc;
+  // Acceptance order: created_utc has whole seconds and ids are random after
+  // their time, so scans accepted within one second need this to keep their
+  // order (listing, and the queue after a restart). Nanoseconds since the
+  // Unix epoch, strictly increasing within a daemon; 0 in manifests written
+  // before it existed (those sort by created_utc, then id).
+  uint64_t accepted_ns = 0;
   Progress progress;
   std::optional<PluginProgress> plugin_progress;  // plugins with host services only
   Status error;

@@ -45,6 +45,7 @@ nlohmann::json ScanService::base_manifest(const Record& rec) const {
           {"files", nlohmann::json::array()},
           {"error", nullptr}};
   if (!inputs.empty()) m["inputs"] = std::move(inputs);
+  if (rec.accepted_ns != 0) m["accepted_unix_ns"] = rec.accepted_ns;
   return m;
 }
 
@@ -113,7 +114,7 @@ nlohmann::json ScanService::list_scans(const std::optional<std::string>& state, 
     match.push_back(r.get());
   }
   std::sort(match.begin(), match.end(), [](const Record* a, const Record* b) {
-    return std::tie(a->created_utc, a->id) > std::tie(b->created_utc, b->id);
+    return std::tie(a->created_utc, a->accepted_ns, a->id) > std::tie(b->created_utc, b->accepted_ns, b->id);
   });
   nlohmann::json scans = nlohmann::json::array();
   for (size_t i = 0; i < match.size() && i < limit; ++i) scans.push_back(summary_locked(*match[i]));

@@ -161,6 +161,8 @@ void ScanService::load_existing() {
       rec->req.method = str_field(*m, "method");
       rec->req.label = str_field(*m, "label");
       rec->created_utc = str_field(*m, "created_utc");
+      if (const auto it = m->find("accepted_unix_ns"); it != m->end() && it->is_number_unsigned())
+        rec->accepted_ns = it->get<uint64_t>();
       if (m->contains("params") && (*m)["params"].is_object()) rec->req.params = (*m)["params"];
     }
     if (m && m->is_object() && str_field(*m, "state") == "queued") {
@@ -216,9 +218,11 @@ void ScanService::load_existing() {
 }
 
 void ScanService::restart_queued(std::vector<std::pair<std::shared_ptr<Record>, Result<ScanRequest>>> found) {
-  // Their old order: acceptance time, then id (ids start with that time too).
+  // Their old order: acceptance time (seconds, then accepted_ns within a
+  // second), then id.
   std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
-    return std::tie(a.first->created_utc, a.first->id) < std::tie(b.first->created_utc, b.first->id);
+    return std::tie(a.first->created_utc, a.first->accepted_ns, a.first->id) <
+           std::tie(b.first->created_utc, b.first->accepted_ns, b.first->id);
   });
   size_t requeued = 0, failed = 0;
   for (auto& [rec, req] : found) {
