@@ -24,6 +24,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 
 #include "plugin_runs.hpp"
 
@@ -36,6 +37,9 @@ struct Case {
   const char* params;
   double min_hold = 0.99;  // fraction of interval pixels whose interval holds the truth
 };
+
+// How gtest names a case in ctest's listing (instead of a byte dump).
+void PrintTo(const Case& c, std::ostream* os) { *os << c.method << " on " << c.scene << " " << c.params; }
 
 class Intervals : public ::testing::TestWithParam<Case> {};
 
