@@ -1002,4 +1002,54 @@ TEST(ServiceRobustness, OversizedAndMalformedMessagesNeverStopTheDaemon) {
 }
 
 }  // namespace
+
+// Issue 15 acceptance: a sim scene with a Legendre medium (drifting fog that
+// evolves frame by frame during the scan, docs/legendre.md) runs through
+// procamd. A plain Gray scan of legendre-fog on the tiny rig finishes with
+// depth, and its columns are right (>= 90 % of lit pixels within one column
+// of the sim's truth, procamd's own evaluation: the fog is optically thin).
+// polarized-striping/striping scans of legendre-fog and of its 2x denser,
+// 4x faster variant finish with depth, and the fog shows in them: the
+// denser fog leaves a lower contrast quality S / (S + B) (Eq. 5.8, the
+// plugin's report) than the thinner one.
+TEST(ServiceMedia, LegendreFogScansRunThroughProcamd) {
+  ServiceDaemon sd;
+  ASSERT_TRUE(sd.d->wait_ready()) << sd.d->log();
+  client::Client c(sd.endpoint(), 20s);
+  auto scan = [&](const proto::Scan& s) -> json {
+    auto r = c.call(s);
+    EXPECT_TRUE(r.ok()) << s.method << ": " << r.status().to_string();
+    if (!r) return json();
+    const json fin = wait_final(c, (*r)["scan_id"], 300s);
+    EXPECT_FALSE(fin.is_null()) << s.method << " never finished; log:\n" << sd.d->log();
+    if (fin.is_null()) return json();
+    EXPECT_EQ(fin["state"], "done") << fin.dump();
+    auto m = c.call(proto::ResultQuery{(*r)["scan_id"]});
+    EXPECT_TRUE(m.ok()) << m.status().to_string();
+    if (!m) return json();
+    const json man = (*m)["manifest"];
+    bool depth = false;
+    for (const auto& o : man["outputs"]) depth = depth || o.value("name", "") == "depth_mm";
+    EXPECT_TRUE(depth) << s.label << ": no depth_mm in " << man["outputs"].dump();
+    return man;
+  };
+  const json gray = scan(tiny_scan("legendre-fog", "gray through fog"));
+  ASSERT_TRUE(gray.contains("evaluation")) << gray.dump();
+  std::printf("legendre-fog through procamd, gray: %s\n", gray["evaluation"].dump().c_str());
+  EXPECT_GE(gray["evaluation"].value("within_1col_fraction", 0.0), 0.9) << gray["evaluation"].dump();
+  double cqm[2] = {0, 0};
+  const char* scenes[2] = {"legendre-fog", "legendre-variants/legendre-fog-dense"};
+  for (int k = 0; k < 2; ++k) {
+    proto::Scan s = tiny_scan(scenes[k], std::string("striping through ") + scenes[k]);
+    s.plugin = "polarized-striping";
+    s.method = "striping";
+    const json man = scan(s);
+    for (const auto& o : man.value("outputs", json::array()))
+      if (o.value("name", "") == "report") cqm[k] = o["value"]["quality"].value("cqm_mean", 0.0);
+  }
+  std::printf("striping contrast quality: legendre-fog %.4f, dense fog %.4f\n", cqm[0], cqm[1]);
+  EXPECT_GT(cqm[0], 0.0);
+  EXPECT_LT(cqm[1], cqm[0]) << "the denser fog should veil the stripes more";
+}
+
 }  // namespace procam::testing
