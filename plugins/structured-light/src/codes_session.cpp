@@ -11,6 +11,7 @@
 #include <cstring>
 #include <span>
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <utility>
 
@@ -97,6 +98,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     valid_.assign(n, 0);
     confidence_.assign(n, 0.0f);
     cls_.assign(n, kUnlit);
+    class_counts_[kUnlit] = n;  // as count_pixels would find before any round
   }  ~CodesSession() override { recycle_members(); }
   CodesSession(const CodesSession&) = delete;
   CodesSession& operator=(const CodesSession&) = delete;
@@ -327,8 +329,16 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         if (!auto_mode() || step_ == Step::codes) {
           const float* code[kEnsembleCodes];
           for (uint32_t k = 0; k < kEnsembleCodes; ++k) code[k] = stage_maps_[k].data();
-          conflicts_ = label_conflicts(code, static_cast<float>(cfg_.agree_px), 0, n, coord_.data(),
-                                       valid_.data(), confidence_.data(), cls_.data());
+          // Pixel-wise independent: bands of rows in parallel (issue 17).
+          std::mutex mutex;
+          conflicts_ = 0;
+          sdk::parallel_rows(cam.height, rig_.threads, [&](uint32_t y0, uint32_t y1) {
+            const size_t got = label_conflicts(code, static_cast<float>(cfg_.agree_px), size_t{y0} * cam.width,
+                                               size_t{y1} * cam.width, coord_.data(), valid_.data(),
+                                               confidence_.data(), cls_.data());
+            const std::lock_guard<std::mutex> lock(mutex);
+            conflicts_ += got;
+          });
         }
       } else {  // correction: only flagged pixels take the new result, where every
         // ground-truth-free test passes (correction.hpp merge_correction;
@@ -345,10 +355,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       recycle_maps(std::move(r));  // what this round's result still holds
     }
     decoder_.reset();
-    for (size_t i = 0; i < n; ++i) {
-      stats.errors += flagged(cls_[i]) ? 1u : 0u;
-      stats.lit += lit_[i] != 0 ? 1u : 0u;
-    }
+    count_pixels(stats);
     if (step_ != Step::first && !steps_.empty()) {  // measured change of the step
       nlohmann::json& st = steps_.back();
       st["flagged_after"] = fraction(stats.errors, stats.lit);
@@ -375,11 +382,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     sdk::StandardOutputs standard;
     standard.decode_ms = decode_ms_;  // the triangulation above included
     standard.pattern_count = patterns_;
-    std::array<size_t, kTransportClassCount> counts{};
-    for (size_t i = 0; i < valid_.size(); ++i) {
-      standard.valid_pixels += valid_[i] != 0 ? 1u : 0u;
-      ++counts[std::min<size_t>(cls_[i], kTransportClassCount - 1)];
-    }
+    const std::array<size_t, kTransportClassCount>& counts = class_counts_;  // of the last end_round
+    standard.valid_pixels = valid_count_;
     standard.total_pixels = valid_.size();
     const size_t lit = rounds_.empty() ? 0 : rounds_.back().lit;
     const size_t errors = rounds_.empty() ? 0 : rounds_.back().errors;
@@ -573,6 +577,36 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   static double fraction(size_t a, size_t b) { return b > 0 ? static_cast<double>(a) / static_cast<double>(b) : 0.0; }
 
 
+  // The per-pixel counts of a finished round, one pass in row bands:
+  // stats.errors (flagged pixels) and stats.lit, and for outputs() the valid
+  // pixels and the transport-class histogram (class_counts_, valid_count_).
+  void count_pixels(RoundStats& stats) {
+    const sdk::RigCamera& cam = rig_.cameras.at(0);
+    struct Counts {
+      size_t errors = 0, lit = 0, valid = 0;
+      std::array<size_t, kTransportClassCount> cls{};
+    } total;
+    std::mutex mutex;
+    sdk::parallel_rows(cam.height, rig_.threads, [&](uint32_t y0, uint32_t y1) {
+      Counts c;
+      for (size_t i = size_t{y0} * cam.width, e = size_t{y1} * cam.width; i < e; ++i) {
+        c.errors += flagged(cls_[i]) ? 1u : 0u;
+        c.lit += lit_[i] != 0 ? 1u : 0u;
+        c.valid += valid_[i] != 0 ? 1u : 0u;
+        ++c.cls[std::min<size_t>(cls_[i], kTransportClassCount - 1)];
+      }
+      const std::lock_guard<std::mutex> lock(mutex);
+      total.errors += c.errors;
+      total.lit += c.lit;
+      total.valid += c.valid;
+      for (size_t k = 0; k < kTransportClassCount; ++k) total.cls[k] += c.cls[k];
+    });
+    stats.errors += total.errors;
+    stats.lit += total.lit;
+    valid_count_ = total.valid;
+    class_counts_ = total.cls;
+  }
+
   size_t errors_before_round() const { return rounds_.empty() ? 0 : rounds_.back().errors; }
 
   // §3.4 stop rule (correction.hpp decide_correction).
@@ -621,6 +655,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   std::vector<uint32_t> plan_to_decoder_;  // this round's plan frame -> decoder (layout) frame
   RoundForecast forecast_;         // of the last probe
   size_t conflicts_ = 0;           // pixels labelled kConflict by the first pass
+  size_t valid_count_ = 0;         // valid pixels after the last end_round (count_pixels)
+  std::array<size_t, kTransportClassCount> class_counts_{};  // transport classes, likewise
   std::vector<uint8_t> resolved_in_;  // per pixel: the correction round it was resolved in (0: none)
   std::vector<uint8_t> forecast_map_;  // code_maps: the last probe's per-pixel verdict
   nlohmann::json steps_ = nlohmann::json::array();  // per step: predicted gain, measured change

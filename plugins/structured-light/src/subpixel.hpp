@@ -28,8 +28,14 @@ struct SubpixelOptions {
   float max_slope = 4.0f;  // projector columns per camera pixel still "continuous"
 };
 
+// Which kernel refine_columns runs: `best` the fastest the CPU has (AVX-512
+// where available), `scalar` the definition; results are bit-identical
+// (subpixel_test.cpp). Tests and benches pick; callers use the default.
+enum class SubpixelKernel { best, scalar };
+
 // Rows [y0, y1) of width-w maps: col (NaN = invalid) -> out (NaN where col is NaN).
 void refine_columns(const float* col, uint32_t w, uint32_t y0, uint32_t y1,
-                    const SubpixelOptions& opt, float* out);
+                    const SubpixelOptions& opt, float* out,
+                    SubpixelKernel kernel = SubpixelKernel::best);
 
 }  // namespace procam::sl
