@@ -117,7 +117,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       probe_[index].store(frame);
       return sdk::ok();
     }
-    if (!decoder_) return sdk::state_error("add_frame outside a round");
+    if (!decoder_ || !round_open_) return sdk::state_error("add_frame outside a round");
     if (index >= plan_to_decoder_.size())
       return sdk::invalid_argument("frame index " + std::to_string(index) + " beyond the round's " +
                                    std::to_string(plan_to_decoder_.size()) + " frames");
@@ -243,6 +243,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       if (r.second->empty()) return sdk::state_error("a kept frame of the previous round is missing");
       if (sdk::Error e = decoder_->add_frame(r.first, r.second->image()); !e.ok()) return e;
     }
+    round_open_ = true;
     patterns_ += plan.size();
     ++round_;
     step_ = step;
@@ -294,7 +295,11 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       // round's codes, earlier first-pass rounds' maps (auto), NaN maps for
       // codes not projected. Per-code maps are kept in the first pass: auto's
       // second step votes with them, and the conflict rule reads them.
-      const bool keep_maps = first_pass;
+      // Kept only where read later: auto (its second step votes with the
+      // first step's maps) and code_maps (an output); the conflict rule runs
+      // in the vote itself (VoteSpec::conflicts; issue 17: 4 x 9 MB fewer
+      // writes after the last frame).
+      const bool keep_maps = first_pass && (auto_mode() || cfg_.code_maps);
       if (keep_maps && stage_maps_.empty()) {  // written whole by the vote for this round's
         stage_maps_.resize(kEnsembleCodes);     // codes; NaN for the others (auto's first step)
         for (uint32_t k = 0; k < kEnsembleCodes; ++k) {
@@ -311,6 +316,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       }
       for (uint32_t k = 0; k < kEnsembleCodes; ++k)
         if (spec.round_code[k] < 0) spec.external[k] = stage_maps_.at(k).data();
+      // Conflict rule (correction.hpp) once all four codes are in the vote.
+      spec.conflicts = first_pass && (!auto_mode() || step_ == Step::codes);
       MultiResult& r = decoder_->finish_vote(cfg_.min_contrast, cfg_.min_bit_margin, spec);
       full_scale_ = r.full_scale;
       if (first_pass)
@@ -325,21 +332,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         valid_ = std::move(v.valid);
         confidence_ = std::move(v.confidence);
         cls_ = std::move(v.cls);
-        // Conflict rule (correction.hpp) once all four codes are in the vote.
-        if (!auto_mode() || step_ == Step::codes) {
-          const float* code[kEnsembleCodes];
-          for (uint32_t k = 0; k < kEnsembleCodes; ++k) code[k] = stage_maps_[k].data();
-          // Pixel-wise independent: bands of rows in parallel (issue 17).
-          std::mutex mutex;
-          conflicts_ = 0;
-          sdk::parallel_rows(cam.height, rig_.threads, [&](uint32_t y0, uint32_t y1) {
-            const size_t got = label_conflicts(code, static_cast<float>(cfg_.agree_px), size_t{y0} * cam.width,
-                                               size_t{y1} * cam.width, coord_.data(), valid_.data(),
-                                               confidence_.data(), cls_.data());
-            const std::lock_guard<std::mutex> lock(mutex);
-            conflicts_ += got;
-          });
-        }
+        conflicts_ = r.conflicts;
       } else {  // correction: only flagged pixels take the new result, where every
         // ground-truth-free test passes (correction.hpp merge_correction;
         // r.intensity is the masked white frame)
@@ -354,7 +347,11 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       }
       recycle_maps(std::move(r));  // what this round's result still holds
     }
-    decoder_.reset();
+    // The decoder (its thread pool, its per-code state) is destroyed by the
+    // next round's emplace or with the session, not here: joining its threads
+    // and freeing its memory took 6-10 ms of the time after the last frame at
+    // load ~12 (issue 17).
+    round_open_ = false;
     count_pixels(stats);
     if (step_ != Step::first && !steps_.empty()) {  // measured change of the step
       nlohmann::json& st = steps_.back();
@@ -653,6 +650,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   std::array<FrameCopy, 3> probe_; // the probe's masked white, finest xor02 plane, its inverse
   bool keep_white_ = false;
   std::vector<uint32_t> plan_to_decoder_;  // this round's plan frame -> decoder (layout) frame
+  bool round_open_ = false;        // decoder_ takes frames: between next_plan and end_round
   RoundForecast forecast_;         // of the last probe
   size_t conflicts_ = 0;           // pixels labelled kConflict by the first pass
   size_t valid_count_ = 0;         // valid pixels after the last end_round (count_pixels)

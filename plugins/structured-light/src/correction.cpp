@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 
 #include "procam/base/calibration.hpp"
@@ -26,26 +27,32 @@ CorrectionDecision decide_correction(const CorrectionProgress& p) {
   return {true, nullptr};
 }
 
-size_t label_conflicts(const float* const code[kEnsembleCodes], float agree_px, size_t begin,
-                       size_t end, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
+namespace {
+
+// The conflict rule for one voted pixel (correction.hpp label_conflicts):
+// agree(a, b) says whether codes a and b agree, has(k) whether code k is valid.
+template <class Agree, class Has>
+bool conflict_pixel(Agree&& agree, Has&& has) {
+  uint32_t pairs = 0;
+  for (uint32_t a = 0; a < kEnsembleCodes; ++a)
+    for (uint32_t b = a + 1; b < kEnsembleCodes; ++b) pairs += agree(a, b) ? 1u : 0u;
+  if (pairs != 1) return false;
+  uint32_t x = kEnsembleCodes;  // the XOR code agreeing with gray, if that is the pair
+  if (agree(kGray, kXor02)) x = kXor02;
+  if (agree(kGray, kXor04)) x = kXor04;
+  if (x == kEnsembleCodes) return false;
+  for (uint32_t k = 0; k < kEnsembleCodes; ++k)  // a third valid code (it disagrees: the pair is the only one)
+    if (k != kGray && k != x && has(k)) return true;
+  return false;
+}
+
+// Pixels [begin, end) of the vote's maps: conflict(i) -> kConflict, invalid.
+template <class Conflict>
+size_t label_range(size_t begin, size_t end, float* coord, uint8_t* valid, float* confidence,
+                   uint8_t* cls, Conflict&& conflict) {
   size_t n = 0;
   for (size_t i = begin; i < end; ++i) {
-    if (valid[i] == 0 || cls[i] == kAllAgree) continue;
-    float v[kEnsembleCodes];
-    for (uint32_t k = 0; k < kEnsembleCodes; ++k) v[k] = code[k][i];
-    const auto agree = [&](uint32_t a, uint32_t b) { return std::fabs(v[a] - v[b]) <= agree_px; };
-    uint32_t pairs = 0;
-    for (uint32_t a = 0; a < kEnsembleCodes; ++a)
-      for (uint32_t b = a + 1; b < kEnsembleCodes; ++b) pairs += agree(a, b) ? 1u : 0u;
-    if (pairs != 1) continue;
-    uint32_t x = kEnsembleCodes;  // the XOR code agreeing with gray, if that is the pair
-    if (agree(kGray, kXor02)) x = kXor02;
-    if (agree(kGray, kXor04)) x = kXor04;
-    if (x == kEnsembleCodes) continue;
-    bool dissent = false;  // a third valid code (it disagrees: the pair is the only one)
-    for (uint32_t k = 0; k < kEnsembleCodes; ++k)
-      if (k != kGray && k != x && !std::isnan(v[k])) dissent = true;
-    if (!dissent) continue;
+    if (valid[i] == 0 || cls[i] == kAllAgree || !conflict(i)) continue;
     coord[i] = std::numeric_limits<float>::quiet_NaN();
     valid[i] = 0;
     confidence[i] = 0.0f;
@@ -53,6 +60,29 @@ size_t label_conflicts(const float* const code[kEnsembleCodes], float agree_px, 
     ++n;
   }
   return n;
+}
+
+}  // namespace
+
+size_t label_conflicts(const float* const code[kEnsembleCodes], float agree_px, size_t begin,
+                       size_t end, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
+  return label_range(begin, end, coord, valid, confidence, cls, [&](size_t i) {
+    float v[kEnsembleCodes];
+    for (uint32_t k = 0; k < kEnsembleCodes; ++k) v[k] = code[k][i];
+    return conflict_pixel([&](uint32_t a, uint32_t b) { return std::fabs(v[a] - v[b]) <= agree_px; },
+                          [&](uint32_t k) { return !std::isnan(v[k]); });
+  });
+}
+
+size_t label_conflicts_keys(const int32_t* const key[kEnsembleCodes], int32_t agree2, size_t n,
+                            float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
+  return label_range(0, n, coord, valid, confidence, cls, [&](size_t i) {
+    int32_t v[kEnsembleCodes];
+    for (uint32_t k = 0; k < kEnsembleCodes; ++k) v[k] = key[k][i];
+    return conflict_pixel(
+        [&](uint32_t a, uint32_t b) { return v[a] >= 0 && v[b] >= 0 && std::abs(v[a] - v[b]) <= agree2; },
+        [&](uint32_t k) { return v[k] >= 0; });
+  });
 }
 
 bool fixable_pixel(float masked_white, float round1_white) {

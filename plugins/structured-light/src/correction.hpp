@@ -69,6 +69,14 @@ inline bool flagged(uint8_t cls) { return cls == kError || cls == kConflict; }
 // (NaN = invalid). Pixels [begin, end). Returns the number set to kConflict.
 size_t label_conflicts(const float* const code[kEnsembleCodes], float agree_px, size_t begin,
                        size_t end, float* coord, uint8_t* valid, float* confidence, uint8_t* cls);
+// The same rule on the vote's integer keys (vote.hpp vote_keys: key = 2 x
+// column, -1 = invalid; agree2 = agree_key_threshold(agree_px)), pixels
+// [0, n) of the maps: identical labels to label_conflicts on the maps
+// key / 2 (NaN where key < 0) for every valid (so lit) pixel. finish_vote
+// applies it in the vote's own pass (VoteSpec::conflicts), so the ensemble
+// needs no per-code maps for it (issue 17).
+size_t label_conflicts_keys(const int32_t* const key[kEnsembleCodes], int32_t agree2, size_t n,
+                            float* coord, uint8_t* valid, float* confidence, uint8_t* cls);
 
 // What the three-frame probe of codes_session.cpp (the next round's masked
 // white Wm, masked finest xor02 plane L and its inverse L̄, stripes 2 px

@@ -278,6 +278,50 @@ TEST(Correction, ConflictRuleFlagsOnlyACorrelatedPairAgainstADissenter) {
   EXPECT_EQ(got, want);
 }
 
+// The vote applies the conflict rule on its integer keys (issue 17: no
+// per-code float maps); it must label exactly what label_conflicts labels on
+// the maps key / 2 (NaN for key -1), whose cases are checked above.
+TEST(Correction, ConflictRuleOnKeysEqualsRuleOnMaps) {
+  std::mt19937 rng(1717);
+  std::uniform_int_distribution<int32_t> key(-1, 12);  // narrow: agreements and conflicts are common
+  for (const float agree_px : {0.5f, 1.0f, 2.5f}) {
+    const size_t n = 20000;
+    std::vector<int32_t> keys[kEnsembleCodes];
+    std::vector<float> maps[kEnsembleCodes];
+    std::vector<uint8_t> lit(n);
+    for (size_t i = 0; i < n; ++i) lit[i] = (i % 17 == 0) ? 0 : 255;
+    for (uint32_t k = 0; k < kEnsembleCodes; ++k) {
+      keys[k].resize(n);
+      maps[k].resize(n);
+      for (size_t i = 0; i < n; ++i) {
+        keys[k][i] = key(rng);
+        maps[k][i] = keys[k][i] < 0 ? std::numeric_limits<float>::quiet_NaN() : 0.5f * static_cast<float>(keys[k][i]);
+      }
+    }
+    const int32_t* kp[kEnsembleCodes] = {keys[0].data(), keys[1].data(), keys[2].data(), keys[3].data()};
+    const float* mp[kEnsembleCodes] = {maps[0].data(), maps[1].data(), maps[2].data(), maps[3].data()};
+    const int32_t agree2 = agree_key_threshold(agree_px);
+    std::vector<float> coord_a(n), conf_a(n);
+    std::vector<uint8_t> valid_a(n), cls_a(n);
+    vote_keys(kp, lit.data(), n, agree2, coord_a.data(), valid_a.data(), conf_a.data(), cls_a.data());
+    std::vector<float> coord_b = coord_a, conf_b = conf_a;
+    std::vector<uint8_t> valid_b = valid_a, cls_b = cls_a;
+    const size_t on_maps = label_conflicts(mp, agree_px, 0, n, coord_a.data(), valid_a.data(), conf_a.data(), cls_a.data());
+    const size_t on_keys = label_conflicts_keys(kp, agree2, n, coord_b.data(), valid_b.data(), conf_b.data(), cls_b.data());
+    EXPECT_GT(on_maps, n / 100) << agree_px;  // the case is exercised
+    EXPECT_EQ(on_keys, on_maps) << agree_px;
+    for (size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(cls_b[i], cls_a[i]) << "pixel " << i << " agree_px " << agree_px;
+      ASSERT_EQ(valid_b[i], valid_a[i]) << i;
+      ASSERT_EQ(conf_b[i], conf_a[i]) << i;
+      ASSERT_EQ(std::isnan(coord_b[i]), std::isnan(coord_a[i])) << i;
+      if (!std::isnan(coord_a[i])) {
+        ASSERT_EQ(coord_b[i], coord_a[i]) << i;
+      }
+    }
+  }
+}
+
 // The probe's forecast sorts flagged pixels by the three tests; the counts
 // are checked against the rule written out per pixel.
 TEST(Correction, ForecastCountsFixablePixelsByTheProbeRules) {

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "correction.hpp"
 #include "decode.hpp"
 
 namespace procam::sl {
@@ -271,6 +272,8 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
   const DecodeContext ctx(stream_, thresholds(min_contrast, min_bit_margin));
   const int32_t agree2 = agree_key_threshold(spec.agree_px);
   const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::mutex conflicts_mutex;
+  r.conflicts = 0;
   decode_rows(stream_, ctx, r.lit.data(), stream_.intensity_to_write(r.intensity), codes_.size(),
               r.weak, [&](size_t b, size_t e, const BaseRow& base, int32_t* scratch, size_t* weak) {
                 const int32_t* key_rows[kEnsembleCodes];
@@ -321,6 +324,13 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
                 vote_keys(key_rows, r.lit.data() + b, e - b, agree2, r.vote.coord.data() + b,
                           r.vote.valid.data() + b, r.vote.confidence.data() + b,
                           r.vote.cls.data() + b);
+                if (spec.conflicts) {
+                  const size_t got = label_conflicts_keys(key_rows, agree2, e - b, r.vote.coord.data() + b,
+                                                          r.vote.valid.data() + b, r.vote.confidence.data() + b,
+                                                          r.vote.cls.data() + b);
+                  const std::lock_guard<std::mutex> lock(conflicts_mutex);
+                  r.conflicts += got;
+                }
               });
   return r;
 }

@@ -74,6 +74,7 @@ struct MultiResult {
   double full_scale = 0;
   NoiseFit noise;                // finish() with noise_k > 0 and inverse frames
   double noise_k = 0;            // the noise rule's k (0: off or not measured)
+  size_t conflicts = 0;          // finish_vote with VoteSpec::conflicts: pixels set to kConflict
 };
 
 // Gives every map of `r` to the map cache (map_cache.hpp), as the session
@@ -90,6 +91,9 @@ struct VoteSpec {
   const float* external[kEnsembleCodes] = {nullptr, nullptr, nullptr, nullptr};
   float* keep[kEnsembleCodes] = {nullptr, nullptr, nullptr, nullptr};
   float agree_px = 1.0f;
+  // Also apply the conflict rule (correction.hpp label_conflicts_keys) to the
+  // vote's maps in the same pass; MultiResult::conflicts counts the pixels.
+  bool conflicts = false;
 };
 
 class MultiCodeDecoder {
