@@ -182,6 +182,7 @@ class MeasureSession final : public BracketSession {
       f["rms_percent"] = fit_.rms_percent;
       f["rms_normalized_percent"] = fit_.rms_normalized_percent;
       f["objective"] = cfg_.fit.objective == Objective::normalized ? "normalized (Eq. 4.6-4.7)" : "profiled";
+      f["weights"] = cfg_.fit.weights == Weights::noise ? "noise" : "uniform";
       f["objective_value"] = fit_.objective;
       f["legendre_objective_value"] = fit_.legendre_objective;
       f["evaluations"] = fit_.evaluations;
