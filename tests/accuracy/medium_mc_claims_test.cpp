@@ -133,7 +133,7 @@ TEST(MediumMonteCarloClaims, SigmaHatLinearForMerlotDepartsForMilk) {
   EXPECT_LT(milk.best, milk.first_nonlinear);
   // sigma-hat is below the true sigma at every volume: with g = 0.9 the light
   // scattered forward in front of the bulb looks like the bulb (measured 57 %
-  // of sigma at 1-8 ml, 49 % at 64 ml), and the share grows with the volume:
+  // of sigma at 1-8 ml, 48 % at 64 ml), and the share grows with the volume:
   // the bend of Fig. 4.7.
   double low_ratio = 0;
   for (size_t i = 0; i < milk.points.size(); ++i) {

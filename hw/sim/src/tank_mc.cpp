@@ -14,6 +14,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kForcedRoulette = 0.05;  // Russian roulette below this weight in forced mode
 
 // Distance along unit w from p (inside the box) to its boundary.
 double box_exit(const Medium& m, const Vec3& p, const Vec3& w) {
@@ -104,7 +105,12 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
       if (v == 1) first = c;
       all += c;
       w = detail::sample_hg(w, m.g, rng);
-      if (weight < 1e-4) {  // Russian roulette: survive with 1/10, weight ×10 (unbiased)
+      if (opt.forced && weight < kForcedRoulette) {
+        // Forced paths never leave by themselves: roulette early, survive
+        // with weight / kForcedRoulette and carry kForcedRoulette (unbiased).
+        if (u01(rng) * kForcedRoulette > weight) break;
+        weight = kForcedRoulette;
+      } else if (weight < 1e-4) {  // Russian roulette: survive with 1/10, weight ×10 (unbiased)
         if (u01(rng) > 0.1) break;
         weight *= 10;
       }
