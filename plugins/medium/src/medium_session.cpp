@@ -188,7 +188,8 @@ class MeasureSession final : public BracketSession {
       f["evaluations"] = fit_.evaluations;
       f["search"] = "Nelder-Mead in (ln sigma, atanh g) from the best 3 nodes of a 10 x 10 grid";
       f["ci_method"] = "95 %: 1.96 sqrt(diag(s^2 (J^T J)^-1)), J the Jacobian of the binned residuals in (sigma, g, "
-                       "beta I0), s^2 = sum n res^2 / (bins - 3); I0 taken as exact";
+                       "beta I0), s^2 = sum w res^2 / (bins - 3), w = n (uniform weights) or n / var (noise); "
+                       "I0 taken as exact";
     }
     std::vector<std::string> notes = fit_.notes;
     if (fit_.error.empty() && fit_.beta_absolute && std::isfinite(fit_.beta.value)) {
