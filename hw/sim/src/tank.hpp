@@ -129,6 +129,34 @@ struct TankMonteCarlo {
 TankMonteCarlo tank_monte_carlo(const Medium& medium, double x_mm, double y_mm, size_t paths, uint64_t seed,
                                 int max_vertices);
 
+// Variance reduction for the same estimator (docs/media.md "Monte Carlo
+// reference"); every option keeps it unbiased:
+//  - connections: each vertex's bulb connection is split over k x k
+//    directions stratified in (cos θ, φ) over the bulb's cone (one jittered
+//    sample per stratum, mean of the k² estimates). Near the bulb the cone is
+//    wide and the forward lobe of H-G varies across it: one uniform direction
+//    gives the heavy tail of the original estimator.
+//  - forced: every flight is forced to collide before it leaves the tank
+//    (distance drawn from the exponential truncated at the exit, weight ×
+//    (1 − e^{−σ s_exit}), the probability of colliding at all); paths then end
+//    only by Russian roulette. In a dilute tank (σ·D ≲ 1) most unforced paths
+//    leave without a vertex and contribute 0.
+//  - exact_single: a control variate. The first vertex's connection is an
+//    unbiased estimate of the renderer's single scattering S (tank_profile,
+//    Eq. 4.1-4.2, deterministic); total is returned as S + (T̂ − Ŝ) from the
+//    same paths and single as S, so total_se = excess_se: only the multiply
+//    scattered part is noisy. Where single scattering dominates (the fit
+//    volume of Fig. 4.11) that removes most of the variance. (Bias: the
+//    renderer's far-field cap path d − 2r/3, < 0.5 % of S: tank_mc_test.)
+// tank_monte_carlo(…) above is {connections = 1, forced = false, exact_single = false}.
+struct TankMcOptions {
+  int connections = 1;  // k: k x k stratified bulb directions per vertex
+  bool forced = false;
+  bool exact_single = false;
+};
+TankMonteCarlo tank_monte_carlo(const Medium& medium, double x_mm, double y_mm, size_t paths, uint64_t seed,
+                                int max_vertices, const TankMcOptions& options);
+
 // The image of the tank's face by tank_monte_carlo() on an nx × ny grid of
 // face points (cell centres), leaving out points within r + 2 mm of the
 // bulb's axis (the seen bulb), compared with single scattering (thesis

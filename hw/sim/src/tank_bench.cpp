@@ -6,6 +6,11 @@
 //  - BM_TankFrame: one camera frame: render (direct + bulb scatter + bulb
 //    source) and the sensor (exposure, shot/read noise, 12-bit DN) — what the
 //    sim camera does per captured frame.
+//  - BM_TankMonteCarlo: 1000 paths of the Monte Carlo reference at one face
+//    point (tank-chocolate-milk-8ml, 60 mm off the bulb's axis), plain
+//    (arg 0) and with the variance reductions {4, forced, exact_single}
+//    (arg 1), {2, forced, exact_single} (2), exact_single alone (3), forced
+//    alone (4): the cost side of docs/media.md's standard-error gains.
 #include <benchmark/benchmark.h>
 
 #include <fstream>
@@ -71,6 +76,23 @@ void BM_TankFrame(benchmark::State& state, const std::string& scene_name) {
   }
 }
 
+void BM_TankMonteCarlo(benchmark::State& state) {
+  const Result<Scene> scene = tank_scene("tank-chocolate-milk-8ml");
+  if (!scene.ok() || !scene->medium || !scene->medium->bulb) {
+    state.SkipWithError("scene failed to load");
+    return;
+  }
+  const Medium& m = *scene->medium;
+  const TankMcOptions options[] = {{}, {4, true, true}, {2, true, true}, {1, false, true}, {1, true, false}};
+  const TankMcOptions opt = options[state.range(0)];
+  uint64_t seed = 1;
+  for (auto _ : state) {
+    const TankMonteCarlo mc = tank_monte_carlo(m, m.bulb->center_mm.x + 60, m.bulb->center_mm.y, 1000, ++seed, 1 << 20, opt);
+    benchmark::DoNotOptimize(mc.total);
+  }
+}
+
+BENCHMARK(BM_TankMonteCarlo)->DenseRange(0, 4)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_TankPrepare, lowfat_milk, std::string("tank-lowfat-milk"))
     ->Arg(2)->Iterations(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_TankFrame, lowfat_milk, std::string("tank-lowfat-milk"))

@@ -14,6 +14,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kForcedRoulette = 0.05;  // Russian roulette below this weight in forced mode
 
 // Distance along unit w from p (inside the box) to its boundary.
 double box_exit(const Medium& m, const Vec3& p, const Vec3& w) {
@@ -38,9 +39,10 @@ double bulb_hit(const Medium::Bulb& b, const Vec3& p, const Vec3& w) {
   return s > 0 ? s : kInf;
 }
 
-// One next-event connection to the bulb from y, light then scattered into
-// −w: L e^{−σl} p(g, u·w) Ω for u drawn uniformly in the bulb's cone.
-double connect_bulb(const Medium& m, const Vec3& y, const Vec3& w, std::mt19937_64& rng) {
+// The bulb connection from y, light then scattered into −w: the mean of
+// L e^{−σl} p(g, u·w) Ω over k × k directions u, one drawn uniformly in each
+// stratum of (cos θ, φ) of the bulb's cone (k = 1: one uniform direction).
+double connect_bulb(const Medium& m, const Vec3& y, const Vec3& w, int k, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   const Medium::Bulb& b = *m.bulb;
   const Vec3 dv = b.center_mm - y;
@@ -48,22 +50,33 @@ double connect_bulb(const Medium& m, const Vec3& y, const Vec3& w, std::mt19937_
   if (!(d > r)) return 0;
   const double cos_max = std::sqrt(1 - (r / d) * (r / d));
   const double omega = 2 * kPi * (1 - cos_max);
-  const double ct = 1 - u01(rng) * (1 - cos_max), st = std::sqrt(std::max(0.0, 1 - ct * ct));
-  const double phi = 2 * kPi * u01(rng);
   const Vec3 a = dv * (1.0 / d);
   const Vec3 helper = std::abs(a.x) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
   const Vec3 e1 = normalized(cross(a, helper)), e2 = cross(a, e1);
-  const Vec3 u = a * ct + (e1 * std::cos(phi) + e2 * std::sin(phi)) * st;
-  const double l = d * ct - std::sqrt(std::max(0.0, r * r - d * d * st * st));
-  // Light travels along −u, leaves along −w: cos of the scattering angle = u·w.
-  return b.radiance() * std::exp(-m.sigma_t_per_mm * l) * hg_phase(m.g, dot(u, w)) * omega;
+  double sum = 0;
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) {
+      const double ct = 1 - (i + u01(rng)) / k * (1 - cos_max), st = std::sqrt(std::max(0.0, 1 - ct * ct));
+      const double phi = 2 * kPi * (j + u01(rng)) / k;
+      const Vec3 u = a * ct + (e1 * std::cos(phi) + e2 * std::sin(phi)) * st;
+      const double l = d * ct - std::sqrt(std::max(0.0, r * r - d * d * st * st));
+      // Light travels along −u, leaves along −w: cos of the scattering angle = u·w.
+      sum += std::exp(-m.sigma_t_per_mm * l) * hg_phase(m.g, dot(u, w));
+    }
+  return b.radiance() * omega * sum / (k * k);
 }
 
 }  // namespace
 
 TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_t paths, uint64_t seed,
                                 int max_vertices) {
+  return tank_monte_carlo(m, x_mm, y_mm, paths, seed, max_vertices, TankMcOptions{});
+}
+
+TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_t paths, uint64_t seed,
+                                int max_vertices, const TankMcOptions& opt) {
   TankMonteCarlo out;
+  const int splits = std::max(1, opt.connections);
   if (!m.bulb || m.whole_scene || paths == 0 || !(m.sigma_s_per_mm > 0) || max_vertices < 1) return out;
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
@@ -74,15 +87,30 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
     Vec3 w{0, 0, 1};
     double weight = 1, first = 0, all = 0;
     for (int v = 1; v <= max_vertices; ++v) {
-      const double s = -std::log(1 - u01(rng)) / sigma;
-      if (s >= std::min(box_exit(m, p, w), bulb_hit(*m.bulb, p, w))) break;  // black wall or the bulb
+      const double exit = std::min(box_exit(m, p, w), bulb_hit(*m.bulb, p, w));  // black wall or the bulb
+      double s = 0;
+      if (opt.forced) {
+        // Collide before the exit: pdf σe^{−σs} / (1 − e^{−σ exit}) on [0, exit).
+        const double hit = -std::expm1(-sigma * exit);
+        if (!(hit > 0)) break;
+        s = std::min(-std::log1p(-u01(rng) * hit) / sigma, std::nextafter(exit, 0.0));
+        weight *= hit;
+      } else {
+        s = -std::log(1 - u01(rng)) / sigma;
+        if (s >= exit) break;
+      }
       p = p + w * s;
       weight *= albedo;  // e^{−σs}·β / (σe^{−σs})
-      const double c = weight * connect_bulb(m, p, w, rng);
+      const double c = weight * connect_bulb(m, p, w, splits, rng);
       if (v == 1) first = c;
       all += c;
       w = detail::sample_hg(w, m.g, rng);
-      if (weight < 1e-4) {  // Russian roulette: survive with 1/10, weight ×10 (unbiased)
+      if (opt.forced && weight < kForcedRoulette) {
+        // Forced paths never leave by themselves: roulette early, survive
+        // with weight / kForcedRoulette and carry kForcedRoulette (unbiased).
+        if (u01(rng) * kForcedRoulette > weight) break;
+        weight = kForcedRoulette;
+      } else if (weight < 1e-4) {  // Russian roulette: survive with 1/10, weight ×10 (unbiased)
         if (u01(rng) > 0.1) break;
         weight *= 10;
       }
@@ -101,6 +129,14 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
   out.total = st / n;
   out.total_se = se(st, stq);
   out.excess_se = se(sx, sxq);
+  if (opt.exact_single) {
+    const double rho = std::hypot(x_mm - m.bulb->center_mm.x, y_mm - m.bulb->center_mm.y);
+    const double exact = tank_profile(m, rho, 768).scatter;
+    out.total = exact + (out.total - out.single);
+    out.total_se = out.excess_se;
+    out.single = exact;
+    out.single_se = 0;
+  }
   return out;
 }
 

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "procam/hw/sim/medium_regime.hpp"
 #include "tank.hpp"
@@ -53,6 +54,37 @@ TEST(TankMonteCarlo, MultipleScatteringAddsLightWithConcentration) {
   EXPECT_LT(excess[0], 0.15);
   EXPECT_GT(excess[1], 2 * excess[0]);
   EXPECT_GT(excess[2], 0.95);
+}
+
+// The variance reductions (TankMcOptions: stratified split connection,
+// forced collisions, exact single scattering as a control variate) keep the
+// estimate (agreement with the plain estimator within 4 combined standard
+// errors + 0.5 %, the renderer's far-field path bias) and cut its standard
+// error at the same number of paths (per path they cost ~19x: the
+// time-for-time comparison is in tank_bench and docs/media.md): lowfat chocolate milk at 1 ml (single
+// scattering dominant), 8 ml and 150 ml (Fig. 4.11's fit and far volumes).
+TEST(TankMonteCarlo, VarianceReductionKeepsTheMeanAndCutsTheError) {
+  const struct {
+    double volume, rho, min_gain;  // min_gain: required se(plain) / se(reduced) at equal paths; 0 = none
+  } cases[] = {{1, 25, 5}, {1, 100, 1.5}, {8, 25, 1.5}, {8, 100, 0}, {150, 40, 1.5}};
+  for (const auto& c : cases) {
+    const Scene s = tank_scene(R"("material": "Lowfat Chocolate Milk", "volume_ml": )" + std::to_string(c.volume));
+    const Medium& m = *s.medium;
+    const double x = m.bulb->center_mm.x + c.rho;
+    const TankMonteCarlo plain = tank_monte_carlo(m, x, 0, 20000, 41, 1 << 20);
+    const TankMonteCarlo low = tank_monte_carlo(m, x, 0, 20000, 43, 1 << 20, TankMcOptions{4, true, true});
+    std::printf("%5.0f ml rho %3.0f: plain %.4g ± %.2f %%, reduced %.4g ± %.2f %%: se ratio %.1f\n", c.volume, c.rho,
+                plain.total, 100 * plain.total_se / plain.total, low.total, 100 * low.total_se / low.total,
+                plain.total_se / low.total_se);
+    EXPECT_NEAR(low.total, plain.total, 4 * std::hypot(plain.total_se, low.total_se) + 5e-3 * plain.total)
+        << c.volume << " ml rho " << c.rho;
+    // Far from the bulb at 8 ml the error is the higher orders' heavy tail
+    // (a later vertex close to the bulb, its connection in the forward lobe):
+    // the gain there depends on the seed (measured 0.8-1.9): not asserted.
+    if (c.min_gain > 0) {
+      EXPECT_GT(plain.total_se / low.total_se, c.min_gain) << c.volume << " ml rho " << c.rho;
+    }
+  }
 }
 
 TEST(TankMonteCarlo, PureAbsorberAndBadInputGiveZeroNotNaN) {

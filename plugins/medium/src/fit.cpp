@@ -46,8 +46,28 @@ class Problem {
     }
     model_ = ProfileModel(s.tank, rho);
     rho_ = std::move(rho);
+    // Per-bin weights: n (uniform) or n / var(E) (fit.hpp, Weights::noise),
+    // scaled so they sum to the pixel count (the objective keeps its size).
+    weight_.resize(p.bins.size());
+    double sum_w = 0, sum_n = 0;
+    const double read = s.noise_read > 0 ? s.noise_read : 1e-3 * emax_;
+    for (size_t i = 0; i < p.bins.size(); ++i) {
+      const double n = double(p.bins[i].n), e = std::max(0.0, p.bins[i].mean);
+      double w = n;
+      if (s.weights == Weights::noise) {
+        const double var = (s.noise_relative * e) * (s.noise_relative * e) + s.noise_shot * e + read * read;
+        w = var > 0 ? n / var : n;
+      }
+      weight_[i] = w;
+      sum_w += w;
+      sum_n += n;
+    }
+    if (sum_w > 0)
+      for (double& w : weight_) w *= sum_n / sum_w;
   }
   double emax() const { return emax_; }
+  // The weight of bin i in every sum of squares (n_i for uniform weights).
+  double weight(size_t i) const { return weight_[i]; }
 
   // K at the bins into k_; returns false if the model is not usable (max <= 0).
   void unit_model(double sigma, double g, Phase ph, std::vector<double>& k) const {
@@ -64,8 +84,8 @@ class Problem {
   double ls_scale(const std::vector<double>& k) const {
     double num = 0, den = 0;
     for (size_t i = 0; i < k.size(); ++i) {
-      num += double(p_.bins[i].n) * p_.bins[i].mean * k[i];
-      den += double(p_.bins[i].n) * k[i] * k[i];
+      num += weight_[i] * p_.bins[i].mean * k[i];
+      den += weight_[i] * k[i] * k[i];
     }
     return den > 0 ? num / den : 0.0;
   }
@@ -81,13 +101,13 @@ class Problem {
       if (!(kmax > 0)) return 1e300;
       for (size_t i = 0; i < k_.size(); ++i) {
         const double r = p_.bins[i].mean / emax_ - k_[i] / kmax;
-        j += double(p_.bins[i].n) * r * r;
+        j += weight_[i] * r * r;
       }
     } else {
       const double sc = ls_scale(k_);
       for (size_t i = 0; i < k_.size(); ++i) {
         const double r = (p_.bins[i].mean - sc * k_[i]) / emax_;
-        j += double(p_.bins[i].n) * r * r;
+        j += weight_[i] * r * r;
       }
     }
     return j;
@@ -102,6 +122,7 @@ class Problem {
   mutable ProfileModel fine_;         // for the truncated Legendre series, built on first use
   std::vector<double> rho_;
   std::vector<uint8_t> pair_;         // per bin: 1 = two model points (rho -/+ sd)
+  std::vector<double> weight_;        // per bin: n or n / var(E)
   mutable std::vector<double> raw_;   // model at the points (Problem is single-threaded)
   std::vector<double> k_;
   double emax_ = 0;
@@ -328,7 +349,10 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
     r.scale = pr.ls_scale(k);
     r.sigma.value = m.sigma;
     r.g.value = m.g;
-    // Jacobian of the bin residuals sqrt(n) (E - s K(sigma, g)) in (sigma, g, s).
+    // Jacobian of the bin residuals sqrt(w) (E - s K(sigma, g)) in (sigma, g, s),
+    // w = the bin's weight (n for uniform weights: ordinary least squares;
+    // n / var for noise weights: generalised least squares, whose covariance
+    // is s^2 (J^T W J)^-1 with the weights' common scale s^2 estimated below).
     const double hs = 1e-4 * m.sigma, hg = 1e-4 * (1.0 - std::abs(m.g));
     std::vector<double> kp, km, gp, gm;
     pr.unit_model(m.sigma + hs, m.g, r.phase, kp);
@@ -338,7 +362,7 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
     std::array<std::array<double, 3>, 3> jtj{}, cov{};
     double ss = 0;
     for (size_t i = 0; i < k.size(); ++i) {
-      const double n = double(p.bins[i].n);
+      const double n = pr.weight(i);
       const std::array<double, 3> row = {r.scale * (kp[i] - km[i]) / (2 * hs), r.scale * (gp[i] - gm[i]) / (2 * hg), k[i]};
       for (size_t a = 0; a < 3; ++a)
         for (size_t b = 0; b < 3; ++b) jtj[a][b] += n * row[a] * row[b];

@@ -60,6 +60,18 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 enum class Objective { normalized, profiled };
 
+// Pixel weights of the objective. uniform: the thesis's least squares (every
+// pixel counts the same; under shot or multiplicative noise the bright pixels
+// next to the bulb, noisiest in absolute terms, dominate). noise: each bin's
+// squared residual is divided by its pixel noise variance from the stated
+// model  var(E) = (noise_relative E)^2 + noise_shot E + noise_read^2  (E in
+// DN/us; noise_read 0 = 10^-3 of the brightest bin, so a black bin never gets
+// an infinite weight), evaluated at the bin's mean radiance (averaged over the
+// bin's pixels, so its own noise barely moves its weight). Generalised least
+// squares; the reported errors (rms_percent, rms_normalized_percent: Eq.
+// 4.6-4.7) stay unweighted.
+enum class Weights { uniform, noise };
+
 struct FitSettings {
   TankGeometry tank;
   double bulb_x_px = 0, bulb_y_px = 0;  // the bulb centre's image (pixel centres at integers)
@@ -68,6 +80,10 @@ struct FitSettings {
   double mask_radius_px = 10;           // pixels closer than this to the bulb centre are not fitted
   int32_t roi_x0 = 0, roi_y0 = 0, roi_x1 = -1, roi_y1 = -1;  // inclusive pixel box; -1 = image edge
   Objective objective = Objective::normalized;
+  Weights weights = Weights::uniform;
+  double noise_relative = 0.03;  // multiplicative part (fraction; an HDR merge of a geometric bracket is ~this)
+  double noise_shot = 0;         // shot part: variance per unit radiance, DN/us
+  double noise_read = 0;         // read/floor part, DN/us; 0 = 1e-3 of the brightest bin
   double sigma_min = 1e-4, sigma_max = 0.2;  // 1/mm: the search range
   double legendre_above_g = 0.95;
   int legendre_terms = 99;

@@ -269,6 +269,58 @@ TEST(Fit, PureAbsorberSigmaFromAttenuation) {
   }
 }
 
+// Noise weighting (Weights::noise). Multiplicative noise of 0.03 per pixel
+// (what an HDR merge of a geometric bracket gives where the long exposures
+// saturate) and a 6 mm mask (4 px): with uniform weights the few bright,
+// absolutely noisiest pixels next to the bulb dominate the fit. Weighting by
+// the stated noise model (noise_relative = 0.03) must lower the sigma and beta
+// errors of both objectives, averaged over seeds (one seed could be lucky
+// either way). With the profiled objective the weighted fit is inside the
+// thesis's 3 % for this highly scattering medium at every seed; the
+// normalized one (Eq. 4.6-4.7) divides by max E, the mean of one small bin
+// next to the mask, whose noise (~0.6 % here) the weights cannot remove: it
+// stays a few percent biased (measured -1 ... -4.5 %), so 6 % there.
+TEST(Fit, NoiseWeightsBeatUniformUnderMultiplicativeNoise) {
+  const ref::Scene sc;
+  const std::vector<double> clean = ref::image(kMilk, sc);
+  const int seeds = 3;
+  for (Objective obj : {Objective::profiled, Objective::normalized}) {
+    const char* name = obj == Objective::profiled ? "profiled" : "normalized";
+    const double tol = obj == Objective::profiled ? 0.03 : 0.06;
+    double err[2][2] = {{0, 0}, {0, 0}};  // [uniform, noise][sigma, beta]: mean |relative error|
+    for (int seed = 1; seed <= seeds; ++seed) {
+      std::vector<double> e = clean;
+      std::mt19937 rng(static_cast<uint32_t>(100 + seed));
+      std::normal_distribution<double> n01(0.0, 1.0);
+      for (double& v : e) v *= 1.0 + 0.03 * n01(rng);
+      const std::vector<float> f = to_float(e);
+      for (int wi = 0; wi < 2; ++wi) {
+        FitSettings s = settings_for(sc);
+        s.mask_radius_px = 4;  // 6 mm at 1.5 mm/px
+        s.objective = obj;
+        s.weights = wi == 0 ? Weights::uniform : Weights::noise;
+        s.noise_relative = 0.03;
+        const FitResult r = fit_profile(radial_profile(f, sc.width, sc.height, s), s, f, sc.width, sc.height);
+        ASSERT_TRUE(r.error.empty()) << r.error;
+        std::printf("%-10s seed %d %-7s sigma %+.2f %%  beta %+.2f %%  g %.4f  rms(Eq. 4.6) %.2f %%\n", name, seed,
+                    wi == 0 ? "uniform" : "noise", 100 * (r.sigma.value / kMilk.sigma - 1),
+                    100 * (r.beta.value / kMilk.beta - 1), r.g.value, r.rms_normalized_percent);
+        err[wi][0] += rel(r.sigma.value, kMilk.sigma) / seeds;
+        err[wi][1] += rel(r.beta.value, kMilk.beta) / seeds;
+        if (wi == 1) {
+          EXPECT_LT(rel(r.sigma.value, kMilk.sigma), tol) << name << " seed " << seed;
+          EXPECT_LT(rel(r.beta.value, kMilk.beta), tol) << name << " seed " << seed;
+          EXPECT_NEAR(r.g.value, kMilk.g, 0.01) << name << " seed " << seed;
+        }
+      }
+    }
+    std::printf("%s: mean |error| uniform: sigma %.2f %% beta %.2f %%; noise-weighted: sigma %.2f %% beta %.2f %%\n",
+                name, 100 * err[0][0], 100 * err[0][1], 100 * err[1][0], 100 * err[1][1]);
+    EXPECT_LT(err[1][0], 0.5 * err[0][0]) << name;  // at least halved (measured: 5-10x)
+    EXPECT_LT(err[1][1], 0.5 * err[0][1]) << name;
+  }
+}
+
 TEST(Fit, ReportsWhatIsMissing) {
   const ref::Scene sc;
   FitSettings s = settings_for(sc);

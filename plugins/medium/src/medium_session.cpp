@@ -182,12 +182,14 @@ class MeasureSession final : public BracketSession {
       f["rms_percent"] = fit_.rms_percent;
       f["rms_normalized_percent"] = fit_.rms_normalized_percent;
       f["objective"] = cfg_.fit.objective == Objective::normalized ? "normalized (Eq. 4.6-4.7)" : "profiled";
+      f["weights"] = cfg_.fit.weights == Weights::noise ? "noise" : "uniform";
       f["objective_value"] = fit_.objective;
       f["legendre_objective_value"] = fit_.legendre_objective;
       f["evaluations"] = fit_.evaluations;
       f["search"] = "Nelder-Mead in (ln sigma, atanh g) from the best 3 nodes of a 10 x 10 grid";
       f["ci_method"] = "95 %: 1.96 sqrt(diag(s^2 (J^T J)^-1)), J the Jacobian of the binned residuals in (sigma, g, "
-                       "beta I0), s^2 = sum n res^2 / (bins - 3); I0 taken as exact";
+                       "beta I0), s^2 = sum w res^2 / (bins - 3), w = n (uniform weights) or n / var (noise); "
+                       "I0 taken as exact";
     }
     std::vector<std::string> notes = fit_.notes;
     if (fit_.error.empty() && fit_.beta_absolute && std::isfinite(fit_.beta.value)) {

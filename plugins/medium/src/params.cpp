@@ -86,6 +86,17 @@ std::vector<ParamSpec> measure_specs() {
       {"objective", ParamType::string, "normalized", -kInf, kInf, {"normalized", "profiled"},
        "normalized: Eq. 4.6-4.7 as the thesis (E / max E - RHS / max RHS); profiled: beta I0 eliminated exactly by "
        "least squares (not sensitive to the noise on max E)"},
+      {"weights", ParamType::string, "uniform", -kInf, kInf, {"uniform", "noise"},
+       "pixel weights of the objective: uniform = the thesis's least squares; noise = divided by the pixel noise "
+       "variance (noise_relative E)^2 + noise_shot E + noise_read^2, so the bright pixels near the bulb stop "
+       "dominating under shot or multiplicative noise (the reported errors stay Eq. 4.6-4.7, unweighted)"},
+      {"noise_relative", ParamType::number, 0.03, 0.0, 10.0, {},
+       "weights = noise: multiplicative noise of the radiance map (fraction; an HDR merge of a geometric bracket has "
+       "about constant relative noise where its longer exposures saturate)"},
+      {"noise_shot", ParamType::number, 0.0, 0.0, 1e12, {},
+       "weights = noise: shot-noise variance per unit radiance (DN/us)"},
+      {"noise_read", ParamType::number, 0.0, 0.0, 1e12, {},
+       "weights = noise: noise floor in DN/us (read noise / Sum t); 0 = 1e-3 of the brightest radial bin"},
       {"sigma_min", ParamType::number, 1e-4, 1e-8, 1.0, {}, "lower end of the sigma search, 1/mm"},
       {"sigma_max", ParamType::number, 0.2, 1e-6, 10.0, {},
        "upper end of the sigma search, 1/mm (the single-scattering regime ends near 0.04, thesis §4.2.3)"},
@@ -209,6 +220,12 @@ sdk::Error parse_config(const std::string& method, const nlohmann::json& params,
       return sdk::invalid_argument("the ROI (roi_x0..roi_x1, roi_y0..roi_y1) is empty or outside the " +
                                    std::to_string(cam_w) + " x " + std::to_string(cam_h) + " image");
     f.objective = p.get_string("objective") == "profiled" ? Objective::profiled : Objective::normalized;
+    f.weights = p.get_string("weights") == "noise" ? Weights::noise : Weights::uniform;
+    f.noise_relative = p.get_number("noise_relative");
+    f.noise_shot = p.get_number("noise_shot");
+    f.noise_read = p.get_number("noise_read");
+    if (f.weights == Weights::noise && !(f.noise_relative > 0 || f.noise_shot > 0 || f.noise_read > 0))
+      return sdk::invalid_argument("weights = noise needs a noise model: give noise_relative, noise_shot or noise_read > 0");
     f.sigma_min = p.get_number("sigma_min");
     f.sigma_max = p.get_number("sigma_max");
     if (!(f.sigma_max > f.sigma_min)) return sdk::invalid_argument("sigma_max must exceed sigma_min");

@@ -140,6 +140,8 @@ TEST(Params, RejectWhatCannotWork) {
                        Bad{{{"response", "lut"}, {"response_lut", "/nonexistent/lut.txt"}}, "cannot be opened"},
                        Bad{{{"roi_x0", 500}}, "ROI"},
                        Bad{{{"bulb_radius_mm", 10}, {"mm_per_px", 1.5}, {"mask_radius_px", 5}}, "does not clear the bulb"},
+                       Bad{{{"weights", "noise"}, {"noise_relative", 0}}, "needs a noise model"},
+                       Bad{{{"weights", "loud"}}, "weights"},
                        Bad{{{"nope", 1}}, "nope"}}) {
     const sdk::Error e = create_session({"measure", b.p, rig(sc, 8)}, s);
     EXPECT_FALSE(e.ok()) << b.p.dump();
