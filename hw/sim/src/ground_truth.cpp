@@ -67,14 +67,12 @@ Status write_ground_truth(const hw::GroundTruth& truth, const std::string& folde
                         {"medium_direct.exr", &truth.medium_direct, "DN"},
                         {"medium_indirect.exr", &truth.medium_indirect, "DN"},
                         {"medium_backscatter.exr", &truth.medium_backscatter, "DN"},
-                        {"medium_backscatter_multiple.exr", &truth.medium_backscatter_multiple, "DN"},
                         {"medium_backscatter_dop.exr", &truth.medium_backscatter_dop, ""},
                         {"medium_source.exr", &truth.medium_source, "DN"}};
   for (const Item& it : items) {
     const bool optional = it.image == &truth.object || it.image == &truth.medium_direct ||
                           it.image == &truth.medium_indirect || it.image == &truth.medium_backscatter ||
-                          it.image == &truth.medium_backscatter_dop || it.image == &truth.medium_source ||
-                          it.image == &truth.medium_backscatter_multiple;
+                          it.image == &truth.medium_backscatter_dop || it.image == &truth.medium_source;
     if (it.image->empty() && optional) continue;
     if (it.image->empty())
       return Error(Code::invalid_argument, std::string("ground truth map for '") + it.file + "' is empty");
@@ -146,7 +144,7 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   if (!st.ok()) return st;
   if (st.ok()) st = renderer.render_component(*pw, a.ptr<float>(), "medium-indirect");  // zeros if not modelled
   if (!st.ok()) return st;
-  Image src, ms;
+  Image src;
   if (v.tank) {  // tank rig: B is the bulb's single scattering, the bulb itself apart
     src = Image(w, h, PixelType::f32);
     st = renderer.render_component(*pw, b.ptr<float>(), "tank-bulb-scatter");
@@ -157,10 +155,6 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   std::fill(dop.ptr<float>(), dop.ptr<float>() + dop.pixel_count(), nan);
   if (v.medium) {
     const BackscatterStokes s = backscatter_stokes(*v.medium, *pw, projector_polarizer_deg, 1);
-    if (!v.medium->ms_gain.empty()) {
-      ms = Image(w, h, PixelType::f32);
-      std::copy(s.i_multiple.begin(), s.i_multiple.end(), ms.ptr<float>());
-    }
     float* p = dop.ptr<float>();
     for (size_t i = 0; i < s.i.size(); ++i)
       if (s.i[i] > 0.f)
@@ -172,7 +166,7 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
     for (size_t i = 0; i < dop.pixel_count(); ++i) p[i] = bp[i] > 0.f ? 0.f : nan;
   }
   const double dn_per_ru = expected_dn(sensor, 1.0, exposure_us, gain_db);
-  for (Image* im : {&d, &a, &b, &src, &ms}) {
+  for (Image* im : {&d, &a, &b, &src}) {
     if (im->empty()) continue;
     float* p = im->ptr<float>();
     for (size_t i = 0; i < im->pixel_count(); ++i) p[i] = static_cast<float>(double(p[i]) * dn_per_ru);
@@ -180,12 +174,17 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   truth.medium_direct = std::move(d);
   truth.medium_indirect = std::move(a);
   truth.medium_backscatter = std::move(b);
-  truth.medium_backscatter_multiple = std::move(ms);
   truth.medium_backscatter_dop = std::move(dop);
   truth.medium_source = std::move(src);
   truth.medium = {{"extinction_per_mm", medium->sigma_t_per_mm},
                   {"scattering_per_mm", medium->sigma_s_per_mm},
                   {"hg_g", medium->g}};
+  if (v.medium && !v.medium->ms_gain.empty())  // B includes orders >= 2 (docs/media.md "Multiple scattering")
+    truth.medium["multiple_scattering"] = {{"model", "diffuse"},
+                                           {"ratio_to_single", v.medium->ms_ratio},
+                                           {"ratio_standard_error", v.medium->ms_ratio_se},
+                                           {"polarized_share", v.medium->ms_keep},
+                                           {"kernel_sigma_px", v.medium->ms_sigma_px}};
   if (!medium->material.empty())
     truth.medium["library"] = {{"material", medium->material},
                                {"volume_ml", medium->volume_ml},

@@ -136,5 +136,39 @@ TEST(MediumMultiple, TotalBackscatterMatchesMonteCarloForFloodAndStripes) {
   }
 }
 
+// DOP of B under a polarized projector (flood) against the Monte Carlo's
+// split: the single order and the small-turn multiple paths keep the
+// single-scattering DOP (DOP_1, the renderer with the term off), the rest is
+// depolarized, so DOP_B = DOP_1 · (MC single + MC small turns) / MC total.
+// Tolerance: the MC's standard error of that ratio (3 σ) + 0.03 for the one
+// ms_keep per view (it varies by ~±0.05 over the image at these pixels).
+TEST(MediumMultiple, DopOfBackscatterMatchesTheMonteCarloSplit) {
+  const SimRigConfig rig = small_rig();
+  const CameraCalibration& cam = rig.cameras[0].calibration;
+  const std::vector<float> flood(1280 * 800, 1.f);
+  const Scene s = shipped_scene("media-chart-heavy");
+  auto on = renderer_for(s, rig), off = renderer_for(single_scattering_only(s), rig);
+  ASSERT_TRUE(on && off);
+  auto pat = emitted_pattern(rig.projector, flood);
+  const BackscatterStokes a = backscatter_stokes(*on->view().medium, pat, 0.0, 2),
+                          b = backscatter_stokes(*off->view().medium, pat, 0.0, 2);
+  auto dop = [](const BackscatterStokes& st, size_t i) {
+    return std::hypot(static_cast<double>(st.q[i]), static_cast<double>(st.u[i])) / static_cast<double>(st.i[i]);
+  };
+  for (const auto& [col, row] : {std::pair{60.0, 35.0}, std::pair{110.0, 70.0}}) {
+    const size_t i = static_cast<size_t>(row) * 160 + static_cast<size_t>(col);
+    const BackscatterOrders mc = backscatter_monte_carlo_orders(s, rig.projector, Rigid3{}, cam.cam_from_proj,
+                                                                cam.intrinsics, col, row, flood, 30000, 200 + i, 1000);
+    const double total = mc.single + mc.multiple, kept = (mc.single + mc.multiple_small_turns) / total;
+    const double want = dop(b, i) * kept, got = dop(a, i);
+    // se of kept ≈ kept · se(multiple)/total (the multiple order dominates the noise)
+    const double se = dop(b, i) * kept * mc.se_multiple / total;
+    std::printf("heavy (%g, %g): DOP of B %.3f (single scattering %.3f); MC predicts %.3f ± %.3f\n", col, row, got,
+                dop(b, i), want, se);
+    EXPECT_NEAR(got, want, 3 * se + 0.03);
+    EXPECT_LT(got, 0.6 * dop(b, i)) << "multiple scattering depolarizes B in the heavy tank";
+  }
+}
+
 }  // namespace
 }  // namespace procam::sim

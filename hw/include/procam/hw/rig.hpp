@@ -43,16 +43,12 @@ struct GroundTruth {
   // medium. medium_direct: D, surface light attenuated on both legs (=
   // `direct` then); medium_indirect: A, light forward-scattered in the medium
   // and then reflected (the sim approximates it, docs/media.md); medium_backscatter:
-  // B, light scattered by the medium towards the camera (single scattering,
-  // plus orders >= 2 where the scene asks for them); medium_backscatter_multiple:
-  // the part of B from orders >= 2 (depolarized; empty when not modelled);
-  // medium_backscatter_dop: the degree of polarization of B (0..1) for the
-  // projector polariser set at the time of the call (unpolarized light
-  // without one), NaN where B = 0.
+  // B, single-scattered light from the medium; medium_backscatter_dop: the
+  // degree of polarization of B (0..1) for the projector polariser set at the
+  // time of the call (unpolarized light without one), NaN where B = 0.
   Image medium_direct;
   Image medium_indirect;
   Image medium_backscatter;
-  Image medium_backscatter_multiple;
   Image medium_backscatter_dop;
   // Tank rig (docs/media.md "Tank rig"): the light source seen straight
   // through the medium (the bulb, attenuated: Eq. 4.3's regime), same units
