@@ -6,10 +6,9 @@
 //
 //  - Contrast in heavy scattering (Fig. 5.6): the image each method shows
 //    (flood image, best-polarized image, stripe composite CI, polarized
-//    composite), each at its own exposure. Asserted: polarized flood and
-//    striping beat flood; the thesis's full order (polarized striping >
-//    striping > polarized flood) is printed but not reproduced by the
-//    single-scattering sim (see the test). Contrast is measured against truth: the
+//    composite), each at its own exposure. Asserted: the thesis's order
+//    polarized striping > striping > polarized flood >= flood (the sim's
+//    milk scenes include multiple scattering, docs/media.md). Contrast is measured against truth: the
 //    Michelson contrast between the pixels whose true direct signal D is in
 //    the top quarter (white bars) and those in the bottom quarter (dark
 //    board), C = (m_hi - m_lo) / (m_hi + m_lo). Backscatter adds to both sets
@@ -135,7 +134,7 @@ double snr_against(const float* e, const float* t, const std::vector<size_t>& id
 
 TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
   const std::vector<std::string> methods = {"flood", "polarized-flood", "striping", "polarized-striping"};
-  std::map<std::string, double> contrast, cqm;
+  std::map<std::string, double> contrast, cqm, dop_used;
   double truth_contrast = 0;
   for (const auto& m : methods) {
     ScanRun r;
@@ -176,24 +175,37 @@ TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
         std::printf("  report quality: %s\n", j.is_object() ? j.value("quality", nlohmann::json()).dump().c_str() : "?");
       }
     cqm[m] = report_number(r, "quality", "cqm_mean");
+    if (m.rfind("polarized", 0) == 0) {
+      // The plugin's DOP estimate against the truth's DOP of B (median over the chart).
+      std::vector<float> dops;
+      const float* td = r.truth.medium_backscatter_dop.ptr<float>();
+      for (size_t i : px.all)
+        if (std::isfinite(td[i])) dops.push_back(td[i]);
+      const double truth_dop = dops.empty() ? std::nan("") : percentile_of(dops.data(), dops.size(), 0.5);
+      dop_used[m] = report_number(r, "quality", "dop_used");
+      std::printf("heavy milk  %-19s dop_used %.3f  truth DOP of B (median over the chart) %.3f\n", m.c_str(),
+                  dop_used[m], truth_dop);
+    }
     truth_contrast = michelson(r.truth.medium_direct.ptr<float>(), px);
     std::printf("heavy milk  %-19s chart contrast %.3f  plugin cqm_mean %.3f\n", m.c_str(), contrast[m], cqm[m]);
   }
   std::printf("heavy milk  true direct D         chart contrast %.3f (no backscatter)\n", truth_contrast);
-  // What the sim's physics supports (each an inequality against truth):
-  // polarization and striping each beat plain flood light, and no method
-  // shows more contrast than the scene has.
-  EXPECT_GT(contrast["polarized-flood"], contrast["flood"] + 0.05);
-  EXPECT_GT(contrast["striping"], contrast["flood"] + 0.05);
-  EXPECT_GT(contrast["polarized-striping"], contrast["flood"]);
+  // Thesis Fig. 5.6 (heavy milk): polarized striping > striping > polarized
+  // flood >= flood, each an inequality of contrast against truth (strict
+  // ones by 0.01, a tenth of the gaps measured; ">=" within 0.01). Holds on
+  // the sim since its backscatter includes multiple scattering (docs/media.md
+  // "Multiple scattering"): B is ~5x the single-scattered B and only ~0.3
+  // polarized, so the crossed analyser alone no longer removes it.
+  EXPECT_GT(contrast["polarized-striping"], contrast["striping"] + 0.01);
+  EXPECT_GT(contrast["striping"], contrast["polarized-flood"] + 0.01);
+  EXPECT_GE(contrast["polarized-flood"], contrast["flood"] - 0.01);
   for (const auto& [m, c] : contrast) EXPECT_LE(c, truth_contrast + 0.02) << m << ": more contrast than the scene has";
   EXPECT_GT(cqm["striping"], cqm["flood"]);
-  // NOT reproduced (issue 13 note, docs/media.md): the thesis's order
-  // polarized striping > striping > polarized flood. The sim scatters once,
-  // so its backscatter is almost fully polarized at backscatter angles and
-  // the crossed analyser removes it already under flood light (polarized
-  // flood reaches the true contrast); real milk scatters many times and
-  // depolarizes it (the thesis measured p ~ 0.8). Printed above for the report.
+  // Polarized flood's DOP estimate is used (>= p_min): measured 0.286 against
+  // the truth's 0.293 (2026-11-23). Polarized striping's estimate (from its
+  // dim background between the sheets) still falls below p_min (dop_used 0);
+  // printed above, not asserted.
+  EXPECT_GT(dop_used["polarized-flood"], 0.0);
 }
 
 TEST(MediaClaims, ModerateMilkSeparationDirectAndPolarizedStripingSignalAgainstTruth) {
@@ -222,9 +234,11 @@ TEST(MediaClaims, ModerateMilkSeparationDirectAndPolarizedStripingSignalAgainstT
               exposure_us, snr_sep, snr_ps);
   // Both recover their truth through the tank (a real check of the sim →
   // plugin path). NOT reproduced: the thesis's "separation's direct image
-  // has lower SNR than polarized striping" (Fig. 5.4) — in the sim's
-  // moderate tank D is still 2/3 of the signal (single scattering), so the
-  // direct image is not starved; printed above for the report.
+  // has lower SNR than polarized striping" (Fig. 5.4) — measured 32.1 vs
+  // 28.2 with multiple scattering on (2026-11-23): the moderate tank's extra
+  // backscatter is small next to D (B/D 0.02 on white), and D is still 2/3
+  // of the signal (A is single-scattered), so the direct image is not
+  // starved; printed above for the report.
   EXPECT_GT(snr_sep, 5.0);
   EXPECT_GT(snr_ps, 5.0);
 }

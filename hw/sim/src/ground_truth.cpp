@@ -179,6 +179,12 @@ Status add_medium_components(hw::GroundTruth& truth, const Renderer& renderer, c
   truth.medium = {{"extinction_per_mm", medium->sigma_t_per_mm},
                   {"scattering_per_mm", medium->sigma_s_per_mm},
                   {"hg_g", medium->g}};
+  if (v.medium && !v.medium->ms_gain.empty())  // B includes orders >= 2 (docs/media.md "Multiple scattering")
+    truth.medium["multiple_scattering"] = {{"model", "diffuse"},
+                                           {"ratio_to_single", v.medium->ms_ratio},
+                                           {"ratio_standard_error", v.medium->ms_ratio_se},
+                                           {"polarized_share", v.medium->ms_keep},
+                                           {"kernel_sigma_px", v.medium->ms_sigma_px}};
   if (!medium->material.empty())
     truth.medium["library"] = {{"material", medium->material},
                                {"volume_ml", medium->volume_ml},

@@ -378,6 +378,7 @@ Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const
     std::vector<MediumChunk>().swap(r);
   }
   prepare_indirect(m, world_from_proj, v, *taps);
+  prepare_multiple(scene, projector, world_from_cam, world_from_proj, v, *taps, threads);
   v.medium = std::move(taps);
   return Status::Ok();
 }

@@ -96,6 +96,19 @@ struct MediumTaps {
   // and the blur's σ in camera pixels (one per view). Empty: no A.
   std::vector<float> indirect_gain;
   double indirect_sigma_px = 0;
+  // Multiple scattering (Medium::MultipleScattering::diffuse; medium_multiple.cpp,
+  // docs/media.md "Multiple scattering"): B_ms(i) = ms_gain[i] · (G ∗ S)(i),
+  // S the frame's single-scattered intensity per pixel (the chunk sums, no
+  // polariser terms), G a Gaussian of ms_sigma_px camera pixels.
+  // ms_ratio ± ms_ratio_se: the Monte Carlo's multiple/single ratio under
+  // flood light at the sample pixels (ms_gain is ms_ratio where the pixel's
+  // ray crosses the medium, else 0). Empty ms_gain: single scattering only.
+  // ms_keep: the share of B_ms from Monte Carlo paths that only turned by
+  // small angles before scattering back (BackscatterOrders::multiple_small_turns):
+  // it keeps the pixel's single-scattering polarization; the rest is depolarized.
+  std::vector<float> ms_gain;
+  double ms_sigma_px = 0;
+  double ms_ratio = 0, ms_ratio_se = 0, ms_keep = 0;
   size_t pixel_count() const { return size_t{width} * height; }
 };
 
@@ -121,6 +134,13 @@ ForwardScatter forward_scatter(const Medium& medium, double length_mm);
 void prepare_indirect(const Medium& medium, const Rigid3& world_from_proj, const PreparedView& view,
                       MediumTaps& taps);
 
+// Fills taps.ms_* for a prepared view whose medium asks for multiple
+// scattering (medium_multiple.cpp): the ratio from backscatter_monte_carlo_orders
+// under flood light at up to 9 pixels (a 3×3 grid), the kernel from the
+// forward-scatter spread of forward_scatter(). Deterministic (fixed seeds).
+void prepare_multiple(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                      const Rigid3& world_from_proj, const PreparedView& view, MediumTaps& taps, int threads);
+
 // Reference B for one camera pixel by brute force: midpoint rule with `steps`
 // samples along the ray, each sampling the sharp emitted pattern at its own
 // projector pixel, shadow-tested one by one. Independent of the taps (tests).
@@ -138,11 +158,31 @@ double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& project
                                const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
                                const std::vector<float>& emitted, size_t paths, uint64_t seed, int max_vertices);
 
+// The same paths split by order: `single` the first vertex's estimate
+// (unbiased for Eq. 5.13), `multiple` the sum over vertices 2..max_vertices,
+// each with its standard error over the paths. Scalar: no polarization.
+// multiple_small_turns: the part of `multiple` from paths whose sampled
+// deflections before the connecting vertex were all below 30° (light that
+// was scattered forward only, then once back towards the camera: the paths
+// that keep most of single scattering's polarization; docs/media.md).
+struct BackscatterOrders {
+  double single = 0, multiple = 0, multiple_small_turns = 0;
+  double se_single = 0, se_multiple = 0;
+};
+BackscatterOrders backscatter_monte_carlo_orders(const Scene& scene, const ProjectorModel& projector,
+                                                const Rigid3& world_from_cam, const Rigid3& world_from_proj,
+                                                const Intrinsics& camera, double col, double row,
+                                                const std::vector<float>& emitted, size_t paths, uint64_t seed,
+                                                int max_vertices);
+
 // The Stokes vector (I, Q, U) of B at each camera pixel for emitted light
 // from `pattern` level 0, polariser `projector_deg` (NaN: unpolarized), in the
 // pixel's scattering-plane frame; I in ru. DOP = sqrt(Q² + U²)/I.
+// i includes the depolarized multiple-scattered part, also given alone in
+// i_multiple (zeros without multiple scattering).
 struct BackscatterStokes {
   std::vector<float> i, q, u;
+  std::vector<float> i_multiple;
 };
 BackscatterStokes backscatter_stokes(const MediumTaps& taps, const PreparedPattern& pattern, double projector_deg,
                                      int threads);
@@ -163,6 +203,17 @@ struct RowPrefix {
   // Σ over pixel i's chunks of their share of B (ru) for this pattern.
   double sum(const MediumTaps& taps, size_t i) const;
 };
+
+// The multiple-scattered intensity of every pixel (ru, taps.ms_*) for the
+// pattern of `prefix`, into ms (taps-sized); `single` receives the chunk sums
+// S; `tmp` is scratch. Zeros when taps.ms_gain is empty.
+void multiple_scattering(const MediumTaps& taps, const RowPrefix& prefix, std::vector<float>& single,
+                         std::vector<float>& ms, std::vector<float>& tmp, int threads);
+
+// In place: a Gaussian blur of σ = sigma_px of a W×H image, three box passes
+// per axis, clamped at the borders (medium_indirect.cpp). `tmp` is scratch.
+void gaussian_blur3(std::vector<float>& data, std::vector<float>& tmp, uint32_t W, uint32_t H, double sigma_px,
+                    int threads);
 }  // namespace detail
 
 // The indirect signal A (Eq. 5.12), approximated: the surface irradiance
@@ -194,6 +245,8 @@ public:
 private:
   std::shared_ptr<const MediumTaps> taps_;
   detail::RowPrefix prefix_;  // this frame's row prefix sums (begin_frame)
+  // With multiple scattering: this frame's chunk sums and B_ms (begin_frame).
+  std::vector<float> single_, ms_, tmp_;
 };
 
 }  // namespace procam::sim

@@ -3,7 +3,9 @@
 // 1280×800 camera and projector, the milk-tank chart scenes. The view (ray
 // casting, shadow map, backscatter taps) is prepared once outside the timing;
 // a frame is the direct component plus the backscatter gather, with the
-// projector polariser and camera analyser set (the Stokes-weighted path).
+// projector polariser and camera analyser set (the Stokes-weighted path),
+// and the multiple-scattering term where the scene turns it on (the chart
+// scenes do; BM_MediumFrameHeavySingleOnly turns it off).
 // Counters: chunks per camera pixel with taps, tap memory (MB), prep time (s).
 #include <benchmark/benchmark.h>
 
@@ -34,8 +36,11 @@ Prepared& prepared(const std::string& scene_name) {
   std::stringstream ss;
   ss << in.rdbuf();
   auto cfg = parse_sim_rig_config(nlohmann::json::parse(ss.str()));
-  auto scene = load_scene(scene_name, {std::string(PROCAM_SOURCE_DIR) + "/configs/scenes"});
+  // "<scene>:single": the scene with its multiple-scattering term off (the cost of the term).
+  const size_t colon = scene_name.find(':');
+  auto scene = load_scene(scene_name.substr(0, colon), {std::string(PROCAM_SOURCE_DIR) + "/configs/scenes"});
   if (!cfg.ok() || !scene.ok()) return p;
+  if (colon != std::string::npos && scene->medium) scene->medium->multiple_scattering = Medium::MultipleScattering::none;
   p.rig = *cfg;
   const auto t0 = std::chrono::steady_clock::now();
   auto v = prepare_view(*scene, p.rig.projector, p.rig.cameras[0].calibration, 2);
@@ -79,10 +84,13 @@ void run(benchmark::State& state, const std::string& scene, Renderer::Parts part
 // A whole frame: direct light (attenuated) + backscatter through the analyser.
 void BM_MediumFrameModerate(benchmark::State& s) { run(s, "media-chart-moderate", Renderer::Parts::all); }
 void BM_MediumFrameHeavy(benchmark::State& s) { run(s, "media-chart-heavy", Renderer::Parts::all); }
+// The same without the multiple-scattering term (docs/media.md "Multiple scattering").
+void BM_MediumFrameHeavySingleOnly(benchmark::State& s) { run(s, "media-chart-heavy:single", Renderer::Parts::all); }
 // The backscatter alone (row prefix sums + gather).
 void BM_MediumBackscatterHeavy(benchmark::State& s) { run(s, "media-chart-heavy", Renderer::Parts::volume_only); }
 BENCHMARK(BM_MediumFrameModerate)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_MediumFrameHeavy)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_MediumFrameHeavySingleOnly)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_MediumBackscatterHeavy)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -89,6 +89,7 @@ void prepare_indirect(const Medium& m, const Rigid3& world_from_proj, const Prep
   taps.indirect_sigma_px = spread_px[spread_px.size() / 2];
 }
 
+namespace detail {
 namespace {
 
 // Box filter of radius r along each row of `data` (W wide), rows [b, e),
@@ -133,26 +134,31 @@ void box_cols(const float* src, float* dst, uint32_t W, uint32_t H, uint32_t b, 
 
 }  // namespace
 
-void MediumIndirectComponent::begin_frame(const FrameContext& frame, int threads) {
-  const MediumTaps& t = *taps_;
-  const size_t n = frame.view.pixel_count();
-  blurred_.assign(frame.irradiance, frame.irradiance + n);
+void gaussian_blur3(std::vector<float>& data, std::vector<float>& tmp, uint32_t W, uint32_t H, double sigma_px,
+                    int threads) {
   // Three box passes of radius r approximate a Gaussian of σ² = 3·((2r+1)² − 1)/12.
-  const int r = static_cast<int>(std::lround((std::sqrt(4.0 * t.indirect_sigma_px * t.indirect_sigma_px + 1.0) - 1.0) / 2.0));
-  if (r < 1) return;
-  const uint32_t W = frame.view.width, H = frame.view.height;
-  tmp_.resize(n);
+  const int r = static_cast<int>(std::lround((std::sqrt(4.0 * sigma_px * sigma_px + 1.0) - 1.0) / 2.0));
+  if (r < 1 || data.size() != size_t{W} * H) return;
+  tmp.resize(data.size());
   for (int pass = 0; pass < 3; ++pass) {
-    detail::parallel_rows(H, threads, [&](uint32_t b, uint32_t e) {
+    parallel_rows(H, threads, [&](uint32_t b, uint32_t e) {
       std::vector<float> line;
-      box_rows(blurred_.data(), W, b, e, r, line);
+      box_rows(data.data(), W, b, e, r, line);
     });
-    tmp_.swap(blurred_);
-    detail::parallel_rows(W, threads, [&](uint32_t b, uint32_t e) {
+    tmp.swap(data);
+    parallel_rows(W, threads, [&](uint32_t b, uint32_t e) {
       std::vector<double> acc;
-      box_cols(tmp_.data(), blurred_.data(), W, H, b, e, r, acc);
+      box_cols(tmp.data(), data.data(), W, H, b, e, r, acc);
     });
   }
+}
+
+}  // namespace detail
+
+void MediumIndirectComponent::begin_frame(const FrameContext& frame, int threads) {
+  const MediumTaps& t = *taps_;
+  blurred_.assign(frame.irradiance, frame.irradiance + frame.view.pixel_count());
+  detail::gaussian_blur3(blurred_, tmp_, frame.view.width, frame.view.height, t.indirect_sigma_px, threads);
 }
 
 void MediumIndirectComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end,

@@ -10,6 +10,7 @@
 // p(θ) I e(x_p) / d² · exp(−σ ℓ_L), shadow-tested), then the next direction is
 // drawn from the Henyey-Greenstein phase function. The first vertex's
 // connection alone estimates the single-scattering B of Eq. 5.13.
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -17,6 +18,11 @@
 #include "procam/hw/sim/raycast.hpp"
 
 namespace procam::sim {
+namespace {
+// A deflection below 30° counts as "small" (BackscatterOrders::multiple_small_turns).
+const double kKeepCos = std::cos(30.0 * M_PI / 180.0);
+}  // namespace
+
 namespace detail {
 
 Vec3 sample_hg(const Vec3& w, double g, std::mt19937_64& rng) {
@@ -38,10 +44,13 @@ Vec3 sample_hg(const Vec3& w, double g, std::mt19937_64& rng) {
 
 }  // namespace detail
 
-double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
-                               const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
-                               const std::vector<float>& emitted, size_t paths, uint64_t seed, int max_vertices) {
-  if (!scene.medium || paths == 0 || !(scene.medium->sigma_s_per_mm > 0)) return 0;
+BackscatterOrders backscatter_monte_carlo_orders(const Scene& scene, const ProjectorModel& projector,
+                                                const Rigid3& world_from_cam, const Rigid3& world_from_proj,
+                                                const Intrinsics& camera, double col, double row,
+                                                const std::vector<float>& emitted, size_t paths, uint64_t seed,
+                                                int max_vertices) {
+  BackscatterOrders out;
+  if (!scene.medium || paths == 0 || !(scene.medium->sigma_s_per_mm > 0)) return out;
   const Medium& m = *scene.medium;
   const SceneTracer tracer(scene);
   const Vec3 lc = world_from_proj.translation_mm;
@@ -66,12 +75,15 @@ double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& project
     const double e = static_cast<double>(emitted[static_cast<size_t>(iy) * K.width + static_cast<size_t>(ix)]);
     return hg_phase(m.g, cos_t) * intensity / d2 * std::exp(-m.sigma_t_per_mm * medium_length(m, lc, y)) * e;
   };
-  double sum = 0;
+  // Per path: its first vertex's estimate and the sum of the others; the
+  // means and their standard errors over the paths.
+  double s1 = 0, s1q = 0, sm = 0, smq = 0, sk = 0;
   const Vec3 c0 = world_from_cam.translation_mm;
   const Vec3 w0 = normalized(world_from_cam.rotation * camera.ray(col, row));
   for (size_t p = 0; p < paths; ++p) {
     Vec3 o = c0, w = w0;
-    double weight = 1;
+    double weight = 1, first = 0, rest = 0, keep = 0;
+    bool small_turns = true;  // every sampled deflection so far below kKeepDeg
     for (int k = 0; k < max_vertices; ++k) {
       double t0 = 0, t1 = 0;
       if (!medium_interval(m, o, w, t0, t1)) break;
@@ -82,12 +94,36 @@ double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& project
       if (s >= t1) break;  // reached a surface or left the medium
       const Vec3 y = o + w * s;
       weight *= albedo;
-      sum += weight * connect(y, w);
+      const double c = weight * connect(y, w);
+      (k == 0 ? first : rest) += c;
+      if (k > 0 && small_turns) keep += c;
       o = y;
-      w = detail::sample_hg(w, m.g, rng);
+      const Vec3 w_next = detail::sample_hg(w, m.g, rng);
+      small_turns = small_turns && dot(w, w_next) > kKeepCos;
+      w = w_next;
     }
+    sk += keep;
+    s1 += first;
+    s1q += first * first;
+    sm += rest;
+    smq += rest * rest;
   }
-  return sum / static_cast<double>(paths);
+  const double n = static_cast<double>(paths);
+  out.single = s1 / n;
+  out.multiple = sm / n;
+  out.multiple_small_turns = sk / n;
+  auto se = [n](double mean, double sq) { return n > 1 ? std::sqrt(std::max(0.0, sq / n - mean * mean) / (n - 1)) : 0.0; };
+  out.se_single = se(out.single, s1q);
+  out.se_multiple = se(out.multiple, smq);
+  return out;
+}
+
+double backscatter_monte_carlo(const Scene& scene, const ProjectorModel& projector, const Rigid3& world_from_cam,
+                               const Rigid3& world_from_proj, const Intrinsics& camera, double col, double row,
+                               const std::vector<float>& emitted, size_t paths, uint64_t seed, int max_vertices) {
+  const BackscatterOrders o = backscatter_monte_carlo_orders(scene, projector, world_from_cam, world_from_proj, camera,
+                                                             col, row, emitted, paths, seed, max_vertices);
+  return o.single + o.multiple;
 }
 
 }  // namespace procam::sim

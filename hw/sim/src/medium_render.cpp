@@ -11,6 +11,9 @@
 //   I = S0 + cos2χ·S1,   Q = S1 + m22·cos2χ·S0,   U = sin2χ·S2,
 // and an ideal analyser at Stokes angle φ passes (I + Q cos2φ + U sin2φ)/2
 // (Malus' law for partially polarized light). Without an analyser: I.
+// Multiple scattering (MediumTaps::ms_*), when on, adds I_ms: its share
+// ms_keep joins S0 (polarized like single scattering), the rest is
+// depolarized (all of it through no analyser, half through one).
 // The projector polariser is assumed to pass the projector's full intensity
 // (an LCD projector's light is already polarized), so B and D keep their
 // unpolarized magnitudes; see docs/media.md.
@@ -101,6 +104,21 @@ double RowPrefix::sum(const MediumTaps& taps, size_t i) const {
   return s0;
 }
 
+void multiple_scattering(const MediumTaps& taps, const RowPrefix& prefix, std::vector<float>& single,
+                         std::vector<float>& ms, std::vector<float>& tmp, int threads) {
+  const size_t n = taps.pixel_count();
+  single.assign(n, 0.f);
+  ms.assign(n, 0.f);
+  if (taps.ms_gain.size() != n) return;
+  parallel_rows(taps.height, threads, [&](uint32_t b, uint32_t e) {
+    for (size_t i = size_t{b} * taps.width; i < size_t{e} * taps.width; ++i)
+      if (taps.offset[i] != taps.offset[i + 1]) single[i] = static_cast<float>(prefix.sum(taps, i));
+  });
+  ms = single;
+  gaussian_blur3(ms, tmp, taps.width, taps.height, taps.ms_sigma_px, threads);
+  for (size_t i = 0; i < n; ++i) ms[i] *= taps.ms_gain[i];
+}
+
 }  // namespace detail
 
 namespace {
@@ -120,7 +138,15 @@ void stokes_angle(const float* k, const Angle2& a, double& c2, double& s2) {
 
 }  // namespace
 
-void MediumComponent::begin_frame(const FrameContext& frame, int threads) { prefix_.build(frame.pattern, threads); }
+void MediumComponent::begin_frame(const FrameContext& frame, int threads) {
+  prefix_.build(frame.pattern, threads);
+  const MediumTaps& t = *taps_;
+  if (!t.ms_gain.empty() && t.width == frame.view.width && t.proj_width == prefix_.width &&
+      t.proj_height == prefix_.height)
+    detail::multiple_scattering(t, prefix_, single_, ms_, tmp_, threads);
+  else
+    ms_.clear();
+}
 
 void MediumComponent::apply(const FrameContext& frame, uint32_t row_begin, uint32_t row_end, float* radiance) const {
   const MediumTaps& t = *taps_;
@@ -129,9 +155,16 @@ void MediumComponent::apply(const FrameContext& frame, uint32_t row_begin, uint3
   const bool analyser = std::isfinite(frame.analyser_deg);
   const size_t b = size_t{row_begin} * t.width, e = size_t{row_end} * t.width;
   const Angle2 pol(pol_in ? frame.projector_polarizer_deg : 0.0), ana(analyser ? frame.analyser_deg : 0.0);
+  const bool multiple = ms_.size() == t.pixel_count();
+  // Multiple-scattered light is depolarized: an ideal analyser passes half.
+  const double ms_pass = analyser ? 0.5 : 1.0;
   for (size_t i = b; i < e; ++i) {
-    if (t.offset[i] == t.offset[i + 1]) continue;
-    const double s0 = prefix_.sum(t, i);
+    // B_ms: its share ms_keep polarized like single scattering (joins S),
+    // the rest depolarized.
+    const double ms = multiple ? static_cast<double>(ms_[i]) : 0.0;
+    radiance[i] += static_cast<float>(ms_pass * (1.0 - t.ms_keep) * ms);
+    if (t.offset[i] == t.offset[i + 1] && !(ms > 0)) continue;
+    const double s0 = (multiple ? static_cast<double>(single_[i]) : prefix_.sum(t, i)) + t.ms_keep * ms;
     const double s1 = s0 * static_cast<double>(t.m12[i]), s2 = s0 * static_cast<double>(t.m33[i]);
     double c2x = 0, s2x = 0;
     if (pol_in) stokes_angle(&t.pol_proj[4 * i], pol, c2x, s2x);
@@ -154,18 +187,22 @@ BackscatterStokes backscatter_stokes(const MediumTaps& taps, const PreparedPatte
   st.i.assign(n, 0.f);
   st.q.assign(n, 0.f);
   st.u.assign(n, 0.f);
+  st.i_multiple.assign(n, 0.f);
   if (pattern.width() != taps.proj_width || pattern.height() != taps.proj_height) return st;
   detail::RowPrefix prefix;
   prefix.build(pattern, threads);
+  std::vector<float> single, tmp;
+  detail::multiple_scattering(taps, prefix, single, st.i_multiple, tmp, threads);
   const bool pol_in = std::isfinite(projector_deg) && taps.polarizing;
   const Angle2 pol(pol_in ? projector_deg : 0.0);
   detail::parallel_rows(taps.height, threads, [&](uint32_t b, uint32_t e) {
     for (size_t i = size_t{b} * taps.width; i < size_t{e} * taps.width; ++i) {
-      const double s0 = prefix.sum(taps, i);
+      const double ms = static_cast<double>(st.i_multiple[i]);
+      const double s0 = prefix.sum(taps, i) + taps.ms_keep * ms;
       const double s1 = s0 * static_cast<double>(taps.m12[i]), s2 = s0 * static_cast<double>(taps.m33[i]);
       double c2x = 0, s2x = 0;
       if (pol_in) stokes_angle(&taps.pol_proj[4 * i], pol, c2x, s2x);
-      st.i[i] = static_cast<float>(s0 + c2x * s1);
+      st.i[i] = static_cast<float>(s0 + c2x * s1 + (1.0 - taps.ms_keep) * ms);
       st.q[i] = static_cast<float>(s1 + taps.m22 * c2x * s0);
       st.u[i] = static_cast<float>(s2x * s2);
     }

@@ -43,6 +43,13 @@ inline Scene plane_with(const std::string& medium_json) {
   return s.ok() ? *s : Scene{};
 }
 
+// A scene with the medium's multiple-scattering term off (tests of the
+// single-scattering integral Eq. 5.13 on the shipped milk scenes).
+inline Scene single_scattering_only(Scene s) {
+  if (s.medium) s.medium->multiple_scattering = Medium::MultipleScattering::none;
+  return s;
+}
+
 inline std::unique_ptr<Renderer> renderer_for(const Scene& scene, const SimRigConfig& rig) {
   const CameraCalibration& cam = rig.cameras[0].calibration;
   auto v = prepare_view(scene, rig.projector, cam, 2);

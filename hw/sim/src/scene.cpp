@@ -302,7 +302,7 @@ Medium parse_medium(FieldReader& root) {
   if (mj == nullptr) return m;
   FieldReader r(*mj, root.field("medium"), root.errors());
   r.only({"sigma_t_per_mm", "sigma_s_per_mm", "g", "material", "volume_ml", "tank_litres", "channel", "dop_model",
-          "box_min_mm", "box_max_mm", "bulb", "comment"});
+          "multiple_scattering", "box_min_mm", "box_max_mm", "bulb", "comment"});
   if (r.has("material")) {
     parse_medium_material(r, m);
   } else {
@@ -317,6 +317,10 @@ Medium parse_medium(FieldReader& root) {
   if (dop == "rayleigh") m.dop_model = Medium::DopModel::rayleigh;
   else if (dop == "none") m.dop_model = Medium::DopModel::none;
   else r.fail("dop_model", "unknown model '" + dop + "'", "use \"rayleigh\" or \"none\"");
+  const std::string ms = r.string("multiple_scattering", std::string("none"));
+  if (ms == "none") m.multiple_scattering = Medium::MultipleScattering::none;
+  else if (ms == "diffuse") m.multiple_scattering = Medium::MultipleScattering::diffuse;
+  else r.fail("multiple_scattering", "unknown model '" + ms + "'", "use \"none\" or \"diffuse\"");
   if (m.sigma_s_per_mm > m.sigma_t_per_mm)
     r.fail("sigma_s_per_mm", "scattering must not exceed extinction (beta <= sigma), got beta " +
                                  std::to_string(m.sigma_s_per_mm) + " > sigma " + std::to_string(m.sigma_t_per_mm),

@@ -130,6 +130,12 @@ struct Medium {
   double sigma_s_per_mm = 0;  // scattering β, 1/mm (β <= σ; absorption σ − β)
   double g = 0;               // Henyey-Greenstein asymmetry, |g| < 1 (> 0: forward)
   DopModel dop_model = DopModel::rayleigh;
+  // Backscatter of orders >= 2 in the projector-lit renderer (docs/media.md
+  // "Multiple scattering"): none: single scattering only (Eq. 5.13);
+  // diffuse: plus a depolarized, low-pass term whose magnitude comes from the
+  // Monte Carlo reference at a few pixels when the view is prepared.
+  enum class MultipleScattering { none, diffuse };
+  MultipleScattering multiple_scattering = MultipleScattering::none;
   bool whole_scene = true;    // false: only inside [box_min_mm, box_max_mm]
   Vec3 box_min_mm, box_max_mm;
   // Where σ, β, g came from when the scene named a library material
