@@ -10,10 +10,12 @@
 // then spans 18 mm at 900 mm, still far finer than the inter-reflection
 // kernel of the V-groove. Scene: the shipped v-groove (faces 750-900 mm,
 // wall 1000 mm). "Focal plane in front of the scene": 550 mm, where the
-// thin-lens blur at the scene is sigma = 1.4-2.3 projector px.
+// thin-lens blur at the scene is sigma = 1.4-2.3 projector px. Also the wax
+// candle (ch2-candle) and the 0.3-2 m ch2-candle-marble (ClaimsOn.*), where
+// the claim holds only in part: see the comments there and the README.
 //
 // Measures, over lit pixels whose truth is >= 1 DN (as the daemon's
-// evaluator) and where every method gives a value: median signed and
+// evaluator) and where the compared methods give a value: median signed and
 // absolute relative error of direct and global. Bounds are the issue's:
 // S1 >= 20 % off with direct under- and global over-estimated; S2, S3
 // <= 5 % median relative error; S1's answer changes with focus.
