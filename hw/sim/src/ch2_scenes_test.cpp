@@ -116,6 +116,11 @@ TEST(Ch2Scenes, DepthRangesAreAsDocumented) {
   std::tie(lo, hi) = depth_range("ch2-calibration-plane");
   EXPECT_NEAR(lo, 655.f, 10.f);
   EXPECT_NEAR(hi, 1210.f, 15.f);
+  // 280-2300 mm across the full-resolution view; at this test's 160 px the
+  // outermost pixel centres are 0.6 % nearer the axis: 281-2257 mm.
+  std::tie(lo, hi) = depth_range("ch2-calibration-plane-deep");
+  EXPECT_NEAR(lo, 281.f, 3.f);
+  EXPECT_NEAR(hi, 2257.f, 25.f);
   std::tie(lo, hi) = depth_range("ch2-v-groove");
   EXPECT_NEAR(lo, 750.f, 3.f);  // the faces' outer edges
   EXPECT_NEAR(hi, 1000.f, 1.f);  // the wall

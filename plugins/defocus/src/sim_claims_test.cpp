@@ -72,14 +72,9 @@ const Tables& tables() {
     // PROCAM_DEFOCUS_WRITE_TABLES=<dir>: write them as the rig's table files
     // (configs/rigs/tables/ holds the committed ones).
     if (const char* dir = std::getenv("PROCAM_DEFOCUS_WRITE_TABLES"))
-      for (sdk::CalibrationTable* tab : {&out.multi, &out.two, &out.single}) {
-        tab->made = {{"plugin", "defocus"}, {"method", tab->extra.value("method", "")}, {"rig", "sim-colocated"},
-                   {"scene", "ch2-calibration-plane"}, {"depth_from", "sim ground truth"},
-                   {"made_by", "plugins/defocus/src/sim_claims_test.cpp at 320x200"}};
-        std::string name = tab->name;
-        std::replace(name.begin(), name.end(), '.', '-');
-        std::ofstream(std::string(dir) + "/sim-colocated-" + name + ".json") << sdk::to_json(*tab).dump(1) << "\n";
-      }
+      for (const sdk::CalibrationTable* tab : {&out.multi, &out.two, &out.single})
+        test::write_table_file(dir, "sim-colocated", "ch2-calibration-plane",
+                               "plugins/defocus/src/sim_claims_test.cpp at 320x200", *tab);
     return out;
   }();
   return t;
@@ -125,23 +120,11 @@ ErrorStats rel_rms(const std::vector<float>& depth, const std::vector<float>& tr
 // The table files the sim-colocated rig config references are what this
 // calibration makes (within 0.5 % of depth wherever both are defined).
 TEST(SimClaims, CommittedTablesMatchAFreshCalibration) {
-  const std::string dir = std::string(PROCAM_SOURCE_DIR) + "/configs/rigs/tables/";
   for (const sdk::CalibrationTable* fresh : {&tables().multi, &tables().two, &tables().single}) {
-    std::string file = fresh->name;
-    std::replace(file.begin(), file.end(), '.', '-');
-    std::ifstream in(dir + "sim-colocated-" + file + ".json");
-    ASSERT_TRUE(in.good()) << "missing " << file << ": run with PROCAM_DEFOCUS_WRITE_TABLES=" << dir;
     sdk::CalibrationTable committed;
-    const sdk::Error e = sdk::parse_table(nlohmann::json::parse(in), committed);
-    ASSERT_TRUE(e.ok()) << e.message;
-    size_t compared = 0;
-    for (const auto& [x, y] : committed.samples) {
-      const float now = fresh->lookup(x);
-      if (std::isnan(now)) continue;
-      EXPECT_NEAR(now, y, 0.005 * y) << fresh->name << " at x " << x;
-      ++compared;
-    }
-    EXPECT_GT(compared, committed.samples.size() / 2) << fresh->name;
+    const sdk::Error e = test::read_table_file("sim-colocated", fresh->name, committed);
+    ASSERT_TRUE(e.ok()) << e.message << ": run with PROCAM_DEFOCUS_WRITE_TABLES=configs/rigs/tables";
+    EXPECT_GT(test::expect_tables_agree(committed, *fresh, 0.005), committed.samples.size() / 2) << fresh->name;
   }
 }
 

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -27,8 +28,10 @@ struct SimSweep {
   uint32_t width = 0, height = 0;
 };
 
-inline nlohmann::json colocated_rig_json(uint32_t width, uint32_t height) {
-  std::ifstream in(std::string(PROCAM_SOURCE_DIR) + "/configs/rigs/sim-colocated.json");
+// `rig`: a co-located rig config in configs/rigs/ (sim-colocated, or
+// sim-colocated-deep with its HDR camera for 0.3-2 m scenes).
+inline nlohmann::json colocated_rig_json(uint32_t width, uint32_t height, const std::string& rig = "sim-colocated") {
+  std::ifstream in(std::string(PROCAM_SOURCE_DIR) + "/configs/rigs/" + rig + ".json");
   std::stringstream ss;
   ss << in.rdbuf();
   nlohmann::json j = nlohmann::json::parse(ss.str());
@@ -42,12 +45,15 @@ inline nlohmann::json colocated_rig_json(uint32_t width, uint32_t height) {
 }
 
 // Captures the sweep `focus_mm` (24 shifted stripe frames per setting) of
-// `scene` at width x height; bit depth as the rig config (8) unless given;
-// noiseless = no shot or read noise (light-transport claims, not noise ones).
+// `scene` at width x height on rig config `rig_name`; bit depth 8 unless given
+// (0: the rig config's); noiseless = no shot or read noise (light-transport
+// claims, not noise ones).
 inline SimSweep capture_sweep(const std::string& scene, const std::vector<double>& focus_mm, uint32_t width,
-                              uint32_t height, uint32_t bit_depth = 8, bool noiseless = false) {
+                              uint32_t height, uint32_t bit_depth = 8, bool noiseless = false,
+                              const std::string& rig_name = "sim-colocated") {
   SimSweep out;
-  nlohmann::json j = colocated_rig_json(width, height);
+  nlohmann::json j = colocated_rig_json(width, height, rig_name);
+  if (bit_depth == 0) bit_depth = j["cameras"][0]["bit_depth"].get<uint32_t>();
   j["cameras"][0]["bit_depth"] = bit_depth;
   if (noiseless) {
     j["cameras"][0]["shot_noise"] = false;
@@ -90,6 +96,40 @@ inline SimSweep capture_sweep(const std::string& scene, const std::vector<double
   out.width = width;
   out.height = height;
   return out;
+}
+
+// Writes `table` as configs/rigs/tables/<rig>-<name with '-' for '.'>.json
+// into `dir` (PROCAM_DEFOCUS_WRITE_TABLES), with its provenance.
+inline void write_table_file(const std::string& dir, const std::string& rig, const std::string& scene,
+                             const std::string& made_by, sdk::CalibrationTable table) {
+  table.made = {{"plugin", "defocus"}, {"method", table.extra.value("method", "")}, {"rig", rig},
+                {"scene", scene}, {"depth_from", "sim ground truth"}, {"made_by", made_by}};
+  std::string name = table.name;
+  std::replace(name.begin(), name.end(), '.', '-');
+  std::ofstream(dir + "/" + rig + "-" + name + ".json") << sdk::to_json(table).dump(1) << "\n";
+}
+
+// The committed table file of `rig` named like write_table_file's.
+inline sdk::Error read_table_file(const std::string& rig, const std::string& table_name, sdk::CalibrationTable& out) {
+  std::string name = table_name;
+  std::replace(name.begin(), name.end(), '.', '-');
+  std::ifstream in(std::string(PROCAM_SOURCE_DIR) + "/configs/rigs/tables/" + rig + "-" + name + ".json");
+  if (!in.good()) return sdk::invalid_argument("missing table file for " + rig + " " + table_name);
+  return sdk::parse_table(nlohmann::json::parse(in), out);
+}
+
+// EXPECTs `fresh` within rel_tol x depth of every sample of `committed` where
+// fresh is defined; returns how many samples were compared.
+inline size_t expect_tables_agree(const sdk::CalibrationTable& committed, const sdk::CalibrationTable& fresh,
+                                  double rel_tol) {
+  size_t compared = 0;
+  for (const auto& [x, y] : committed.samples) {
+    const float now = fresh.lookup(x);
+    if (std::isnan(now)) continue;
+    EXPECT_NEAR(now, y, rel_tol * y) << fresh.name << " at x " << x;
+    ++compared;
+  }
+  return compared;
 }
 
 }  // namespace procam::defocus::test

@@ -10,10 +10,12 @@
 // then spans 18 mm at 900 mm, still far finer than the inter-reflection
 // kernel of the V-groove. Scene: the shipped v-groove (faces 750-900 mm,
 // wall 1000 mm). "Focal plane in front of the scene": 550 mm, where the
-// thin-lens blur at the scene is sigma = 1.4-2.3 projector px.
+// thin-lens blur at the scene is sigma = 1.4-2.3 projector px. Also the wax
+// candle (ch2-candle) and the 0.3-2 m ch2-candle-marble (ClaimsOn.*), where
+// the claim holds only in part: see the comments there and the README.
 //
 // Measures, over lit pixels whose truth is >= 1 DN (as the daemon's
-// evaluator) and where every method gives a value: median signed and
+// evaluator) and where the compared methods give a value: median signed and
 // absolute relative error of direct and global. Bounds are the issue's:
 // S1 >= 20 % off with direct under- and global over-estimated; S2, S3
 // <= 5 % median relative error; S1's answer changes with focus.
@@ -36,7 +38,16 @@ namespace {
 
 constexpr uint32_t kW = 320, kH = 200;
 
-nlohmann::json rig_config() {
+// The camera: 12 bits, a 1e5 e- well. `Sensor` overrides it for the 0.3-2 m
+// scene, whose irradiance falls 44x from the candle to the wall: 16 bits and
+// a 1.5e6 e- well (as the HDR camera of configs/rigs/sim-colocated-deep.json),
+// 20 ms so that the white pot at 300 mm is ~75 % of the well.
+struct Sensor {
+  uint32_t bit_depth = 12;
+  double exposure_us = 12000, full_well_e = 100000;
+};
+
+nlohmann::json rig_config(const Sensor& cam) {
   const nlohmann::json k = {{"width", kW}, {"height", kH}, {"fx", 400.0}, {"fy", 400.0}, {"cx", 159.5}, {"cy", 99.5}};
   return {{"name", "sep-colocated"},
           {"scene", "v-groove"},
@@ -44,12 +55,13 @@ nlohmann::json rig_config() {
           {"threads", 2},
           {"projector", {{"backend", "sim"}, {"intrinsics", k}, {"black_level", 0.01}, {"aperture_mm", 28.0},
                          {"focus_mm", 800}}},
-          {"cameras", {{{"backend", "sim"}, {"intrinsics", k}, {"bit_depth", 12}, {"exposure_us", 12000}, {"sensitivity", 20.0}, {"full_well_e", 100000},
+          {"cameras", {{{"backend", "sim"}, {"intrinsics", k}, {"bit_depth", cam.bit_depth},
+                        {"exposure_us", cam.exposure_us}, {"sensitivity", 20.0}, {"full_well_e", cam.full_well_e},
                         {"cam_from_proj", {{"euler_deg", {0, 0, 0}}, {"translation_mm", {0, 0, 0}}}}}}}};
 }
 
-std::unique_ptr<sim::SimRig> make_rig(const std::string& scene) {
-  auto cfg = sim::parse_sim_rig_config(rig_config());
+std::unique_ptr<sim::SimRig> make_rig(const std::string& scene, const Sensor& cam = {}) {
+  auto cfg = sim::parse_sim_rig_config(rig_config(cam));
   EXPECT_TRUE(cfg.ok()) << cfg.status().to_string();
   if (!cfg.ok()) return nullptr;
   const std::string configs = std::string(PROCAM_SOURCE_DIR) + "/configs";
@@ -60,9 +72,9 @@ std::unique_ptr<sim::SimRig> make_rig(const std::string& scene) {
   return std::move(rig).value();
 }
 
-nlohmann::json session_rig(nlohmann::json tables = nlohmann::json::object()) {
+nlohmann::json session_rig(nlohmann::json tables = nlohmann::json::object(), uint32_t bit_depth = 12) {
   return {{"projector", {{"width", kW}, {"height", kH}}},
-          {"cameras", {{{"width", kW}, {"height", kH}, {"bit_depth", 12}}}},
+          {"cameras", {{{"width", kW}, {"height", kH}, {"bit_depth", bit_depth}}}},
           {"threads", 2},
           {"calibration_tables", std::move(tables)}};
 }
@@ -74,10 +86,12 @@ struct ScanResult {
 
 // plan -> sim capture (each frame at its planned focus) -> add_frame -> end_round -> outputs.
 ScanResult scan(sim::SimRig& rig, const std::string& method, const nlohmann::json& params,
-         std::optional<std::vector<float>> depth = std::nullopt, nlohmann::json tables = nlohmann::json::object()) {
+         std::optional<std::vector<float>> depth = std::nullopt, nlohmann::json tables = nlohmann::json::object(),
+         uint32_t bit_depth = 12) {
   ScanResult r;
   std::unique_ptr<sdk::Session> s;
-  const sdk::Error ce = create_session_with_depth({method, params, session_rig(std::move(tables))}, std::move(depth), s);
+  const sdk::Error ce =
+      create_session_with_depth({method, params, session_rig(std::move(tables), bit_depth)}, std::move(depth), s);
   EXPECT_TRUE(ce.ok()) << ce.message;
   if (!ce.ok()) return r;
   sdk::Plan plan;
@@ -171,39 +185,184 @@ hw::GroundTruth* Claims::truth = nullptr;
 const nlohmann::json kFront = {{"focus_mm", 550.0}};
 const nlohmann::json kSweep = {{"focus_settings", 6}, {"focus_near_mm", 650.0}, {"focus_far_mm", 1150.0}};
 
-TEST_F(Claims, FocalPlaneInFrontS1IsOffWhileS2AndS3StayWithinFivePercent) {
-  // S3's table from the inclined plane (no global light), its truth depth as input.
-  std::vector<float> plane_depth;
+// One claim set-up: the scene, its camera, the focal plane in front of it
+// (S1, S3), S2's sweep, and S3's calibration plane (no global light).
+struct Setup {
+  std::string scene;
+  Sensor cam;
+  nlohmann::json front, sweep;
+  std::string plane = "sep-inclined-plane";
+};
+
+// S1 (checker at `front`), S2 (multi-focal over `sweep`) and S3
+// (one-focal-depth at `front` with the truth depth, its table made on
+// `plane` with the plane's truth depth) on the set-up's scene, and its truth.
+struct Runs {
+  ScanResult s1, s2, s3;
+  std::optional<hw::GroundTruth> truth;
+};
+Runs run_all(const Setup& st) {
+  Runs r;
   std::string table;
   {
-    auto plane_rig = make_rig("sep-inclined-plane");
-    ASSERT_TRUE(plane_rig);
+    auto plane_rig = make_rig(st.plane, st.cam);
+    if (!plane_rig) return r;
     auto pt = plane_rig->ground_truth(0);
-    ASSERT_TRUE(pt.ok());
+    EXPECT_TRUE(pt.ok());
+    if (!pt.ok()) return r;
     const float* z = pt->depth_mm.ptr<float>();
-    plane_depth.assign(z, z + size_t{kW} * kH);
-    table = scan(*plane_rig, "calibrate-one-focal", kFront, plane_depth).table;
-    ASSERT_FALSE(table.empty());
+    table = scan(*plane_rig, "calibrate-one-focal", st.front, std::vector<float>(z, z + size_t{kW} * kH),
+                 nlohmann::json::object(), st.cam.bit_depth)
+                .table;
+    EXPECT_FALSE(table.empty());
+    if (table.empty()) return r;
   }
-  const float* z = truth->depth_mm.ptr<float>();
-  const ScanResult s1 = scan(*rig, "checker", kFront);
-  const ScanResult s2 = scan(*rig, "multi-focal", kSweep);
-  const ScanResult s3 = scan(*rig, "one-focal-depth", kFront, std::vector<float>(z, z + size_t{kW} * kH),
-                      {{kOneFocalTable, nlohmann::json::parse(table)}});
-  const auto mask = common_mask({&s1, &s2, &s3});
-  const Err d1 = relative_error(s1.direct, truth->direct, mask), g1 = relative_error(s1.global, truth->global, mask);
-  const Err d2 = relative_error(s2.direct, truth->direct, mask), g2 = relative_error(s2.global, truth->global, mask);
-  const Err d3 = relative_error(s3.direct, truth->direct, mask), g3 = relative_error(s3.global, truth->global, mask);
-  print("S1 checker, focus 550 mm", d1, g1);
-  print("S2 multi-focal 650-1150 mm", d2, g2);
-  print("S3 one-focal-depth 550 mm", d3, g3);
-  ASSERT_GT(d1.pixels, size_t{kW} * kH / 2) << "most of the view is lit and separated by all three";
-  EXPECT_LE(d1.signed_median, -0.20) << "S1 under-estimates direct light out of focus (Fig. 2.16)";
-  EXPECT_GE(g1.signed_median, 0.20) << "S1 over-estimates global light out of focus (Fig. 2.16)";
-  EXPECT_LE(d2.abs_median, 0.05);
-  EXPECT_LE(g2.abs_median, 0.05);
-  EXPECT_LE(d3.abs_median, 0.05);
-  EXPECT_LE(g3.abs_median, 0.05);
+  auto rig = make_rig(st.scene, st.cam);
+  if (!rig) return r;
+  auto gt = rig->ground_truth(0);
+  EXPECT_TRUE(gt.ok());
+  if (!gt.ok()) return r;
+  r.truth = std::move(gt).value();
+  const float* z = r.truth->depth_mm.ptr<float>();
+  r.s1 = scan(*rig, "checker", st.front, std::nullopt, nlohmann::json::object(), st.cam.bit_depth);
+  r.s2 = scan(*rig, "multi-focal", st.sweep, std::nullopt, nlohmann::json::object(), st.cam.bit_depth);
+  r.s3 = scan(*rig, "one-focal-depth", st.front, std::vector<float>(z, z + size_t{kW} * kH),
+              {{kOneFocalTable, nlohmann::json::parse(table)}}, st.cam.bit_depth);
+  return r;
+}
+
+struct RegionErrors {
+  Err d1, g1, d2, g2, d3, g3;
+  size_t region = 0;  // lit pixels of the region
+};
+// Errors over the lit pixels of `objects` (truth object ids, 1 + scene
+// index; empty: all): S1 and S2 where both give both components, S3 where
+// S1 and S3 do (S3 has no answer where its one focus blurs the checker too
+// much; the claim is about the pixels where S1 is off).
+RegionErrors region_errors(const Runs& r, const std::vector<uint8_t>& objects, const char* what) {
+  const hw::GroundTruth& t = *r.truth;
+  const size_t n = size_t{kW} * kH;
+  std::vector<uint8_t> m12(n, 0), m13(n, 0);
+  RegionErrors e;
+  const auto both = [](const ScanResult& s, size_t i) { return std::isfinite(s.direct[i]) && std::isfinite(s.global[i]); };
+  for (size_t i = 0; i < n; ++i) {
+    const bool in = t.lit.ptr<uint8_t>()[i] != 0 &&
+                    (objects.empty() || std::find(objects.begin(), objects.end(), t.object.ptr<uint8_t>()[i]) != objects.end());
+    e.region += in ? 1u : 0u;
+    m12[i] = in && both(r.s1, i) && both(r.s2, i) ? 1 : 0;
+    m13[i] = in && both(r.s1, i) && both(r.s3, i) ? 1 : 0;
+  }
+  e.d1 = relative_error(r.s1.direct, t.direct, m12);
+  e.g1 = relative_error(r.s1.global, t.global, m12);
+  e.d2 = relative_error(r.s2.direct, t.direct, m12);
+  e.g2 = relative_error(r.s2.global, t.global, m12);
+  e.d3 = relative_error(r.s3.direct, t.direct, m13);
+  e.g3 = relative_error(r.s3.global, t.global, m13);
+  std::printf("-- %s (%zu lit px)\n", what, e.region);
+  Claims::print("S1 checker (front focus)", e.d1, e.g1);
+  Claims::print("S2 multi-focal", e.d2, e.g2);
+  Claims::print("S3 one-focal-depth", e.d3, e.g3);
+  return e;
+}
+
+// The claim: S1 >= 20 % off (direct under-, global over-estimated), S2 and
+// S3 within 5 % median relative error.
+void expect_claim(const RegionErrors& e, size_t min_pixels) {
+  ASSERT_GT(e.d1.pixels, min_pixels) << "the region must be lit and separated by S1 and S2";
+  ASSERT_GT(e.d3.pixels, min_pixels) << "the region must be lit and separated by S1 and S3";
+  EXPECT_LE(e.d1.signed_median, -0.20) << "S1 under-estimates direct light out of focus (Fig. 2.16)";
+  EXPECT_GE(e.g1.signed_median, 0.20) << "S1 over-estimates global light out of focus (Fig. 2.16)";
+  EXPECT_LE(e.d2.abs_median, 0.05);
+  EXPECT_LE(e.g2.abs_median, 0.05);
+  EXPECT_LE(e.d3.abs_median, 0.05);
+  EXPECT_LE(e.g3.abs_median, 0.05);
+}
+
+TEST(ClaimsOn, VGrooveFocalPlaneInFrontS1IsOffWhileS2AndS3StayWithinFivePercent) {
+  const Runs r = run_all({"v-groove", {}, kFront, kSweep});
+  ASSERT_TRUE(r.truth);
+  expect_claim(region_errors(r, {}, "v-groove, whole view"), size_t{kW} * kH / 2);
+}
+
+// Truth object ids (1 + index in the scene file).
+constexpr uint8_t kCandleWax = 2;     // ch2-candle and ch2-candle-marble: the wax cylinder
+constexpr uint8_t kCandleMarble = 4;  // ch2-candle-marble: the marble ball
+
+// The candle (Fig. 2.5, 2.16-2.17): wax (sub-surface scattering, diffusion
+// length 8.2 mm) with paper sleeves, front at 800 mm before a wall at 1000 mm.
+// Same rig; 8 ms so that the paper (albedo 0.75, facing the camera) stays
+// below the well. Focal plane in front at 550 mm (sigma 1.8-2.3 px).
+//
+// Measured (seed 3): over the whole view the direct part of the claim holds
+// (S1 -29.8 %, S2 +1.5 %, S3 0.6 %); global is not comparable there (the
+// wall, most of the view, has almost none: relative errors of 10^2-10^4 %).
+// On the exposed wax the claim does NOT hold, for any method and for S1 in
+// focus too: the checker's 16 mm squares (8 px of this 320-px projector at
+// 800 mm) are coarser than the 8.2 mm diffusion length, so the sub-surface
+// light under a lit square differs from that under a dark one (Nayar's
+// high-frequency condition fails) and every method counts that difference as
+// direct: S1 +1565 % (in focus +1925 %), S2 +1935 %, S3 +1791 %. The truth's
+// direct on wax is its 3 % Fresnel reflection. Asserted as measured so a
+// change shows; the fix is a finer checker than the diffusion length (a
+// full-resolution projector), not a looser bound.
+TEST(ClaimsOn, CandleDirectClaimHoldsAndWaxBreaksTheHighFrequencyCondition) {
+  const Runs r = run_all({"ch2-candle", {12, 8000, 100000}, kFront, kSweep});
+  ASSERT_TRUE(r.truth);
+  const RegionErrors all = region_errors(r, {}, "ch2-candle, whole view");
+  ASSERT_GT(all.d1.pixels, size_t{kW} * kH / 2);
+  EXPECT_LE(all.d1.signed_median, -0.20) << "S1 under-estimates direct light out of focus (Fig. 2.16)";
+  EXPECT_LE(all.d2.abs_median, 0.05);
+  EXPECT_LE(all.d3.abs_median, 0.05);
+  Runs in_focus = r;
+  auto rig = make_rig("ch2-candle", {12, 8000, 100000});
+  ASSERT_TRUE(rig);
+  in_focus.s1 = scan(*rig, "checker", {{"focus_mm", 840.0}});
+  const RegionErrors wax = region_errors(r, {kCandleWax}, "ch2-candle, exposed wax");
+  const RegionErrors wax_focus = region_errors(in_focus, {kCandleWax}, "ch2-candle, exposed wax, S1 in focus (840 mm)");
+  ASSERT_GT(wax.d3.pixels, 1000u);
+  for (const Err* e : {&wax.d1, &wax_focus.d1, &wax.d2, &wax.d3})
+    EXPECT_GT(e->signed_median, 1.0) << "every method counts near-field sub-surface light as direct on the wax";
+}
+
+// Fig. 2.17: the candle-and-marble scene, 0.3-2 m. Focal plane in front of it
+// at 250 mm; S2 over the 0.3-2 m sweep of the defocus plugin (14 settings
+// uniform in 1/f from 270 to 5000 mm, ~0.75 px of blur per step here); S3's
+// table from the 280-2300 mm inclined plane at 250 mm.
+//
+// Measured (seed 3), median relative error direct / global:
+//   V-groove (1125-1200 mm, inter-reflections): S1 -98 % / +223 %, S2 +1.5 % /
+//     -2.3 %: the claim holds for S2. S3 has no answer there: at one focus
+//     of 250 mm the checker is blurred by sigma ~7-8 px beyond ~0.6 m and
+//     beta+ - beta- falls below min_contrast (invalid, not wrong).
+//   pot (~300 mm, matte): S1 -22.9 % direct; S2 +0.6 %, S3 0.8 %. Its global
+//     (light from the candle) is small: S2 9.5 %, S3 35 % abs: not within 5 %.
+//   wax candle and marble (sub-surface): the claim does not hold (S2 direct
+//     +1156 % on wax, +1552 % on the marble), for the reason given above: the
+//     checker is coarser than the diffusion length.
+TEST(ClaimsOn, CandleMarbleClaimHoldsOnTheGrooveNotOnTranslucentBodies) {
+  const nlohmann::json sweep = {{"focus_settings", 14}, {"focus_near_mm", 270.0}, {"focus_far_mm", 5000.0}};
+  const Runs r = run_all({"ch2-candle-marble", {16, 20000, 1500000}, {{"focus_mm", 250.0}}, sweep,
+                          "ch2-calibration-plane-deep"});
+  ASSERT_TRUE(r.truth);
+  region_errors(r, {}, "ch2-candle-marble, whole view");
+  const RegionErrors groove = region_errors(r, {5, 6}, "ch2-candle-marble, V-groove");
+  ASSERT_GT(groove.d1.pixels, 3000u);
+  EXPECT_LE(groove.d1.signed_median, -0.20);
+  EXPECT_GE(groove.g1.signed_median, 0.20);
+  EXPECT_LE(groove.d2.abs_median, 0.05);
+  EXPECT_LE(groove.g2.abs_median, 0.05);
+  EXPECT_EQ(groove.d3.pixels, 0u) << "S3 at 250 mm: no answer this far behind its focus";
+  const RegionErrors pot = region_errors(r, {3}, "ch2-candle-marble, pot");
+  ASSERT_GT(pot.d3.pixels, 1000u);
+  EXPECT_LE(pot.d1.signed_median, -0.20);
+  EXPECT_LE(pot.d2.abs_median, 0.05);
+  EXPECT_LE(pot.d3.abs_median, 0.05);
+  const RegionErrors wax = region_errors(r, {kCandleWax}, "ch2-candle-marble, wax candle at ~330 mm");
+  const RegionErrors marble = region_errors(r, {kCandleMarble}, "ch2-candle-marble, marble at ~700 mm");
+  ASSERT_GT(wax.d2.pixels, 1000u);
+  ASSERT_GT(marble.d2.pixels, 1000u);
+  EXPECT_GT(wax.d2.signed_median, 1.0) << "sub-surface light counted as direct (checker coarser than diffusion)";
+  EXPECT_GT(marble.d2.signed_median, 1.0) << "sub-surface light counted as direct (checker coarser than diffusion)";
 }
 
 TEST_F(Claims, ControlS1InFocusIsAccurate) {
