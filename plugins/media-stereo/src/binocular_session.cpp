@@ -115,6 +115,7 @@ class BinocularSession final : public sdk::Session {
     s.valid_pixels = valid_;
     s.total_pixels = depth_.size();
     s.report = {
+        {"method", "binocular"},
         {"constraint", media_ ? "media (Eq. 5.22-5.23)" : "clear-air (Eq. 5.20, 5.23)"},
         {"model", "single scattering (Eq. 5.14-5.16), isotropic point light at the projector centre clipped to its "
                   "image, no forward-scattered signal, fronto-parallel window"},

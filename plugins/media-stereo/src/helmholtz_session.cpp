@@ -196,6 +196,7 @@ class HelmholtzSession final : public sdk::Session {
                        {"light_b", units_[j].light_index},
                        {"baseline_mm", norm(units_[j].cam.centre() - units_[0].cam.centre())}});
     s.report = {
+        {"method", "helmholtz"},
         {"constraint", media_ ? "media: backscatter removed (Eq. 5.32-5.34)"
                               : "clear-air: Zickler et al., no backscatter removal (Eq. 5.34 on raw intensities)"},
         {"model", "single scattering (Eq. 5.24-5.29), isotropic lights at the camera centres clipped to their "
@@ -366,7 +367,8 @@ class MediumSession final : public sdk::Session {
     m["fitted"] = fit_.ok ? nlohmann::json{"sigma_per_mm", "beta_per_mm", "g"} : nlohmann::json::array();
     m["fit_ok"] = fit_.ok;
     m["fit_rms_residual_fullscale"] = fit_.rms_residual;
-    s.report = {{"medium", m},
+    s.report = {{"method", "medium"},
+                {"medium", m},
                 {"model", "pure single-scattered backscatter B = beta F(sigma, g) (Eq. 5.16), rays ending at a black "
                           "wall at medium_wall_mm, light clipped to its field; every 4th pixel"},
                 {"camera", units_[0].camera},
