@@ -22,7 +22,10 @@
 //     F32 maps NaN or finite; points finite with x,y,z first; JSON parses;
 //     outputs stay valid (same bytes) until session_destroy;
 //   on the sim rig (host path, engine::run_scan, scenes "plane" and
-//   "tilted-box"): the scan finishes, an integer describe "patterns" is the
+//   "tilted-box"; a method that refuses the one-camera rig with
+//   failed_precondition runs on the first shipped multi-camera rig it accepts,
+//   suite::sim_rig_files: the two-camera stereo rig, the camera+light units
+//   rig): the scan finishes, an integer describe "patterns" is the
 //   first round's frame count, and the well-known outputs are sane where a
 //   plugin has them (proj_col_px in [-0.5, W - 0.5] and F32 camera-sized,
 //   valid 255 exactly where the column is finite, confidence in [0, 1],
@@ -273,52 +276,65 @@ TEST_P(MethodAbi, MisuseCodesPlansAndLifetimes) {
   Lib lib(plugin_file(c.plugin));
   ASSERT_NE(lib.vt, nullptr) << dlerror();
   const procam_plugin_vtable& vt = *lib.vt;
-  auto rig = suite::sim_rig("plane");
-  ASSERT_TRUE(rig);
-  const std::string rig_json = engine::plugin_rig_json(*rig, 2).dump();
+  procam_error err{};
+  procam_session* s = nullptr;
+  const bool has_create2 =
+      vt.struct_size > PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE && vt.session_create2 != nullptr;
+  // The first shipped sim rig the method accepts (suite::sim_rig_files: a
+  // method that needs two cameras or camera+light units runs on those rigs).
+  std::unique_ptr<hw::Rig> rig;
+  std::string rig_json;
+  int created = PROCAM_ERR_FAILED_PRECONDITION;
+  std::string refusals;
+  for (const std::string& file : suite::sim_rig_files()) {
+    rig = suite::sim_rig("plane", file);
+    ASSERT_TRUE(rig);
+    rig_json = engine::plugin_rig_json(*rig, 2).dump();
+    if (file == suite::sim_rig_files().front()) {
+      EXPECT_EQ(vt.session_create("no-such-method", "{}", rig_json.c_str(), &s, &err), PROCAM_ERR_INVALID_ARGUMENT);
+      EXPECT_NE(err.message[0], '\0');
+      err = {};
+      EXPECT_EQ(vt.session_create(c.method.c_str(), "[1]", rig_json.c_str(), &s, &err), PROCAM_ERR_INVALID_ARGUMENT)
+          << "params must be a JSON object";
+      EXPECT_NE(err.message[0], '\0');
+      err = {};
+    }
+    // A method that declares required inputs (ABI 2) gets them from the sim's
+    // truth (suite::required_inputs) through session_create2.
+    std::vector<std::vector<float>> input_pixels;
+    const std::vector<host::InputImage> inputs = suite::required_inputs(c.describe, *rig, input_pixels);
+    std::vector<procam_output> in;
+    for (const auto& i : inputs) {
+      procam_output o{};
+      o.name = i.name.c_str();
+      o.unit = i.unit.c_str();
+      o.description = i.description.c_str();
+      o.kind = PROCAM_OUTPUT_IMAGE;
+      o.image = i.image;
+      in.push_back(o);
+    }
+    if (!in.empty()) {
+      ASSERT_TRUE(has_create2) << "a method with required inputs needs session_create2";
+    }
+    created = !in.empty() ? vt.session_create2(c.method.c_str(), "{}", rig_json.c_str(), in.data(),
+                                               static_cast<uint32_t>(in.size()), &s, &err)
+                          : vt.session_create(c.method.c_str(), "{}", rig_json.c_str(), &s, &err);
+    if (created != PROCAM_ERR_FAILED_PRECONDITION) break;
+    // Needs rig data this rig lacks (e.g. a calibration table made on another
+    // rig, a second camera): refused before any work, with a message, and no
+    // session.
+    EXPECT_NE(err.message[0], '\0') << "a refusal must say what is missing";
+    EXPECT_EQ(s, nullptr);
+    refusals += (refusals.empty() ? "" : "; ") + file + ": " + err.message;
+    err = {};
+  }
+  if (created == PROCAM_ERR_FAILED_PRECONDITION)
+    GTEST_SKIP() << "needs rig data no shipped sim rig has: " << refusals;
   const nlohmann::json rj = nlohmann::json::parse(rig_json);
   const uint32_t pw = rj["projector"]["width"], ph = rj["projector"]["height"];
   Frames f{rj["cameras"][0]["width"], rj["cameras"][0]["height"], {}, {}};
   f.black.assign(size_t{f.w} * f.h, 0);
   f.small.assign(size_t{f.w - 1} * f.h, 0);
-
-  procam_error err{};
-  procam_session* s = nullptr;
-  EXPECT_EQ(vt.session_create("no-such-method", "{}", rig_json.c_str(), &s, &err), PROCAM_ERR_INVALID_ARGUMENT);
-  EXPECT_NE(err.message[0], '\0');
-  err = {};
-  EXPECT_EQ(vt.session_create(c.method.c_str(), "[1]", rig_json.c_str(), &s, &err), PROCAM_ERR_INVALID_ARGUMENT)
-      << "params must be a JSON object";
-  EXPECT_NE(err.message[0], '\0');
-  // A method that declares required inputs (ABI 2) gets them from the sim's
-  // truth (suite::required_inputs) through session_create2.
-  std::vector<std::vector<float>> input_pixels;
-  const std::vector<host::InputImage> inputs = suite::required_inputs(c.describe, *rig, input_pixels);
-  std::vector<procam_output> in;
-  for (const auto& i : inputs) {
-    procam_output o{};
-    o.name = i.name.c_str();
-    o.unit = i.unit.c_str();
-    o.description = i.description.c_str();
-    o.kind = PROCAM_OUTPUT_IMAGE;
-    o.image = i.image;
-    in.push_back(o);
-  }
-  const bool has_create2 =
-      vt.struct_size > PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE && vt.session_create2 != nullptr;
-  if (!in.empty()) {
-    ASSERT_TRUE(has_create2) << "a method with required inputs needs session_create2";
-  }
-  const int created = !in.empty() ? vt.session_create2(c.method.c_str(), "{}", rig_json.c_str(), in.data(),
-                                                  static_cast<uint32_t>(in.size()), &s, &err)
-                             : vt.session_create(c.method.c_str(), "{}", rig_json.c_str(), &s, &err);
-  if (created == PROCAM_ERR_FAILED_PRECONDITION) {
-    // Needs rig data this rig lacks (e.g. a calibration table made on another
-    // rig): refused before any work, with a message, and no session.
-    EXPECT_NE(err.message[0], '\0') << "a refusal must say what is missing";
-    EXPECT_EQ(s, nullptr);
-    GTEST_SKIP() << "needs rig data the shipped sim rig lacks: " << err.message;
-  }
   ASSERT_EQ(created, PROCAM_OK) << err.message;
   ASSERT_NE(s, nullptr);
 
@@ -410,7 +426,7 @@ TEST_P(MethodOnSim, ScanFinishesWithSaneOutputs) {
   const SceneCase& c = GetParam();
   suite::SimRun run;
   const bool ran = suite::run_on_sim(c.m.plugin, c.m.method, c.scene, run);
-  if (!run.skip_reason.empty()) GTEST_SKIP() << "needs rig data the shipped sim rig lacks: " << run.skip_reason;
+  if (!run.skip_reason.empty()) GTEST_SKIP() << "needs rig data no shipped sim rig has: " << run.skip_reason;
   ASSERT_TRUE(ran);
   ASSERT_GE(run.outcome.rounds.size(), 1u);
   ASSERT_LE(run.outcome.rounds.size(), 1000u);
@@ -504,7 +520,7 @@ TEST_P(Determinism, TwoRunsOnFreshRigsGiveIdenticalOutputs) {
   const MethodCase& c = GetParam();
   suite::SimRun a, b;
   const bool ran = suite::run_on_sim(c.plugin, c.method, "plane", a);
-  if (!a.skip_reason.empty()) GTEST_SKIP() << "needs rig data the shipped sim rig lacks: " << a.skip_reason;
+  if (!a.skip_reason.empty()) GTEST_SKIP() << "needs rig data no shipped sim rig has: " << a.skip_reason;
   ASSERT_TRUE(ran);
   ASSERT_TRUE(suite::run_on_sim(c.plugin, c.method, "plane", b));
   ASSERT_EQ(a.outputs.size(), b.outputs.size());

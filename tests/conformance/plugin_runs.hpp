@@ -52,10 +52,20 @@ inline std::string case_name(const std::string& plugin, const std::string& metho
   return n;
 }
 
-// The shipped sim rig (configs/rigs/sim.json) showing `scene`; a fresh rig
-// per call, so its frame noise starts from the same seed.
-inline std::unique_ptr<hw::Rig> sim_rig(const std::string& scene) {
-  auto cfg = engine::read_json_file(source("configs/rigs/sim.json"));
+// The shipped sim rigs, in the order a method is tried on them: the
+// one-camera rig (configs/rigs/sim.json) first; a method that refuses it with
+// failed_precondition (it needs more than one camera and a projector) runs on
+// the first of the others it accepts: two cameras (binocular stereo) and
+// camera+light units (lights co-located with five cameras, plugin ABI 3).
+inline const std::vector<std::string>& sim_rig_files() {
+  static const std::vector<std::string> files = {"sim.json", "sim-tank-stereo.json", "sim-helmholtz.json"};
+  return files;
+}
+
+// The shipped sim rig configs/rigs/<file> showing `scene`; a fresh rig per
+// call, so its frame noise starts from the same seed.
+inline std::unique_ptr<hw::Rig> sim_rig(const std::string& scene, const std::string& file = "sim.json") {
+  auto cfg = engine::read_json_file(source("configs/rigs/" + file));
   EXPECT_TRUE(cfg.ok()) << cfg.status().message();
   if (!cfg.ok()) return nullptr;
   auto rig = hw::create_rig(*cfg, {source("configs/rigs"), {source("configs/scenes")}});
@@ -97,11 +107,12 @@ inline std::vector<host::InputImage> required_inputs(const nlohmann::json& descr
 }
 
 // One finished scan. `session` owns the memory `outputs` point into.
-// `skip_reason`: set (and the run not started) when the method refused the
-// rig with failed_precondition, i.e. it needs rig data the shipped sim rig
-// does not have (a calibration table made on another rig): the caller skips
-// with that reason instead of failing.
+// `skip_reason`: set (and the run not started) when the method refused every
+// shipped sim rig with failed_precondition, i.e. it needs rig data none of
+// them has (a calibration table made on another rig): the caller skips with
+// that reason instead of failing. `rig_file`: the rig it ran on.
 struct SimRun {
+  std::string rig_file;
   std::unique_ptr<hw::Rig> rig;
   nlohmann::json rig_json;
   std::optional<host::Session> session;
@@ -115,27 +126,39 @@ struct SimRun {
 // step fails.
 inline bool run_on_sim(const std::string& plugin, const std::string& method, const std::string& scene, SimRun& run,
                        const std::string& params = "{}") {
-  run.rig = sim_rig(scene);
-  if (!run.rig) return false;
   host::PluginHost host;
   host.load_directories({PROCAM_PLUGIN_DIR});
-  run.rig_json = engine::plugin_rig_json(*run.rig, 2);
   nlohmann::json describe;
   if (const auto* p = host.find(plugin))
     for (const auto& m : p->methods)
       if (m.name == method) describe = m.describe;
-  std::vector<std::vector<float>> storage;
-  const std::vector<host::InputImage> inputs = required_inputs(describe, *run.rig, storage);
-  auto session = host.create_session(plugin, method, params, run.rig_json.dump(), inputs);
-  if (!session.ok() && session.status().code() == Code::failed_precondition &&
-      !session.status().message().empty()) {
-    run.skip_reason = session.status().message();
+  std::optional<host::Session> created;
+  std::vector<std::string> refusals;
+  for (const std::string& file : sim_rig_files()) {
+    run.rig = sim_rig(scene, file);
+    if (!run.rig) return false;
+    run.rig_file = file;
+    run.rig_json = engine::plugin_rig_json(*run.rig, 2);
+    std::vector<std::vector<float>> storage;
+    const std::vector<host::InputImage> inputs = required_inputs(describe, *run.rig, storage);
+    auto session = host.create_session(plugin, method, params, run.rig_json.dump(), inputs);
+    if (!session.ok() && session.status().code() == Code::failed_precondition &&
+        !session.status().message().empty()) {
+      refusals.push_back(file + ": " + session.status().message());
+      continue;
+    }
+    if (!session.ok()) {
+      ADD_FAILURE() << "create_session on " << file << ": " << session.status().message();
+      return false;
+    }
+    created.emplace(std::move(*session));
+    break;
+  }
+  if (!created) {
+    for (const auto& r : refusals) run.skip_reason += (run.skip_reason.empty() ? "" : "; ") + r;
     return false;
   }
-  if (!session.ok()) {
-    ADD_FAILURE() << "create_session: " << session.status().message();
-    return false;
-  }
+  auto& session = created;
   run.session.emplace(std::move(*session));
   std::atomic<bool> cancel{false};
   auto outcome = engine::run_scan(*run.rig, *run.session, engine::CaptureOptions{}, nullptr, cancel);

@@ -28,6 +28,15 @@ nlohmann::json plugin_rig_json(hw::Rig& rig, unsigned threads) {
                     {"calibration", cals[i]}});
   }
   j["cameras"] = std::move(cams);
+  // ABI 3 "lights": lights()[k - 1] is settings.light_index k.
+  nlohmann::json lights = nlohmann::json::array();
+  for (const hw::LightInfo& l : rig.lights())
+    lights.push_back({{"name", l.name},
+                      {"camera", l.camera},
+                      {"cam_from_light", l.cam_from_light},
+                      {"field", l.field},
+                      {"irradiance_at_1m", l.irradiance_at_1m}});
+  if (!lights.empty()) j["lights"] = std::move(lights);
   j["threads"] = threads;
   return j;
 }
@@ -40,6 +49,7 @@ Result<nlohmann::json> plugin_rig_json_from_config(const nlohmann::json& cfg, un
     nlohmann::json j;
     j["projector"] = {{"width", p.width}, {"height", p.height}, {"intrinsics", p}};
     nlohmann::json cams = nlohmann::json::array();
+    nlohmann::json lights = nlohmann::json::array();
     field = "cameras";
     const auto& cfg_cams = cfg.at("cameras");
     if (!cfg_cams.is_array() || cfg_cams.empty())
@@ -56,8 +66,22 @@ Result<nlohmann::json> plugin_rig_json_from_config(const nlohmann::json& cfg, un
                       {"height", cal.intrinsics.height},
                       {"bit_depth", bits},
                       {"calibration", cal}});
+      // A light mounted on this camera (sim rig config "light", hw/sim/SCENES.md):
+      // the next light_index, with the sim's defaults for what it leaves out.
+      if (c.contains("light")) {
+        const auto& l = c.at("light");
+        field = "cameras[" + std::to_string(i) + "].light";
+        const Rigid3 pose = l.contains("cam_from_light") ? l.at("cam_from_light").get<Rigid3>() : Rigid3{};
+        const Intrinsics f = l.contains("field") ? l.at("field").get<Intrinsics>() : hw::default_light_field();
+        lights.push_back({{"name", l.value("name", "light " + std::to_string(lights.size() + 1))},
+                          {"camera", i},
+                          {"cam_from_light", pose},
+                          {"field", f},
+                          {"irradiance_at_1m", l.value("irradiance_at_1m", 1.0)}});
+      }
     }
     j["cameras"] = std::move(cams);
+    if (!lights.empty()) j["lights"] = std::move(lights);
     j["threads"] = threads;
     return j;
   } catch (const std::exception& e) {

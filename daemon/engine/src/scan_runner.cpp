@@ -44,6 +44,14 @@ Result<hw::Frame> capture_one(hw::Rig& rig, SyncEngine& sync, const host::Planne
   // a backend that cannot honour a value refuses it (failed_precondition).
   PROCAM_TRY(rig.projector().set_focus_mm(s.projector_focus_mm));
   PROCAM_TRY(rig.projector().set_polarizer_deg(s.projector_polarizer_deg));
+  // ABI 3: the frame's light (0 = the projector; plans of older plugins
+  // arrive with 0). A rig without that light refuses it.
+  if (s.light_index < 0 || static_cast<size_t>(s.light_index) > rig.lights().size())
+    return Error(Code::failed_precondition,
+                 "plan asks for light " + std::to_string(s.light_index) + " but the rig has " +
+                     std::to_string(rig.lights().size()) + " lights besides the projector",
+                 "use a rig with lights (rig config: cameras[i].light)");
+  PROCAM_TRY(rig.select_light(static_cast<size_t>(s.light_index)));
   hw::Camera& cam = rig.camera(static_cast<size_t>(s.camera_index));
   hw::CameraSettings cs;
   cs.exposure_us = s.exposure_us;

@@ -62,7 +62,7 @@ TEST(InputsAbi, TableSizesOfEachVersion) {
   // ABI 1 with session_set_host ends where ABI 2's session_create2 begins.
   EXPECT_EQ(PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE, PROCAM_PLUGIN_VTABLE_V1_SIZE + sizeof(void (*)(void)));
   EXPECT_EQ(sizeof(procam_plugin_vtable), PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE + sizeof(void (*)(void)));
-  EXPECT_EQ(PROCAM_PLUGIN_ABI_VERSION, 2u);
+  EXPECT_EQ(PROCAM_PLUGIN_ABI_VERSION, 3u);
   EXPECT_EQ(PROCAM_PLUGIN_ABI_VERSION_MIN, 1u);
 }
 
@@ -93,6 +93,50 @@ TEST(InputsAbi, Abi1PluginsOfBothTableSizesLoadRunAndRefuseInputs) {
   }
 }
 
+// ABI 3 appended light_index to procam_frame_settings, which changes the
+// stride of a plan's frame array: an ABI 2 plugin (testdata/v2_frames.c, two
+// frames in the ABI 2 layout) must still load and run, its second frame read
+// at the ABI 2 offset, and both frames lit by the projector (light_index 0).
+TEST(LightsAbi, Abi2PluginPlansAreReadWithTheirOwnStride) {
+  EXPECT_EQ(sizeof(procam_frame_settings), sizeof(procam_frame_settings_v2) + 8);
+  EXPECT_EQ(sizeof(procam_pattern_frame), sizeof(procam_pattern_frame_v2) + 8);
+  for (bool probe : {true, false}) {
+    SCOPED_TRACE(probe ? "probed" : "in-process");
+    PluginHost host(LoadOptions{.probe_in_child = probe, .probe_timeout = std::chrono::seconds(5)});
+    Status st = host.load_file(fixture("v2_frames"));
+    ASSERT_TRUE(st.ok()) << st.to_string();
+    ASSERT_EQ(host.plugins().size(), 1u);
+    EXPECT_EQ(host.plugins()[0].abi, 2u);
+    auto s = host.create_session("v2_frames", "null", "{}", "{}");
+    ASSERT_TRUE(s.ok()) << s.status().to_string();
+    auto plan = s->next_plan();
+    ASSERT_TRUE(plan.ok() && plan->has_value()) << plan.status().to_string();
+    const auto& frames = (**plan).frames;
+    ASSERT_EQ(frames.size(), 2u);
+    for (size_t i = 0; i < 2; ++i) {
+      EXPECT_EQ(frames[i].label, "black-" + std::to_string(i));
+      EXPECT_EQ(frames[i].settings.camera_index, static_cast<int32_t>(i));
+      EXPECT_EQ(frames[i].settings.exposure_us, 1000.0 * static_cast<double>(i + 1));
+      EXPECT_EQ(frames[i].settings.light_index, 0);
+      EXPECT_EQ(frames[i].settings.struct_size, sizeof(procam_frame_settings));
+      EXPECT_EQ(frames[i].pattern.width, 4u);
+    }
+    Image frame(4, 3, PixelType::u8);
+    std::memset(frame.data(), 6, frame.size_bytes());
+    ASSERT_TRUE(s->add_frame(0, frame.view()).ok());
+    std::memset(frame.data(), 10, frame.size_bytes());
+    ASSERT_TRUE(s->add_frame(1, frame.view()).ok());
+    ASSERT_TRUE(s->end_round().ok());
+    auto done = s->next_plan();
+    ASSERT_TRUE(done.ok() && !done->has_value());
+    auto outs = s->outputs();
+    ASSERT_TRUE(outs.ok()) << outs.status().to_string();
+    const Output* mean = find(*outs, "frame_mean");
+    ASSERT_NE(mean, nullptr);
+    EXPECT_DOUBLE_EQ(mean->scalar, 8.0);  // (6 + 10) / 2: both frames reached the plugin
+  }
+}
+
 class InputsFixture : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -105,7 +149,7 @@ class InputsFixture : public ::testing::Test {
 TEST_F(InputsFixture, DescribeDeclaresInputsAndTheHostParsesThem) {
   const PluginInfo* p = host_.find("inputs-fixture");
   ASSERT_NE(p, nullptr);
-  EXPECT_EQ(p->abi, 2u);
+  EXPECT_EQ(p->abi, PROCAM_PLUGIN_ABI_VERSION);
   ASSERT_EQ(p->methods.size(), 3u);
   ASSERT_EQ(p->methods[0].inputs.size(), 1u);  // stats
   EXPECT_EQ(p->methods[0].inputs[0].name, "depth_mm");

@@ -301,13 +301,13 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         BadCase{"wrong_abi",
                 Code::abi_mismatch,
-                {"was built for plugin ABI 999, this procamd speaks ABI 1..2",
+                {"was built for plugin ABI 999, this procamd speaks ABI 1..3",
                  "rebuild the plugin against this procamd's plugin_abi.h"}},
         BadCase{"bad_magic", Code::corrupt_data, {"magic 0xdeadbeef", "expected 0x49504350"}},
         BadCase{"missing_create", Code::corrupt_data, {"exports no 'procam_plugin_create'"}},
         BadCase{"no_info", Code::corrupt_data, {"exports no 'procam_plugin_info'"}},
         BadCase{
-            "create_returns_null", Code::abi_mismatch, {"procam_plugin_create(2) returned NULL"}},
+            "create_returns_null", Code::abi_mismatch, {"procam_plugin_create(3) returned NULL"}},
         BadCase{"null_function", Code::plugin_error, {"NULL function pointers (get_outputs)"}},
         BadCase{"crash_on_load",
                 Code::plugin_error,
@@ -446,10 +446,11 @@ TEST_F(PluginHostTest, LoadDirectoriesSortsSkipsAndRecords) {
   std::vector<std::string> names;
   for (const auto& p : host.plugins()) names.push_back(p.name);
   // Loaded in file-name order: bad_outputs.so, bad_plan.so, good.so,
-  // host_services.so, sdk_host_services.so, session_fails.so, v1_host.so, v1_table.so.
+  // host_services.so, sdk_host_services.so, session_fails.so, v1_host.so, v1_table.so,
+  // v2_frames.so.
   EXPECT_EQ(names, (std::vector<std::string>{"bad_outputs", "bad_plan", "null", "host_services",
                                              "sdk_host_services", "session_fails", "v1_host",
-                                             "v1_table"}));
+                                             "v1_table", "v2_frames"}));
   std::vector<std::string> rejected;
   for (const auto& r : host.rejected()) rejected.push_back(fs::path(r.file).filename().string());
   EXPECT_EQ(rejected, (std::vector<std::string>{"bad_magic.so", "crash_in_describe.so",

@@ -29,7 +29,7 @@ struct LoadedPlugin {
   std::string file;
   void* handle = nullptr;
   const procam_plugin_vtable* vtable = nullptr;
-  uint32_t abi = PROCAM_PLUGIN_ABI_VERSION;  // the ABI its table follows (1 or 2)
+  uint32_t abi = PROCAM_PLUGIN_ABI_VERSION;  // the ABI its table and plans follow (1, 2 or 3)
   bool unload = true;  // dlclose on destruction (false in the probe child)
 
   LoadedPlugin() = default;

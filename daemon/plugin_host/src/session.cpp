@@ -135,7 +135,7 @@ Result<std::optional<Plan>> Session::next_plan() {
     }
     if (rc != 1) return plugin_failure("next_plan", rc, err);
 
-    auto checked = detail::plan_from_abi(plan, who, rounds_ + 1);
+    auto checked = detail::plan_from_abi(plan, who, rounds_ + 1, plugin_->abi);
     if (!checked) return checked.status();
     Plan out = std::move(*checked);
     ++rounds_;

@@ -42,7 +42,30 @@ const char* label_problem(const std::string& l) {
 
 }  // namespace
 
-Result<Plan> plan_from_abi(const procam_plan* plan, const std::string& who, uint32_t round) {
+namespace {
+// An ABI 1/2 frame in the current layout: same members, light_index 0.
+procam_pattern_frame frame_from_v2(const procam_pattern_frame_v2& f) {
+  procam_pattern_frame out{};
+  out.label = f.label;
+  out.pattern = f.pattern;
+  const procam_frame_settings_v2& s = f.settings;
+  // A correct v2 struct_size becomes the current one; a wrong one stays
+  // wrong (the check below reports it with the v2 size expected).
+  out.settings.struct_size =
+      s.struct_size == sizeof(procam_frame_settings_v2) ? sizeof(procam_frame_settings) : s.struct_size;
+  out.settings.camera_index = s.camera_index;
+  out.settings.exposure_us = s.exposure_us;
+  out.settings.gain_db = s.gain_db;
+  out.settings.projector_focus_mm = s.projector_focus_mm;
+  out.settings.polarizer_deg = s.polarizer_deg;
+  out.settings.projector_polarizer_deg = s.projector_polarizer_deg;
+  out.settings.light_index = 0;  // the projector: the only light before ABI 3
+  out.settings.reserved3 = 0;
+  return out;
+}
+}  // namespace
+
+Result<Plan> plan_from_abi(const procam_plan* plan, const std::string& who, uint32_t round, uint32_t abi) {
   const std::string bad =
       who + " returned an invalid plan (round " + std::to_string(round) + "): ";
   if (plan == nullptr) return Error(Code::plugin_error, bad + "next_plan returned 1 but no plan");
@@ -60,7 +83,9 @@ Result<Plan> plan_from_abi(const procam_plan* plan, const std::string& who, uint
     return Error(Code::plugin_error, bad + "note is longer than 64 KiB");
   out.frames.reserve(plan->frame_count);
   for (uint32_t i = 0; i < plan->frame_count; ++i) {
-    const procam_pattern_frame& f = plan->frames[i];
+    const bool old = abi < 3;
+    const procam_pattern_frame f =
+        old ? frame_from_v2(reinterpret_cast<const procam_pattern_frame_v2*>(plan->frames)[i]) : plan->frames[i];
     const std::string at = bad + "frame " + std::to_string(i) + " ";
     PlannedFrame pf;
     if (f.label == nullptr) return Error(Code::plugin_error, at + "has a NULL label");
@@ -75,13 +100,15 @@ Result<Plan> plan_from_abi(const procam_plan* plan, const std::string& who, uint
       return Error(Code::plugin_error, at + "pattern has " + std::to_string(f.pattern.channels) +
                                            " channels, projector patterns must have 1");
     const procam_frame_settings& s = f.settings;
+    const size_t want = old ? sizeof(procam_frame_settings_v2) : sizeof(procam_frame_settings);
     if (s.struct_size != sizeof(procam_frame_settings))
-      return Error(Code::plugin_error, at + "settings.struct_size is " +
-                                           std::to_string(s.struct_size) + ", expected " +
-                                           std::to_string(sizeof(procam_frame_settings)) +
+      return Error(Code::plugin_error, at + "settings.struct_size is " + std::to_string(s.struct_size) +
+                                           ", expected " + std::to_string(want) +
                                            " (set it to sizeof(procam_frame_settings))");
     if (s.camera_index < 0)
       return Error(Code::plugin_error, at + "settings.camera_index is negative");
+    if (s.light_index < 0)
+      return Error(Code::plugin_error, at + "settings.light_index is negative (0 = the projector, k = light k)");
     if (!std::isfinite(s.exposure_us) || !std::isfinite(s.gain_db) ||
         !std::isfinite(s.projector_focus_mm))
       return Error(Code::plugin_error,

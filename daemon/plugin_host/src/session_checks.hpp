@@ -21,7 +21,11 @@ namespace procam::host::detail {
 
 // A plan from next_plan (returned 1), for round `round` (1-based, for
 // messages). `who` is "plugin '<name>'". plugin_error naming the problem.
-Result<Plan> plan_from_abi(const procam_plan* plan, const std::string& who, uint32_t round);
+// `abi`: the ABI the plugin was built for; an ABI 1/2 plan's frames are read
+// through procam_pattern_frame_v2 (their stride) and get light_index 0
+// (plugin_abi.h "Version history", 3).
+Result<Plan> plan_from_abi(const procam_plan* plan, const std::string& who, uint32_t round,
+                           uint32_t abi = PROCAM_PLUGIN_ABI_VERSION);
 
 // The outputs from get_outputs.
 Result<std::vector<Output>> outputs_from_abi(const procam_output* outs, uint32_t count,

@@ -464,6 +464,7 @@ void put_settings(Writer& w, const procam_frame_settings& s) {
   w.f64(s.projector_focus_mm);
   w.f64(s.polarizer_deg);
   w.f64(s.projector_polarizer_deg);
+  w.i32(s.light_index);
 }
 
 }  // namespace
@@ -539,6 +540,7 @@ Status decode_plan(const Mapping& blob, AbiPlan& out) {
     s.projector_focus_mm = in.f64("settings");
     s.polarizer_deg = in.f64("settings");
     s.projector_polarizer_deg = in.f64("settings");
+    s.light_index = in.i32("settings");
     f.pattern = in.image("pattern");
   }
   if (!in.ok()) return blob_error("plan", in);

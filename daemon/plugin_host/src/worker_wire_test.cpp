@@ -42,6 +42,7 @@ Plan sample_plan(std::vector<uint8_t>& pixels) {
   f.settings.polarizer_deg = NAN;
   p.frames = {f, f};
   p.frames[1].label = "col bit 0 inverse";
+  p.frames[1].settings.light_index = 3;
   return p;
 }
 
@@ -55,6 +56,8 @@ TEST(WorkerWire, PlanRoundTripsThroughASealedBlob) {
   EXPECT_STREQ(abi.plan.note, "why");
   EXPECT_STREQ(abi.frames[1].label, "col bit 0 inverse");
   EXPECT_EQ(abi.frames[0].settings.exposure_us, 1250);
+  EXPECT_EQ(abi.frames[0].settings.light_index, 0);
+  EXPECT_EQ(abi.frames[1].settings.light_index, 3);
   EXPECT_TRUE(std::isnan(abi.frames[0].settings.polarizer_deg));
   const procam_image& v = abi.frames[1].pattern;
   ASSERT_EQ(v.stride_bytes, 4u);  // packed on the wire

@@ -22,6 +22,13 @@
  *                      struct_size ends before session_create2; that slot holds a
  *                      trap pointer the host must not read (with FX_ABI_VERSION 1u)
  *   FX_HOST_SERVICES   set session_set_host and log/report progress in end_round
+ *   FX_TWO_FRAMES      plan two frames ("black-0" camera 0, exposure 1000 us;
+ *                      "black-1" camera 1, exposure 2000 us); frame_mean is the
+ *                      mean of both. With FX_ABI_VERSION < 3 the frames use the
+ *                      ABI 1/2 layout, so a host reading them with the ABI 3
+ *                      stride would see garbage in frame 1.
+ * A fixture with FX_ABI_VERSION < 3 plans with procam_pattern_frame_v2, the
+ * frame layout of the ABI 1/2 headers (no light_index).
  */
 #include <math.h>
 #include <signal.h>
@@ -62,13 +69,24 @@ FX_EXPORT const procam_plugin_info fx_info __asm__(FX_INFO_SYMBOL) = {
 
 static const uint8_t black[4 * 3]; /* zeros */
 
+#if FX_ABI_VERSION < 3
+typedef procam_pattern_frame_v2 fx_frame; /* the layout of the ABI 1/2 headers */
+#else
+typedef procam_pattern_frame fx_frame;
+#endif
+#ifdef FX_TWO_FRAMES
+#define FX_FRAMES 2
+#else
+#define FX_FRAMES 1
+#endif
+
 struct procam_session {
   const procam_host_services* host; /* FX_HOST_SERVICES: from session_set_host */
   int planned;
   int ended;
   double mean;
   float depth[4];
-  procam_pattern_frame frame;
+  fx_frame frames[FX_FRAMES];
   procam_plan plan;
   procam_output outputs[2];
 };
@@ -119,23 +137,33 @@ static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_erro
     return 0;
   }
   s->planned = 1;
-  s->frame.label = FX_LABEL;
-  s->frame.pattern.width = 4;
-  s->frame.pattern.height = 3;
-  s->frame.pattern.channels = 1;
-  s->frame.pattern.pixel_type = PROCAM_PIXEL_U8;
-  s->frame.pattern.bit_depth = 8;
-  s->frame.pattern.stride_bytes = 4;
-  s->frame.pattern.data = black;
-  s->frame.settings.struct_size = sizeof(procam_frame_settings);
-  s->frame.settings.camera_index = 0;
-  s->frame.settings.exposure_us = 0;
-  s->frame.settings.gain_db = -1;
-  s->frame.settings.projector_focus_mm = 0;
-  s->frame.settings.polarizer_deg = NAN;
-  s->frame.settings.projector_polarizer_deg = NAN;
-  s->plan.frame_count = 1;
-  s->plan.frames = &s->frame;
+  for (int i = 0; i < FX_FRAMES; ++i) {
+    fx_frame* f = &s->frames[i];
+#ifdef FX_TWO_FRAMES
+    f->label = i == 0 ? "black-0" : "black-1";
+    f->settings.exposure_us = 1000.0 * (i + 1);
+#else
+    f->label = FX_LABEL;
+    f->settings.exposure_us = 0;
+#endif
+    f->pattern.width = 4;
+    f->pattern.height = 3;
+    f->pattern.channels = 1;
+    f->pattern.pixel_type = PROCAM_PIXEL_U8;
+    f->pattern.bit_depth = 8;
+    f->pattern.stride_bytes = 4;
+    f->pattern.data = black;
+    f->settings.struct_size = sizeof f->settings;
+    f->settings.camera_index = i;
+    f->settings.gain_db = -1;
+    f->settings.projector_focus_mm = 0;
+    f->settings.polarizer_deg = NAN;
+    f->settings.projector_polarizer_deg = NAN;
+  }
+  s->plan.frame_count = FX_FRAMES;
+  /* An ABI 1/2 host reads this array with the v2 stride (the cast is what an
+   * old plugin's header would have had for its own struct). */
+  s->plan.frames = (const procam_pattern_frame*)(const void*)s->frames;
   s->plan.note = "the only round";
   *plan = &s->plan;
   return 1;
@@ -145,13 +173,13 @@ static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f
                         procam_error* err) {
   uint32_t x, y;
   double sum = 0;
-  if (index != 0 || f == NULL || f->pixel_type != PROCAM_PIXEL_U8 || f->channels != 1) {
-    set_error(err, "expected frame 0, 1-channel U8");
+  if (index >= FX_FRAMES || f == NULL || f->pixel_type != PROCAM_PIXEL_U8 || f->channels != 1) {
+    set_error(err, FX_FRAMES == 1 ? "expected frame 0, 1-channel U8" : "expected frame 0 or 1, 1-channel U8");
     return PROCAM_ERR_BAD_FRAME;
   }
   for (y = 0; y < f->height; ++y)
     for (x = 0; x < f->width; ++x) sum += ((const uint8_t*)f->data)[y * f->stride_bytes + x];
-  s->mean = sum / (double)(f->width * f->height);
+  s->mean += sum / (double)(f->width * f->height) / FX_FRAMES;
   return PROCAM_OK;
 }
 

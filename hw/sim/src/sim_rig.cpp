@@ -2,6 +2,7 @@
 // Sim backend: rig config parsing and the Projector / Camera / Rig adapters.
 #include "procam/hw/sim/sim_rig.hpp"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 #include <filesystem>
@@ -158,7 +159,7 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
       for (size_t i = 0; i < cams->size() && errors.ok(); ++i) {
         FieldReader r((*cams)[i], "cameras[" + std::to_string(i) + "]", errors);
         r.only({"backend", "id", "intrinsics", "cam_from_proj", "bit_depth", "exposure_us", "gain_db",
-                "sensitivity", "full_well_e", "read_noise_e", "shot_noise", "lens", "faults"});
+                "sensitivity", "full_well_e", "read_noise_e", "shot_noise", "lens", "faults", "light"});
         check_backend(r);
         SimCameraConfig cam;
         cam.id = r.string("id", "sim" + std::to_string(i));
@@ -179,6 +180,20 @@ Result<SimRigConfig> parse_sim_rig_config(const nlohmann::json& config, const st
           cam.lens.focus_mm = l.positive("focus_mm", 800.0, "mm");
         }
         cam.faults = parse_faults(r, true);
+        if (const nlohmann::json* lj = r.object("light", false)) {
+          FieldReader l(*lj, r.field("light"), r.errors());
+          l.only({"name", "cam_from_light", "field", "irradiance_at_1m", "comment"});
+          SimLightConfig light;
+          light.name = l.string("name", cam.id + " light");
+          if (l.has("cam_from_light")) light.cam_from_light = parse_rigid(l, "cam_from_light");
+          light.model.name = light.name;
+          light.model.intrinsics = l.has("field") ? parse_intrinsics(l, "field") : hw::default_light_field();
+          light.model.irradiance_at_1m = l.positive("irradiance_at_1m", 1.0, "iu");
+          light.model.black_level = 0;  // the light is on or off: no pattern, no black level
+          light.model.gamma = 1;
+          light.model.aperture_mm = 0;  // a flood: no defocus
+          cam.light = std::move(light);
+        }
         c.cameras.push_back(std::move(cam));
       }
     }
@@ -278,14 +293,22 @@ Result<hw::Frame> SimCamera::capture(std::chrono::milliseconds timeout) {
   }
   const bool late = fault_fires(fc.late_every, fc.seed, k, fault_rng_);
   if (late) ++faults_.late;
-  Renderer& ren = *rig_.renderers_[index_];
-  ren.set_focus_mm(rig_.current_focus_mm());
+  // The projector's pattern, or the selected light alone (select_light).
+  const size_t light = rig_.light_;
+  Renderer* renp = rig_.renderers_[index_].get();
+  if (light > 0) {
+    auto lr = rig_.light_renderer(index_, light);
+    if (!lr.ok()) return lr.status().with_context("sim camera " + info_.id + ": capture");
+    renp = *lr;
+  }
+  Renderer& ren = *renp;
+  if (light == 0) ren.set_focus_mm(rig_.current_focus_mm());
   ren.set_polarization(rig_.projector_.polarizer_deg(), polarizer_deg_);
   // A dynamic medium is rendered at this frame's time: frame id x period.
   if (rig_.scene_.legendre_medium)
     set_legendre_time(ren, static_cast<double>(next_frame_id_) * rig_.scene_.legendre_medium->frame_period_s);
   radiance_.resize(ren.view().pixel_count());
-  Status st = ren.render_radiance(rig_.pattern_, radiance_.data(), true);
+  Status st = ren.render_radiance(light > 0 ? rig_.light_patterns_[light - 1] : rig_.pattern_, radiance_.data(), true);
   if (!st.ok()) return st.with_context("sim camera " + info_.id + ": capture");
   const SensorModel& s = rig_.config_.cameras[index_].sensor;
   hw::Frame f;
@@ -323,6 +346,7 @@ SimRig::SimRig(SimRigConfig config, hw::RigContext ctx)
     cam->gain_db_ = cc.sensor.gain_db;
     cam->polarizer_deg_ = std::nan("");
     cameras_.push_back(std::move(cam));
+    if (cc.light) light_camera_.push_back(i);
   }
 }
 
@@ -335,6 +359,14 @@ Result<std::unique_ptr<SimRig>> SimRig::create(SimRigConfig config, hw::RigConte
     auto p = PreparedPattern::from_pattern(black.view(), rig->config_.projector);
     if (!p.ok()) return p.status();
     rig->pattern_ = std::move(p).value();
+    for (size_t c : rig->light_camera_) {
+      const Intrinsics& f = rig->config_.cameras[c].light->model.intrinsics;
+      Image ones(f.width, f.height, PixelType::f32);
+      std::fill(ones.ptr<float>(), ones.ptr<float>() + size_t{f.width} * f.height, 1.0f);
+      auto lp = PreparedPattern::from_emitted(ones);
+      if (!lp.ok()) return lp.status().with_context("sim rig: light of camera " + std::to_string(c));
+      rig->light_patterns_.push_back(std::move(lp).value());
+    }
     Status st = rig->set_scene(rig->config_.scene);
     if (!st.ok()) return st.with_context("sim rig: loading default scene (rig config field \"scene\")");
     return rig;
@@ -372,6 +404,7 @@ Status SimRig::set_scene(const std::string& name_or_path) {
       renderers.push_back(std::move(ren).value());
     }
     renderers_ = std::move(renderers);
+    light_renderers_.clear();  // rebuilt for the new scene on first use
     scene_ = std::move(scene).value();
     scene_key_ = key;
     PROCAM_LOG(sim, info) << "scene '" << scene_.name << "' loaded from " << scene_.source;
@@ -379,6 +412,48 @@ Status SimRig::set_scene(const std::string& name_or_path) {
   } catch (const std::exception& e) {
     return Error(Code::internal, "sim rig: unexpected error loading scene '" + name_or_path + "': " + e.what());
   }
+}
+
+std::vector<hw::LightInfo> SimRig::lights() const {
+  std::vector<hw::LightInfo> out;
+  for (size_t c : light_camera_) {
+    const SimLightConfig& l = *config_.cameras[c].light;
+    out.push_back({l.name, static_cast<uint32_t>(c), l.cam_from_light, l.model.intrinsics, l.model.irradiance_at_1m});
+  }
+  return out;
+}
+
+Status SimRig::select_light(size_t light_index) {
+  if (light_index > light_camera_.size())
+    return Error(Code::failed_precondition,
+                 "sim rig: no light " + std::to_string(light_index) + " (the rig has " +
+                     std::to_string(light_camera_.size()) + ")",
+                 "give cameras a \"light\" in the rig config (hw/sim/SCENES.md)");
+  light_ = light_index;
+  return Status::Ok();
+}
+
+Result<Renderer*> SimRig::light_renderer(size_t camera, size_t light) {
+  auto key = std::make_pair(camera, light);
+  if (auto it = light_renderers_.find(key); it != light_renderers_.end()) return it->second.get();
+  // The light plays the projector's part: camera i's calibration relative to
+  // it is cam_i_from_light = cam_i_from_proj · proj_from_cam_c · cam_c_from_light
+  // (c the camera it is mounted on); the world stays camera 0's frame.
+  const size_t c = light_camera_[light - 1];
+  const SimLightConfig& l = *config_.cameras[c].light;
+  const Rigid3 proj_from_light = calibrations_[c].cam_from_proj.inverse() * l.cam_from_light;
+  CameraCalibration cal = calibrations_[camera];
+  cal.cam_from_proj = calibrations_[camera].cam_from_proj * proj_from_light;
+  const Rigid3 world_from_light = calibrations_[0].cam_from_proj * proj_from_light;
+  auto ren = make_scene_renderer(scene_, l.model, cal, world_from_light, GlobalOptions{}, config_.threads);
+  if (!ren.ok())
+    return ren.status().with_context("sim rig: camera " + std::to_string(camera) + " lit by light " +
+                                     std::to_string(light));
+  (*ren)->set_camera_lens(config_.cameras[camera].lens);
+  (*ren)->set_focus_mm(0);
+  Renderer* out = ren->get();
+  light_renderers_.emplace(key, std::move(ren).value());
+  return out;
 }
 
 nlohmann::json SimRig::describe() const {
@@ -408,6 +483,14 @@ nlohmann::json SimRig::describe() const {
                       {"focus_mm", p.focus_mm},
                       {"aperture_mm", p.aperture_mm}};
     j["cameras"] = cams;
+    nlohmann::json lights = nlohmann::json::array();
+    for (const hw::LightInfo& l : this->lights())
+      lights.push_back({{"name", l.name},
+                        {"camera", l.camera},
+                        {"cam_from_light", l.cam_from_light},
+                        {"field", l.field},
+                        {"irradiance_at_1m", l.irradiance_at_1m}});
+    if (!lights.empty()) j["lights"] = std::move(lights);
     // Backend state (proto/PROTOCOL.md "Rig description": `state`).
     j["state"] = {{"scene", scene_.name},
                   {"scene_file", scene_.source},

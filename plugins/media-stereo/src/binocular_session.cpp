@@ -36,18 +36,6 @@ const std::vector<ParamSpec>& binocular_params() {
   return specs;
 }
 
-PinholeCamera pinhole_of(const Intrinsics& k, const Rigid3& world_from_cam) {
-  PinholeCamera c;
-  c.width = k.width;
-  c.height = k.height;
-  c.fx = k.fx;
-  c.fy = k.fy;
-  c.cx = k.cx;
-  c.cy = k.cy;
-  c.world_from_cam = world_from_cam;
-  return c;
-}
-
 class BinocularSession final : public sdk::Session {
  public:
   BinocularSession(const sdk::Rig& rig, const sdk::Params& p) : params_(p.json()) {
@@ -101,21 +89,7 @@ class BinocularSession final : public sdk::Session {
                                                                           " (camera " + std::to_string(index) + ")");
         !e.ok())
       return e;
-    // Normalise to full scale (8-, 12-, 16-bit and float frames alike). An
-    // integer frame claiming more significant bits than the rig's camera has
-    // went through a file that does not keep them (a recorded 12-bit frame
-    // reads back from 16-bit PNG as bit_depth 16, values unchanged): the
-    // camera's bit depth wins.
-    double full = sdk::full_scale(frame);
-    if (frame.pixel_type != PROCAM_PIXEL_F32 && rig_bits_[index] < frame.bit_depth && rig_bits_[index] <= 16)
-      full = std::ldexp(1.0, static_cast<int>(rig_bits_[index])) - 1.0;
-    const double inv = 1.0 / full;
-    std::vector<float>& img = images_[index];
-    for (uint32_t y = 0; y < c.height; ++y) {
-      float* row = img.data() + size_t{y} * c.width;
-      sdk::read_row(frame, y, row);
-      for (uint32_t x = 0; x < c.width; ++x) row[x] = static_cast<float>(static_cast<double>(row[x]) * inv);
-    }
+    frame_to_full_scale(frame, rig_bits_[index], images_[index]);
     return sdk::ok();
   }
 
@@ -141,6 +115,7 @@ class BinocularSession final : public sdk::Session {
     s.valid_pixels = valid_;
     s.total_pixels = depth_.size();
     s.report = {
+        {"method", "binocular"},
         {"constraint", media_ ? "media (Eq. 5.22-5.23)" : "clear-air (Eq. 5.20, 5.23)"},
         {"model", "single scattering (Eq. 5.14-5.16), isotropic point light at the projector centre clipped to its "
                   "image, no forward-scattered signal, fronto-parallel window"},
@@ -171,6 +146,36 @@ class BinocularSession final : public sdk::Session {
 };
 
 }  // namespace
+
+PinholeCamera pinhole_of(const Intrinsics& k, const Rigid3& world_from_cam) {
+  PinholeCamera c;
+  c.width = k.width;
+  c.height = k.height;
+  c.fx = k.fx;
+  c.fy = k.fy;
+  c.cx = k.cx;
+  c.cy = k.cy;
+  c.world_from_cam = world_from_cam;
+  return c;
+}
+
+void frame_to_full_scale(const procam_image& frame, uint32_t rig_bits, std::vector<float>& img) {
+  // Normalise to full scale (8-, 12-, 16-bit and float frames alike). An
+  // integer frame claiming more significant bits than the rig's camera has
+  // went through a file that does not keep them (a recorded 12-bit frame
+  // reads back from 16-bit PNG as bit_depth 16, values unchanged): the
+  // camera's bit depth wins.
+  double full = sdk::full_scale(frame);
+  if (frame.pixel_type != PROCAM_PIXEL_F32 && rig_bits < frame.bit_depth && rig_bits <= 16)
+    full = std::ldexp(1.0, static_cast<int>(rig_bits)) - 1.0;
+  const double inv = 1.0 / full;
+  img.resize(size_t{frame.width} * frame.height);
+  for (uint32_t y = 0; y < frame.height; ++y) {
+    float* row = img.data() + size_t{y} * frame.width;
+    sdk::read_row(frame, y, row);
+    for (uint32_t x = 0; x < frame.width; ++x) row[x] = static_cast<float>(static_cast<double>(row[x]) * inv);
+  }
+}
 
 sdk::MethodDescription binocular_description() {
   sdk::MethodDescription d;

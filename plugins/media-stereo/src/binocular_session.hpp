@@ -27,10 +27,21 @@
 #pragma once
 
 #include <memory>
+#include <vector>
 
 #include "procam/plugin_sdk.hpp"
+#include "synthetic.hpp"
 
 namespace procam::media_stereo {
+
+// A rig camera as a PinholeCamera placed by world_from_cam (mm).
+PinholeCamera pinhole_of(const Intrinsics& k, const Rigid3& world_from_cam);
+
+// `frame` (U8, U16 or F32, 1 channel, already size-checked) as full-scale
+// fractions into `img` (resized to the frame): integer frames divided by
+// 2^bits − 1, where bits is the frame's bit_depth or, when the frame claims
+// more, the rig camera's `rig_bits` (a 12-bit frame read back from 16-bit PNG).
+void frame_to_full_scale(const procam_image& frame, uint32_t rig_bits, std::vector<float>& img);
 
 sdk::MethodDescription binocular_description();
 sdk::Error create_binocular_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out);

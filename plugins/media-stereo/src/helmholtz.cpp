@@ -75,9 +75,9 @@ HelmholtzResult helmholtz_stereo(const HelmholtzInput& in, const DepthSearch& se
       const double reach = (search.z_max_mm * 2.0) + norm(pr.cam_a.centre() - ref.centre()) +
                            norm(pr.cam_b.centre() - ref.centre());
       tables[j].a = backscatter_table(in.medium, in.light_intensity, pr.cam_a.centre(), unit_rays(pr.cam_a),
-                                      pr.cam_b.centre(), reach, 2.0);
+                                      pr.cam_b.centre(), reach, 2.0, pr.cone_b ? &*pr.cone_b : nullptr);
       tables[j].b = backscatter_table(in.medium, in.light_intensity, pr.cam_b.centre(), unit_rays(pr.cam_b),
-                                      pr.cam_a.centre(), reach, 2.0);
+                                      pr.cam_a.centre(), reach, 2.0, pr.cone_a ? &*pr.cone_a : nullptr);
     }
   }
   // Cost volume: s3/s2 of W(z) per pixel and hypothesis (Eq. 5.34).

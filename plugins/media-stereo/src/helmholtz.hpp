@@ -21,6 +21,7 @@
 // Threads: single-threaded, pure.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "scatter_model.hpp"
@@ -33,6 +34,10 @@ struct ReciprocalPair {
   PinholeCamera cam_a, cam_b;
   std::vector<float> image_a;  // camera at A, light at B
   std::vector<float> image_b;  // camera at B, light at A
+  // Emission cones of the lights at B (lighting image_a) and at A (image_b):
+  // the backscatter of (3) is integrated only inside them. Empty: isotropic
+  // point lights over the whole sphere.
+  std::optional<LightCone> cone_b, cone_a;
 };
 
 struct HelmholtzInput {

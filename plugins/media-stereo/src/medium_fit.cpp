@@ -12,6 +12,7 @@ namespace {
 struct Samples {
   std::vector<Vec3> dir;
   std::vector<double> t_end, value;
+  const LightCone* cone = nullptr;
 };
 
 // Residual of the best β for (σ, g); writes β.
@@ -20,7 +21,7 @@ double residual(const Samples& s, const Vec3& cam, const Vec3& light, double i0,
   const MediumParams unit{sigma, 1.0, g};
   double ff = 0, fi = 0, ii = 0;
   for (size_t k = 0; k < s.dir.size(); ++k) {
-    const double f = backscatter(unit, i0, cam, s.dir[k], light, s.t_end[k], 16.0);
+    const double f = backscatter(unit, i0, cam, s.dir[k], light, s.t_end[k], 16.0, s.cone);
     ff += f * f;
     fi += f * s.value[k];
     ii += s.value[k] * s.value[k];
@@ -32,9 +33,11 @@ double residual(const Samples& s, const Vec3& cam, const Vec3& light, double i0,
 }  // namespace
 
 MediumFit fit_medium(const PinholeCamera& cam, const std::vector<float>& image, const Vec3& light,
-                     double light_intensity, double wall_z_mm, uint32_t stride, double saturation) {
+                     double light_intensity, double wall_z_mm, uint32_t stride, double saturation,
+                     const LightCone* cone) {
   MediumFit out;
   Samples s;
+  s.cone = cone;
   stride = std::max(stride, 1u);
   for (uint32_t y = stride / 2; y < cam.height; y += stride)
     for (uint32_t x = stride / 2; x < cam.width; x += stride) {

@@ -23,8 +23,10 @@ struct MediumFit {
 };
 
 // `stride`: use every stride-th pixel in x and y. Pixels NaN or >= saturation
-// are skipped.
+// are skipped. `cone`: the light's emission cone (B integrated only inside
+// it, as scatter_model.hpp's backscatter()); nullptr: isotropic everywhere.
 MediumFit fit_medium(const PinholeCamera& cam, const std::vector<float>& image, const Vec3& light,
-                     double light_intensity, double wall_z_mm, uint32_t stride = 8, double saturation = 1e30);
+                     double light_intensity, double wall_z_mm, uint32_t stride = 8, double saturation = 1e30,
+                     const LightCone* cone = nullptr);
 
 }  // namespace procam::media_stereo

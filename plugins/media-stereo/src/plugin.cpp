@@ -1,13 +1,14 @@
 // SPDX-License-Identifier: MIT
 // ABI glue of the media-stereo plugin. `binocular` runs on a rig with two
-// calibrated cameras and a projector as the light (binocular_session.hpp).
-// `helmholtz` stays library-level (helmholtz.hpp): it needs a light at each
-// camera's centre, which a rig with one projector cannot express, so session
-// creation refuses it with FAILED_PRECONDITION and says why (the conformance
-// suite skips a method that refuses this way; see docs/media-stereo.md).
+// calibrated cameras and a projector as the light (binocular_session.hpp);
+// `helmholtz` on a rig of camera+light units (rig "lights", plugin ABI 3;
+// helmholtz_session.hpp), which also holds `medium` (the §5.4.1 image of
+// the medium alone that helmholtz takes as an input). They refuse a rig that lacks what they need with
+// FAILED_PRECONDITION saying what to use (docs/media-stereo.md).
 #include <nlohmann/json.hpp>
 
 #include "binocular_session.hpp"
+#include "helmholtz_session.hpp"
 #include "procam/plugin_sdk.hpp"
 
 namespace {
@@ -15,24 +16,17 @@ namespace {
 std::string describe() {
   nlohmann::json methods = nlohmann::json::array();
   methods.push_back(procam::media_stereo::binocular_description().to_json());
-  methods.push_back({{"name", "helmholtz"},
-                     {"description",
-                      "Helmholtz stereo in a scattering medium (thesis Eq. 5.32-5.34); library-level only: needs "
-                      ">= 3 reciprocal camera/light pairs (a light at each camera centre), which a one-projector rig "
-                      "cannot express"},
-                     {"params", nlohmann::json::array()},
-                     {"patterns", nullptr}});
+  methods.push_back(procam::media_stereo::helmholtz_description().to_json());
+  methods.push_back(procam::media_stereo::medium_description().to_json());
   return methods.dump();
 }
 
 procam::sdk::Error create(const procam::sdk::CreateArgs& args, std::unique_ptr<procam::sdk::Session>& out) {
   if (args.method == "binocular") return procam::media_stereo::create_binocular_session(args, out);
-  return procam::sdk::failed_precondition(
-      "media-stereo 'helmholtz' is library-level in this version: it needs reciprocal pairs, i.e. two "
-      "camera+light units with coincident centres swapped per pair, and the rig holds one projector; use the "
-      "procam_media_stereo_core library (see docs/media-stereo.md)");
+  if (args.method == "medium") return procam::media_stereo::create_medium_session(args, out);
+  return procam::media_stereo::create_helmholtz_session(args, out);
 }
 
 }  // namespace
 
-PROCAM_DEFINE_PLUGIN("media-stereo", "0.2.0", "binocular,helmholtz", describe, create);
+PROCAM_DEFINE_PLUGIN("media-stereo", "0.3.0", "binocular,helmholtz,medium", describe, create);

@@ -62,6 +62,34 @@ struct GroundTruth {
   nlohmann::json medium;
 };
 
+// A light of the rig other than the projector (ABI 3 frame settings
+// `light_index`; proto/PROTOCOL.md "Rig description" "lights"): a small
+// source mounted on camera `camera`, e.g. a ring light around its lens or a
+// source behind a beam splitter (cam_from_light identity = co-located with
+// the camera's centre). It floods the scene inside its field (`field`: a
+// pinhole image whose extent bounds the lit cone, pixel edges at -0.5 and
+// w - 0.5) isotropically with `irradiance_at_1m` (the projector's unit: a
+// full-white projector frame of irradiance_at_1m 1 gives the same light at
+// 1 m). Lengths mm.
+struct LightInfo {
+  std::string name;
+  uint32_t camera = 0;        // the camera it is mounted on
+  Rigid3 cam_from_light;      // x_cam = R x_light + t (mm)
+  Intrinsics field;           // emission cone
+  double irradiance_at_1m = 1.0;
+};
+
+// The field of a light whose config gives none: a 256 x 256 pinhole image of
+// f = 64 px centred on its axis, i.e. +-63.4 deg about it.
+inline Intrinsics default_light_field() {
+  Intrinsics k;
+  k.width = 256;
+  k.height = 256;
+  k.fx = k.fy = 64.0;
+  k.cx = k.cy = 127.5;
+  return k;
+}
+
 class Rig {
 public:
   virtual ~Rig() = default;
@@ -112,6 +140,20 @@ public:
   // Store measured synchronization values (e.g. calibrated latencies); they
   // override the config in sync_settings() and show in describe()["state"].
   virtual void set_sync_state(const nlohmann::json& state) { (void)state; }
+
+  // --- additive (issue 13, plugin ABI 3); defaults: a rig with no lights ---
+  // The rig's lights besides the projector; lights()[k - 1] is light_index k.
+  virtual std::vector<LightInfo> lights() const { return {}; }
+  // The light of the following captures: 0 = the projector showing its
+  // pattern (the default); k in 1..lights().size() = light k alone, the
+  // projector dark (its pattern is ignored). failed_precondition for a light
+  // the rig does not have.
+  virtual Status select_light(size_t light_index) {
+    if (light_index == 0) return Status::Ok();
+    return Error(Code::failed_precondition,
+                 "the plan asks for light " + std::to_string(light_index) + " but this rig has no lights",
+                 "use a rig with lights co-located with its cameras (e.g. configs/rigs/sim-helmholtz.json)");
+  }
 };
 
 struct RigContext {

@@ -134,6 +134,17 @@
  *     PROCAM_PLUGIN_VTABLE_V1_HOST_SIZE); it never passes inputs to them (a
  *     scan that names inputs for an ABI 1 plugin fails with a message saying
  *     so). An ABI 1 host rejects version-2 plugins at the ELF check.
+ *   3 (procam 0.4): lights. procam_frame_settings gains `light_index` (and
+ *     `reserved3`) at its end, so procam_pattern_frame grows by 8 bytes; the
+ *     rig description gains "lights" (proto/PROTOCOL.md "Rig description").
+ *     A frame with light_index k >= 1 is lit by the rig's light k alone (a
+ *     light co-located with a camera, e.g. for Helmholtz reciprocal pairs).
+ *     The vtable is unchanged (struct_size == sizeof(procam_plugin_vtable)).
+ *     A version-3 host still loads ABI 1 and 2 plugins: it reads their plans
+ *     through procam_pattern_frame_v2 (the old stride, settings.struct_size
+ *     == sizeof(procam_frame_settings_v2)) and gives every frame
+ *     light_index 0, so they run unchanged. An ABI 2 host rejects version-3
+ *     plugins at the ELF check.
  */
 #ifndef PROCAM_PLUGIN_ABI_H
 #define PROCAM_PLUGIN_ABI_H
@@ -147,7 +158,7 @@
 extern "C" {
 #endif
 
-#define PROCAM_PLUGIN_ABI_VERSION 2u
+#define PROCAM_PLUGIN_ABI_VERSION 3u
 /* The oldest ABI a host built with this header still loads (see "Version history"). */
 #define PROCAM_PLUGIN_ABI_VERSION_MIN 1u
 #define PROCAM_PLUGIN_MAGIC 0x49504350u /* "PCPI" little-endian */
@@ -202,7 +213,9 @@ typedef struct procam_plugin_info {
 } procam_plugin_info;
 
 /* Per-frame capture settings. Fields set to their "unset" value keep the
- * rig's configured value. Extended by appending fields (struct_size tells). */
+ * rig's configured value. Extended by appending fields (struct_size tells;
+ * since it is the last member of procam_pattern_frame, an append changes the
+ * frame array's stride, so it comes with an ABI version: see "Version history"). */
 typedef struct procam_frame_settings {
   uint32_t struct_size;
   int32_t camera_index;       /* which camera of the rig; 0 = first. */
@@ -211,7 +224,32 @@ typedef struct procam_frame_settings {
   double projector_focus_mm;  /* projector focal-plane distance; <= 0: rig default */
   double polarizer_deg;       /* camera analyser angle; NaN: none/unchanged */
   double projector_polarizer_deg; /* projector polariser angle; NaN: none/unchanged */
+  /* ---- appended in ABI 3 (procam 0.4); an ABI 1/2 struct ends above ---- */
+  int32_t light_index;        /* which light the frame is lit by: 0 = the projector
+                                 (showing `pattern`, as every ABI 1/2 frame);
+                                 k >= 1 = light k of the rig description's
+                                 "lights" (1-based), the projector dark and
+                                 `pattern` ignored (still projector-sized). */
+  int32_t reserved3;          /* 0 */
 } procam_frame_settings;
+
+/* ABI 1/2 frame settings and frame, as those headers declared them. A host
+ * reads the plans of ABI 1/2 plugins through these (their frames array has
+ * this stride) and treats every such frame as light_index 0. */
+typedef struct procam_frame_settings_v2 {
+  uint32_t struct_size;
+  int32_t camera_index;
+  double exposure_us;
+  double gain_db;
+  double projector_focus_mm;
+  double polarizer_deg;
+  double projector_polarizer_deg;
+} procam_frame_settings_v2;
+typedef struct procam_pattern_frame_v2 {
+  const char* label;
+  procam_image pattern;
+  procam_frame_settings_v2 settings;
+} procam_pattern_frame_v2;
 
 /* One frame to capture: show `pattern` on the projector, capture with `settings`. */
 typedef struct procam_pattern_frame {

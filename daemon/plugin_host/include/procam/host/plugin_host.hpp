@@ -76,7 +76,7 @@ struct InputImage {
 struct PluginInfo {
   std::string name;                 // procam_plugin_info.name, matches [a-z0-9_-]{1,63}
   std::string version;              // procam_plugin_info.version
-  uint32_t abi = PROCAM_PLUGIN_ABI_VERSION;  // plugin ABI it was built for (1 or 2)
+  uint32_t abi = PROCAM_PLUGIN_ABI_VERSION;  // plugin ABI it was built for (1, 2 or 3)
   std::string file;                 // path it was loaded from
   std::vector<MethodInfo> methods;  // in procam_plugin_info.methods order
 };

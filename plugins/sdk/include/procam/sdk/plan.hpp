@@ -26,7 +26,8 @@
 namespace procam::sdk {
 
 // Settings with every field "unset" (keep the rig's configured value):
-// exposure_us 0, gain_db -1, projector_focus_mm 0, polarisers NaN, camera 0.
+// exposure_us 0, gain_db -1, projector_focus_mm 0, polarisers NaN, camera 0,
+// light 0 (the projector).
 inline procam_frame_settings default_frame_settings() noexcept {
   procam_frame_settings s{};
   s.struct_size = sizeof(procam_frame_settings);
@@ -36,6 +37,8 @@ inline procam_frame_settings default_frame_settings() noexcept {
   s.projector_focus_mm = 0.0;
   s.polarizer_deg = std::numeric_limits<double>::quiet_NaN();
   s.projector_polarizer_deg = std::numeric_limits<double>::quiet_NaN();
+  s.light_index = 0;
+  s.reserved3 = 0;
   return s;
 }
 

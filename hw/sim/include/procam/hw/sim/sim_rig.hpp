@@ -15,7 +15,9 @@
 
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -48,8 +50,21 @@ struct FaultCounters {
   uint64_t events = 0, dropped = 0, late = 0, timeouts = 0;
 };
 
+// A light mounted on a camera (rig config cameras[i].light; hw::LightInfo):
+// rendered as a flood from `model` (its field as intrinsics, irradiance_at_1m,
+// emitted light 1 everywhere, no defocus) placed at cam_from_light, through
+// the same renderer as the projector (direct light, shadows, the medium's
+// attenuation and single scattering with the medium taps of this (camera,
+// light) pair).
+struct SimLightConfig {
+  std::string name;
+  Rigid3 cam_from_light;           // identity: co-located with the camera's centre
+  ProjectorModel model;
+};
+
 struct SimCameraConfig {
   std::string id;                  // "sim0", "sim1", ... unless given
+  std::optional<SimLightConfig> light;  // a light mounted on this camera
   CameraCalibration calibration;   // intrinsics + cam_from_proj (true = reported)
   SensorModel sensor;
   CameraLens lens;                 // camera defocus; aperture 0 (default) = pinhole
@@ -159,6 +174,12 @@ public:
   // "values": every scene of the scene folders with its description}}.
   nlohmann::json scan_options() const override;
   Result<hw::GroundTruth> ground_truth(size_t index) override;
+  // The cameras' lights in camera order (light_index k = lights()[k − 1]).
+  std::vector<hw::LightInfo> lights() const override;
+  // 0: the projector; k: light k alone for the following captures (the
+  // projector's pattern is not rendered). failed_precondition beyond lights().
+  Status select_light(size_t light_index) override;
+  size_t selected_light() const { return light_; }
 
   // Load and prepare a scene (no-op if the same file is already loaded).
   Status set_scene(const std::string& name_or_path);
@@ -184,6 +205,13 @@ private:
   std::vector<std::unique_ptr<Renderer>> renderers_;
   SimProjector projector_;
   std::vector<std::unique_ptr<SimCamera>> cameras_;
+  // Lights (SimCameraConfig::light): the camera each is mounted on, in order.
+  std::vector<size_t> light_camera_;
+  std::vector<PreparedPattern> light_patterns_;  // per light: emitted 1 over its field
+  size_t light_ = 0;                             // selected light; 0 = the projector
+  // Renderers per (camera, light) pair, built on first use for the scene.
+  std::map<std::pair<size_t, size_t>, std::unique_ptr<Renderer>> light_renderers_;
+  Result<Renderer*> light_renderer(size_t camera, size_t light);
   // Shared projector state.
   PreparedPattern pattern_;
   PreparedPattern spare_pattern_;  // the next pattern is prepared here (storage reuse)

@@ -1,0 +1,302 @@
+// SPDX-License-Identifier: MIT
+// `helmholtz` end to end through the rig (issue 13 item 4, thesis §5.4.2,
+// Fig. 5.17): configs/rigs/sim-helmholtz.json (five camera+light units, the
+// lights co-located with the cameras, plugin ABI 3 light_index) and the
+// media-stereo-rig-* scenes (whole-scene medium σ 0.0025, β 0.0022 /mm,
+// g 0.5). The plugin is loaded by the plugin host in process and driven by
+// engine::run_scan, which lights each frame with the light its settings name;
+// the sim renders each (camera, light) pair with that pair's medium taps.
+// Normals are compared with the scenes' analytic normals (planes: their
+// normal; half-sphere: (P − centre)/r at the sim's truth point of camera 0),
+// the media constraint against the medium-free one (Zickler) on the same
+// frames (the recorded scan decoded again by engine::run_offline).
+//
+// The medium and the lights' photometric scale are params, as for
+// `binocular` (I0 = irradiance_at_1m·10⁶ · exposure · sensitivity / full_well,
+// the sim's sensor model at 0 dB).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "procam/engine/rig_json.hpp"
+#include "procam/engine/scan_runner.hpp"
+#include "procam/host/plugin_host.hpp"
+#include "procam/hw/rig.hpp"
+#include "test_rig.hpp"
+
+namespace procam::media_stereo {
+namespace {
+
+const std::string kConfigs = std::string(PROCAM_SOURCE_DIR) + "/configs";
+constexpr double kSigma = 0.0025, kBeta = 0.0022, kG = 0.5;  // the media-stereo-rig-* scenes
+constexpr double kZMin = 380, kZMax = 700;
+
+nlohmann::json rig_config() {
+  std::ifstream f(kConfigs + "/rigs/sim-helmholtz.json");
+  return nlohmann::json::parse(f);
+}
+
+double light_fullscale(const nlohmann::json& cfg) {
+  const nlohmann::json& c = cfg["cameras"][0];
+  return c["light"]["irradiance_at_1m"].get<double>() * 1e6 * c["exposure_us"].get<double>() *
+         c["sensitivity"].get<double>() / c["full_well_e"].get<double>();
+}
+
+nlohmann::json params(const nlohmann::json& cfg, const std::string& constraint) {
+  return {{"constraint", constraint},
+          {"sigma_per_mm", kSigma},
+          {"beta_per_mm", kBeta},
+          {"g", kG},
+          {"light_intensity", light_fullscale(cfg)},
+          {"z_min_mm", kZMin},
+          {"z_max_mm", kZMax},
+          {"z_step_mm", 2.0},
+          {"window", 5}};
+}
+
+std::unique_ptr<hw::Rig> open_rig(const std::string& scene) {
+  auto rig = hw::create_rig(rig_config(), {kConfigs + "/rigs", {kConfigs + "/scenes"}});
+  EXPECT_TRUE(rig.ok()) << rig.status().to_string();
+  if (!rig.ok()) return nullptr;
+  const Status st = (*rig)->apply_scan_options({{"scene", scene}});
+  EXPECT_TRUE(st.ok()) << st.to_string();
+  return std::move(*rig);
+}
+
+struct ScanOut {
+  std::vector<float> depth, integrated, medium_image;
+  std::vector<Vec3> normal;
+  nlohmann::json report;
+  std::map<std::string, double> scalars;
+  size_t patterns = 0;
+  uint32_t width = 0, height = 0;
+};
+
+// One scan of media-stereo `method` through the plugin host (in process) and
+// engine::run_scan, or with `offline` engine::run_offline on `record_dir`.
+ScanOut host_scan(hw::Rig& rig, const nlohmann::json& p, const std::string& record_dir, bool offline,
+                  const std::string& method = "helmholtz", const std::vector<host::InputImage>& inputs = {}) {
+  ScanOut r;
+  host::PluginHost host(host::LoadOptions{.probe_in_child = false});
+  const Status loaded = host.load_file(std::string(PROCAM_PLUGIN_DIR) + "/procam-media-stereo.so");
+  EXPECT_TRUE(loaded.ok()) << loaded.to_string();
+  host::IsolationOptions iso;
+  iso.mode = host::Isolation::in_process;
+  host.set_isolation(iso);
+  auto session =
+      host.create_session("media-stereo", method, p.dump(), engine::plugin_rig_json(rig, 2).dump(), inputs);
+  EXPECT_TRUE(session.ok()) << session.status().to_string();
+  if (!session.ok()) return r;
+  std::atomic<bool> cancel{false};
+  engine::CaptureOptions co;
+  co.record_dir = offline ? "" : record_dir;
+  auto outcome = offline ? engine::run_offline(*session, record_dir, nullptr)
+                         : engine::run_scan(rig, *session, co, nullptr, cancel);
+  EXPECT_TRUE(outcome.ok()) << outcome.status().to_string();
+  if (!outcome.ok()) return r;
+  r.patterns = outcome->patterns;
+  auto outs = session->outputs();
+  EXPECT_TRUE(outs.ok()) << outs.status().to_string();
+  if (!outs.ok()) return r;
+  std::vector<float> comp[3];
+  for (const host::Output& o : *outs) {
+    const auto* d = static_cast<const float*>(o.image.data);
+    const size_t n = size_t{o.image.width} * o.image.height;
+    if (o.name == "depth_mm") r.depth.assign(d, d + n);
+    if (o.name == "depth_integrated_mm") r.integrated.assign(d, d + n);
+    if (o.name == "normal_x") comp[0].assign(d, d + n);
+    if (o.name == "normal_y") comp[1].assign(d, d + n);
+    if (o.name == "normal_z") comp[2].assign(d, d + n);
+    if (o.name == "medium_image") {
+      r.medium_image.assign(d, d + n);
+      r.width = o.image.width;
+      r.height = o.image.height;
+    }
+    if (o.kind == PROCAM_OUTPUT_SCALAR) r.scalars[o.name] = o.scalar;
+    if (o.name == "report") r.report = nlohmann::json::parse(o.json);
+  }
+  EXPECT_EQ(comp[0].size(), r.depth.size());
+  EXPECT_EQ(comp[2].size(), r.depth.size());
+  for (size_t i = 0; i < comp[0].size() && i < comp[1].size() && i < comp[2].size(); ++i)
+    r.normal.push_back({comp[0][i], comp[1][i], comp[2][i]});
+  return r;
+}
+
+// The scene's analytic unit normal at camera 0's pixel i (facing camera 0),
+// or NaN where no surface.
+std::vector<Vec3> truth_normals(const std::string& scene, const hw::GroundTruth& t, const Intrinsics& k) {
+  const double nan = std::nan("");
+  std::vector<Vec3> n(size_t{k.width} * k.height, Vec3{nan, nan, nan});
+  const float* depth = t.depth_mm.ptr<float>();
+  const uint8_t* obj = t.object.empty() ? nullptr : t.object.ptr<uint8_t>();
+  for (uint32_t y = 0; y < k.height; ++y)
+    for (uint32_t x = 0; x < k.width; ++x) {
+      const size_t i = size_t{y} * k.width + x;
+      const double z = depth[i];
+      if (!std::isfinite(z)) continue;
+      if (scene.starts_with("media-stereo-rig-plane")) {
+        n[i] = {0, 0, -1};
+      } else if (scene.starts_with("media-stereo-rig-inclined")) {
+        n[i] = {0.5, 0, -std::sqrt(3.0) / 2};
+      } else {  // half-sphere (object 1) at (75, 0, 580) r 100 on the board z 580 (object 2)
+        if (obj != nullptr && obj[i] == 1) {
+          const Vec3 p{(x - k.cx) / k.fx * z, (y - k.cy) / k.fy * z, z};
+          n[i] = (p - Vec3{75, 0, 580}) / 100.0;
+          n[i] = n[i] / norm(n[i]);
+        } else {
+          n[i] = {0, 0, -1};
+        }
+      }
+    }
+  return n;
+}
+
+struct Stats {
+  double median_deg = 0, p90_deg = 0, depth_rms_mm = 0, integrated_rms_mm = 0, valid = 0;
+};
+
+Stats stats(const ScanOut& s, const std::vector<Vec3>& truth_n, const hw::GroundTruth& t, uint32_t w, uint32_t h) {
+  std::vector<double> ang, dz, dzi;
+  size_t total = 0;
+  const float* depth = t.depth_mm.ptr<float>();
+  for (uint32_t y = 3; y + 3 < h; ++y)
+    for (uint32_t x = 3; x + 3 < w; ++x) {
+      const size_t i = size_t{y} * w + x;
+      if (!std::isfinite(truth_n[i].x)) continue;
+      ++total;
+      if (!std::isfinite(s.depth[i])) continue;
+      ang.push_back(std::acos(std::clamp(dot(s.normal[i], truth_n[i]), -1.0, 1.0)) * 180 / std::numbers::pi);
+      dz.push_back(static_cast<double>(s.depth[i]) - static_cast<double>(depth[i]));
+      if (std::isfinite(s.integrated[i])) dzi.push_back(static_cast<double>(s.integrated[i]) - static_cast<double>(depth[i]));
+    }
+  return {test::percentile(ang, 0.5), test::percentile(ang, 0.9), test::rms(dz), test::rms(dzi),
+          total ? static_cast<double>(ang.size()) / static_cast<double>(total) : 0.0};
+}
+
+struct Claim {
+  const char* scene;
+  double max_median_deg;  // media constraint, normal angle
+  double min_factor;      // Zickler median / media median
+};
+
+class HelmholtzThroughTheRig : public ::testing::TestWithParam<Claim> {};
+
+TEST_P(HelmholtzThroughTheRig, NormalsAgainstTruthAndZickler) {
+  const Claim c = GetParam();
+  const nlohmann::json cfg = rig_config();
+  auto rig = open_rig(c.scene);
+  ASSERT_TRUE(rig);
+  auto truth = rig->ground_truth(0);
+  ASSERT_TRUE(truth.ok()) << truth.status().to_string();
+  const Intrinsics k = rig->camera_calibrations()[0].intrinsics;
+  const auto tn = truth_normals(c.scene, *truth, k);
+  const std::string rec = (std::filesystem::temp_directory_path() /
+                           ("procam_helmholtz_" + std::to_string(::getpid()) + "_" + c.scene)).string();
+  std::filesystem::create_directories(rec);
+  const ScanOut media = host_scan(*rig, params(cfg, "media"), rec, false);
+  const ScanOut zickler = host_scan(*rig, params(cfg, "clear-air"), rec, true);
+  std::filesystem::remove_all(rec);
+  ASSERT_EQ(media.patterns, 8u);  // 4 pairs x 2 frames
+  ASSERT_EQ(media.depth.size(), tn.size());
+  ASSERT_EQ(zickler.depth.size(), tn.size());
+  const Stats m = stats(media, tn, *truth, k.width, k.height), z = stats(zickler, tn, *truth, k.width, k.height);
+  std::printf("%s: media normal median %.2f p90 %.2f deg, depth RMS %.1f mm (integrated %.1f), valid %.3f | "
+              "zickler median %.2f p90 %.2f deg, depth RMS %.1f mm, valid %.3f | factor %.1f\n",
+              c.scene, m.median_deg, m.p90_deg, m.depth_rms_mm, m.integrated_rms_mm, m.valid, z.median_deg,
+              z.p90_deg, z.depth_rms_mm, z.valid, z.median_deg / m.median_deg);
+  EXPECT_LT(m.median_deg, c.max_median_deg);
+  EXPECT_GE(m.valid, 0.9);
+  EXPECT_GE(z.median_deg, c.min_factor * m.median_deg);
+  EXPECT_EQ(media.report["medium"]["source"], "params");
+}
+
+INSTANTIATE_TEST_SUITE_P(Objects, HelmholtzThroughTheRig,
+                         // Measured (2026-11-23, rig seed 13): media median 14.3 / 15.0 / 22.1 deg,
+                         // Zickler 43.4 / 58.0 / 41.3 deg (factor 3.0 / 3.9 / 1.9). Far from the
+                         // library's 1.1-3.1 deg: the rank-minimum depth is ~80 mm off here (four
+                         // pairs that all share camera 0, 96 x 72 px; cause not isolated, see
+                         // docs/media-stereo.md), and the normals are taken at that depth. The
+                         // bounds leave ~25 % margin over the measured values.
+                         ::testing::Values(Claim{"media-stereo-rig-plane-matte", 18.0, 2.5},
+                                           Claim{"media-stereo-rig-inclined-matte", 19.0, 3.0},
+                                           Claim{"media-stereo-rig-hemisphere-matte", 27.0, 1.5}),
+                         [](const auto& param_info) {
+                           std::string n = param_info.param.scene;
+                           std::replace(n.begin(), n.end(), '-', '_');
+                           return n;
+                         });
+
+// §5.4.1 inside the scan: a `medium` scan of the medium alone (scene
+// media-stereo-rig-medium-only: the objects removed, a black wall at z 2000)
+// fits σ, β, g (measured: σ 0.00235, β 0.00237, g 0.545 against 0.0025,
+// 0.0022, 0.5); its medium_image, passed to a `helmholtz` scan of the matte
+// plane as the input of that name, replaces the params (given here
+// deliberately wrong: clear water), and the normals are as good as with the
+// true medium.
+TEST(MediumThroughTheRig, FitFromOneImageOfTheMediumAloneFeedsHelmholtz) {
+  const nlohmann::json cfg = rig_config();
+  auto medium_rig = open_rig("media-stereo-rig-medium-only");
+  ASSERT_TRUE(medium_rig);
+  const nlohmann::json mp = {{"light_intensity", light_fullscale(cfg)}, {"medium_wall_mm", 2000.0}};
+  const ScanOut med = host_scan(*medium_rig, mp, "", false, "medium");
+  ASSERT_EQ(med.patterns, 1u);
+  ASSERT_EQ(med.medium_image.size(), size_t{96} * 72);
+  ASSERT_EQ(med.scalars.count("medium_extinction_per_mm"), 1u) << med.report.dump();
+  const double sigma = med.scalars.at("medium_extinction_per_mm"), beta = med.scalars.at("medium_scattering_per_mm"),
+               g = med.scalars.at("medium_hg_g");
+  std::printf("medium fit from one image (sim, 12-bit, shot + read noise): sigma %.5f (truth %.5f), beta %.5f "
+              "(truth %.5f), g %.3f (truth %.3f), residual %.2e full scale\n",
+              sigma, kSigma, beta, kBeta, g, kG, med.report["medium"]["fit_rms_residual_fullscale"].get<double>());
+  // Tolerances: the library fit (docs/media-stereo.md) recovers σ to ±10 %,
+  // β to ±20 % and g to ±0.05 at 3 % noise; here the noise is the sim
+  // sensor's (12-bit, shot and read noise, backscatter of a few % of full
+  // scale), the light is clipped to its field, and the wall ends the rays at
+  // 2 m. Stated: σ ±15 %, β ±20 %, g ±0.08.
+  EXPECT_NEAR(sigma, kSigma, 0.15 * kSigma);
+  EXPECT_NEAR(beta, kBeta, 0.20 * kBeta);
+  EXPECT_NEAR(g, kG, 0.08);
+
+  auto rig = open_rig("media-stereo-rig-plane-matte");
+  ASSERT_TRUE(rig);
+  auto truth = rig->ground_truth(0);
+  ASSERT_TRUE(truth.ok()) << truth.status().to_string();
+  const Intrinsics k = rig->camera_calibrations()[0].intrinsics;
+  const auto tn = truth_normals("media-stereo-rig-plane-matte", *truth, k);
+  host::InputImage in;
+  in.name = "medium_image";
+  in.description = "medium_image of the medium scan";
+  in.image = procam_image{.width = med.width, .height = med.height, .channels = 1, .pixel_type = PROCAM_PIXEL_F32,
+                          .bit_depth = 32, .reserved = 0, .stride_bytes = size_t{med.width} * sizeof(float),
+                          .data = med.medium_image.data()};
+  nlohmann::json hp = params(cfg, "media");
+  hp["sigma_per_mm"] = 0.0;  // wrong on purpose: the fit must replace them
+  hp["beta_per_mm"] = 0.0;
+  hp["g"] = 0.0;
+  const ScanOut fitted = host_scan(*rig, hp, "", false, "helmholtz", {in});
+  ASSERT_EQ(fitted.depth.size(), tn.size());
+  EXPECT_EQ(fitted.report["medium"]["fitted"], nlohmann::json({"sigma_per_mm", "beta_per_mm", "g"}));
+  EXPECT_TRUE(fitted.report["medium"]["given"].empty());
+  EXPECT_DOUBLE_EQ(fitted.report["medium"]["sigma_per_mm"].get<double>(), sigma);
+  const Stats st = stats(fitted, tn, *truth, k.width, k.height);
+  std::printf("helmholtz on the plane with the fitted medium: normal median %.2f p90 %.2f deg, valid %.3f\n",
+              st.median_deg, st.p90_deg, st.valid);
+  // The same bound as with the true medium as params (HelmholtzThroughTheRig;
+  // measured 13.9 deg with the fit, 14.3 with the true medium).
+  EXPECT_LT(st.median_deg, 18.0);
+  EXPECT_GE(st.valid, 0.9);
+}
+
+}  // namespace
+}  // namespace procam::media_stereo

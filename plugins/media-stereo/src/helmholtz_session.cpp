@@ -1,0 +1,468 @@
+// SPDX-License-Identifier: MIT
+#include "helmholtz_session.hpp"
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "binocular_session.hpp"
+#include "helmholtz.hpp"
+#include "medium_fit.hpp"
+#include "normal_integration.hpp"
+
+namespace procam::media_stereo {
+namespace {
+
+using sdk::ParamSpec;
+using sdk::ParamType;
+
+// A light farther than this from its camera's centre breaks reciprocity
+// beyond what the matcher tolerates: the pair's two paths differ by the
+// offset (mm).
+constexpr double kMaxLightOffsetMm = 1.0;
+
+const std::vector<ParamSpec>& helmholtz_params() {
+  static const std::vector<ParamSpec> specs = {
+      {"constraint", ParamType::string, "media", 0, 0, {"media", "clear-air"},
+       "'media' removes each image's backscatter before the reciprocity constraint (Eq. 5.32); 'clear-air' is "
+       "the medium-free Helmholtz stereo of Zickler et al. on the same frames (the baseline)"},
+      {"sigma_per_mm", ParamType::number, 0.0, 0, 10, {}, "medium extinction sigma (1/mm); 0: clear water"},
+      {"beta_per_mm", ParamType::number, 0.0, 0, 10, {}, "medium scattering coefficient beta (1/mm), <= sigma"},
+      {"g", ParamType::number, 0.0, -0.99, 0.99, {}, "Henyey-Greenstein asymmetry of the medium"},
+      {"light_intensity", ParamType::number, 1.0e6, 1e-12, 1e30, {},
+       "I0 of every light in full-scale units x mm^2: a white Lambertian surface facing a light at d mm in clear "
+       "water reads I0 / (pi d^2) of full scale (a photometric calibration of lights and cameras)"},
+      {"z_min_mm", ParamType::number, 380.0, 1, 1e5, {}, "nearest depth hypothesis (camera 0's z)"},
+      {"z_max_mm", ParamType::number, 700.0, 1, 1e5, {}, "farthest depth hypothesis"},
+      {"z_step_mm", ParamType::number, 2.0, 0.01, 1e4, {}, "hypothesis spacing (a parabola refines between)"},
+      {"window", ParamType::integer, 5, 1, 31, {}, "odd window side (px) the rank measure is summed over"},
+      {"min_signal", ParamType::number, 0.002, 0, 1, {},
+       "a pixel whose largest signal I - B is at/below this (full scale) is invalid: shadow or black surface"},
+      {"saturation", ParamType::number, 0.999, 0.01, 1e30, {}, "samples at/above this (full scale) drop out"},
+      {"medium_wall_mm", ParamType::number, 2000.0, 1, 1e6, {},
+       "input medium_image only: z (camera 0's frame) of the black wall that ends every ray in the image of the "
+       "medium alone"},
+  };
+  return specs;
+}
+
+// Params of the `medium` method (the §5.4.1 image of the medium alone).
+const std::vector<ParamSpec>& medium_params() {
+  static const std::vector<ParamSpec> specs = {
+      {"light_intensity", ParamType::number, 1.0e6, 1e-12, 1e30, {},
+       "I0 of the light in full-scale units x mm^2 (as for helmholtz)"},
+      {"medium_wall_mm", ParamType::number, 2000.0, 1, 1e6, {},
+       "z (camera 0's frame) of the black wall that ends every ray (the tank's far wall, blackened)"},
+      {"saturation", ParamType::number, 0.999, 0.01, 1e30, {}, "samples at/above this (full scale) drop out"},
+  };
+  return specs;
+}
+
+// Pixel stride of the medium fit: every 4th pixel in x and y (432 samples on
+// the 96 x 72 sim rig; the fit's cost grows with the count).
+constexpr uint32_t kFitStride = 4;
+
+struct Unit {
+  size_t camera = 0;
+  int32_t light_index = 0;  // settings.light_index of its light
+  PinholeCamera cam;
+  LightCone cone;           // its light's field
+  uint32_t bits = 8;
+};
+
+// §5.4.1: σ, β, g from camera 0's image of the medium alone (full scale),
+// lit by unit 1's light (the other unit nearest in the plan order: side by
+// side, so the scattering angles vary over the image and g is observable; a
+// co-located light sees γ = π everywhere), its field the light's cone.
+MediumFit fit_from_medium_image(const std::vector<Unit>& units, const std::vector<float>& image, double i0,
+                                double wall_mm, double saturation) {
+  return fit_medium(units[0].cam, image, units[1].cam.centre(), i0, wall_mm, kFitStride, saturation, &units[1].cone);
+}
+
+nlohmann::json medium_json(const MediumParams& m) {
+  return {{"sigma_per_mm", m.sigma_per_mm}, {"beta_per_mm", m.beta_per_mm}, {"g", m.g}};
+}
+
+void add_medium_scalars(sdk::Outputs& out, const MediumParams& m, const std::string& how) {
+  out.add_scalar("medium_extinction_per_mm", "1/mm", "extinction coefficient sigma " + how, m.sigma_per_mm);
+  out.add_scalar("medium_scattering_per_mm", "1/mm", "scattering coefficient beta " + how, m.beta_per_mm);
+  out.add_scalar("medium_hg_g", "", "Henyey-Greenstein asymmetry g " + how, m.g);
+}
+
+class HelmholtzSession final : public sdk::Session {
+ public:
+  HelmholtzSession(std::vector<Unit> units, const sdk::Rig& rig, const sdk::Params& p,
+                   const std::optional<MediumFit>& fit)
+      : params_(p.json()), units_(std::move(units)), fit_(fit) {
+    in_.light_intensity = p.get_number("light_intensity");
+    in_.medium = fit ? fit->medium
+                     : MediumParams{p.get_number("sigma_per_mm"), p.get_number("beta_per_mm"), p.get_number("g")};
+    media_ = p.get_string("constraint") == "media";
+    search_.z_min_mm = p.get_number("z_min_mm");
+    search_.z_max_mm = p.get_number("z_max_mm");
+    search_.z_step_mm = p.get_number("z_step_mm");
+    search_.window = static_cast<int>(p.get_int("window"));
+    search_.min_signal = p.get_number("min_signal");
+    search_.saturation = p.get_number("saturation");
+    proj_w_ = rig.projector_width;
+    proj_h_ = rig.projector_height;
+    images_.resize(2 * (units_.size() - 1));
+  }
+
+  sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
+    if (planned_) return sdk::ok();
+    planned_ = true;
+    // Pair j: frame 2(j-1) camera 0 lit by unit j's light, frame 2(j-1)+1
+    // camera j lit by unit 0's light. The projector stays dark.
+    for (size_t j = 1; j < units_.size(); ++j) {
+      const uint32_t a = plan.add_frame("pair-" + std::to_string(j) + "-a", proj_w_, proj_h_);
+      plan.settings(a).camera_index = static_cast<int32_t>(units_[0].camera);
+      plan.settings(a).light_index = units_[j].light_index;
+      const uint32_t b = plan.add_frame("pair-" + std::to_string(j) + "-b", proj_w_, proj_h_);
+      plan.settings(b).camera_index = static_cast<int32_t>(units_[j].camera);
+      plan.settings(b).light_index = units_[0].light_index;
+    }
+    has_round = true;
+    return sdk::ok();
+  }
+
+  sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
+    sdk::ScopedMs t(decode_ms_);
+    const Unit& u = index % 2 == 0 ? units_[0] : units_[index / 2 + 1];
+    if (sdk::Error e = sdk::check_frame(&frame, u.cam.width, u.cam.height, 1,
+                                        "frame " + std::to_string(index) + " (camera " + std::to_string(u.camera) + ")");
+        !e.ok())
+      return e;
+    frame_to_full_scale(frame, u.bits, images_[index]);
+    return sdk::ok();
+  }
+
+  sdk::Error end_round() override {
+    sdk::ScopedMs t(decode_ms_);
+    in_.reference = units_[0].cam;
+    in_.pairs.clear();
+    for (size_t j = 1; j < units_.size(); ++j) {
+      ReciprocalPair pr;
+      pr.cam_a = units_[0].cam;
+      pr.cam_b = units_[j].cam;
+      pr.image_a = images_[2 * (j - 1)];      // camera 0, light at unit j
+      pr.image_b = images_[2 * (j - 1) + 1];  // camera j, light at unit 0
+      pr.cone_b = units_[j].cone;
+      pr.cone_a = units_[0].cone;
+      in_.pairs.push_back(std::move(pr));
+    }
+    result_ = helmholtz_stereo(in_, search_, media_);
+    integrated_ = integrate_normals(units_[0].cam, result_.normal, result_.depth_mm);
+    valid_ = 0;
+    for (float z : result_.depth_mm) valid_ += std::isfinite(z) ? 1u : 0u;
+    return sdk::ok();
+  }
+
+  sdk::Error outputs(sdk::Outputs& out) override {
+    const PinholeCamera& c = units_[0].cam;
+    out.add_image("depth_mm", "mm",
+                  "depth (z in camera 0's frame) at the minimum of the rank measure s3/s2 of W(z) (Eq. 5.34); NaN "
+                  "invalid",
+                  c.width, c.height, result_.depth_mm);
+    out.add_image("depth_integrated_mm", "mm",
+                  "depth from integrating the normals (perspective log-depth Poisson solve) seeded with depth_mm; "
+                  "NaN where no gradient edge reaches",
+                  c.width, c.height, integrated_);
+    // World = camera 0's frame, so the world normals are camera 0's.
+    const char* axes[3] = {"normal_x", "normal_y", "normal_z"};
+    for (int k = 0; k < 3; ++k) {
+      std::vector<float> comp(result_.normal.size());
+      for (size_t i = 0; i < comp.size(); ++i) comp[i] = static_cast<float>(result_.normal[i][k]);
+      out.add_image(axes[k], "",
+                    std::string("component ") + "xyz"[k] +
+                        " of the unit surface normal in camera 0's frame (right null vector of W, facing the "
+                        "camera); NaN invalid",
+                    c.width, c.height, std::move(comp));
+    }
+    out.add_image("rank_ratio", "", "s3/s2 of W at the chosen depth, window-averaged (0: rank 2 exactly)", c.width,
+                  c.height, result_.rank_ratio);
+    sdk::StandardOutputs s;
+    s.decode_ms = decode_ms_;
+    s.pattern_count = static_cast<uint32_t>(images_.size());
+    s.valid_pixels = valid_;
+    s.total_pixels = result_.depth_mm.size();
+    nlohmann::json pairs = nlohmann::json::array();
+    for (size_t j = 1; j < units_.size(); ++j)
+      pairs.push_back({{"camera_a", units_[0].camera},
+                       {"camera_b", units_[j].camera},
+                       {"light_a", units_[0].light_index},
+                       {"light_b", units_[j].light_index},
+                       {"baseline_mm", norm(units_[j].cam.centre() - units_[0].cam.centre())}});
+    s.report = {
+        {"method", "helmholtz"},
+        {"constraint", media_ ? "media: backscatter removed (Eq. 5.32-5.34)"
+                              : "clear-air: Zickler et al., no backscatter removal (Eq. 5.34 on raw intensities)"},
+        {"model", "single scattering (Eq. 5.24-5.29), isotropic lights at the camera centres clipped to their "
+                  "fields, Lambertian or reciprocal BRDF, rank-2 W at the true depth"},
+        {"medium", medium_report()},
+        {"light_intensity_fullscale_mm2", in_.light_intensity},
+        {"pairs", pairs},
+        {"params", params_}};
+    sdk::add_standard_outputs(out, s);
+    if (fit_) add_medium_scalars(out, in_.medium, "fitted from the input medium_image (thesis 5.4.1)");
+    return sdk::ok();
+  }
+
+ private:
+  nlohmann::json medium_report() const {
+    nlohmann::json m = medium_json(in_.medium);
+    if (fit_) {
+      m["fitted"] = {"sigma_per_mm", "beta_per_mm", "g"};
+      m["given"] = nlohmann::json::array();
+      m["source"] = "fit_medium() on the input medium_image (thesis 5.4.1; camera 0 lit by unit 1's light)";
+      m["fit_rms_residual_fullscale"] = fit_->rms_residual;
+    } else {
+      m["fitted"] = nlohmann::json::array();
+      m["given"] = {"sigma_per_mm", "beta_per_mm", "g"};
+      m["source"] = "params";
+    }
+    return m;
+  }
+
+  nlohmann::json params_;
+  std::vector<Unit> units_;  // [0] the reference unit
+  std::optional<MediumFit> fit_;
+  std::vector<std::vector<float>> images_;
+  HelmholtzInput in_;
+  DepthSearch search_;
+  bool media_ = true, planned_ = false;
+  uint32_t proj_w_ = 0, proj_h_ = 0;
+  HelmholtzResult result_;
+  std::vector<float> integrated_;
+  size_t valid_ = 0;
+  double decode_ms_ = 0;
+};
+
+// The rig description's "lights" (ABI 3) as units: camera 0's light first,
+// then every other camera with a light, in camera order.
+sdk::Error units_from_rig(const nlohmann::json& rig_json, const sdk::Rig& rig, std::vector<Unit>& units,
+                          size_t min_others) {
+  const auto* lights = rig_json.is_object() && rig_json.contains("lights") ? &rig_json.at("lights") : nullptr;
+  if (lights == nullptr || !lights->is_array())
+    return sdk::failed_precondition(
+        "media-stereo 'helmholtz' needs camera+light units (rig description \"lights\", plugin ABI 3: a light at "
+        "each camera's centre, e.g. a ring light or a beam splitter) and this rig has none; e.g. "
+        "configs/rigs/sim-helmholtz.json");
+  const Rigid3 cam0_from_proj = rig.cameras[0].calibration.cam_from_proj;
+  std::vector<Unit> found;
+  double irradiance0 = -1;
+  for (size_t k = 0; k < lights->size(); ++k) {
+    const nlohmann::json& l = (*lights)[k];
+    const std::string at = "rig: lights[" + std::to_string(k) + "]";
+    Unit u;
+    Rigid3 cam_from_light;
+    Intrinsics field;
+    double irradiance = 0;
+    try {
+      u.camera = l.at("camera").get<size_t>();
+      cam_from_light = l.at("cam_from_light").get<Rigid3>();
+      field = l.at("field").get<Intrinsics>();
+      irradiance = l.at("irradiance_at_1m").get<double>();
+    } catch (const std::exception& e) {
+      return sdk::invalid_argument(at + " is malformed (" + e.what() + ")");
+    }
+    if (u.camera >= rig.cameras.size()) return sdk::invalid_argument(at + ".camera names no camera of the rig");
+    if (!rig.cameras[u.camera].calibrated || rig.cameras[u.camera].calibration.intrinsics.distorted() ||
+        !field.valid())
+      return sdk::failed_precondition(
+          "media-stereo 'helmholtz': camera " + std::to_string(u.camera) +
+          " needs a pinhole calibration (intrinsics and cam_from_proj, no distortion) and its light a valid field");
+    if (norm(cam_from_light.translation_mm) > kMaxLightOffsetMm)
+      return sdk::failed_precondition("media-stereo 'helmholtz': the light of camera " + std::to_string(u.camera) +
+                                      " is " + std::to_string(norm(cam_from_light.translation_mm)) +
+                                      " mm off the camera's centre; reciprocal pairs need it within 1 mm (a ring "
+                                      "light around the lens or a beam splitter)");
+    if (irradiance0 < 0) irradiance0 = irradiance;
+    if (std::abs(irradiance - irradiance0) > 0.01 * irradiance0)
+      return sdk::failed_precondition(
+          "media-stereo 'helmholtz': the rig's lights differ in irradiance_at_1m; Eq. 5.32 needs equal light "
+          "intensities within 1 %");
+    u.light_index = static_cast<int32_t>(k + 1);
+    const Rigid3 world_from_cam = cam0_from_proj * rig.cameras[u.camera].calibration.cam_from_proj.inverse();
+    u.cam = pinhole_of(rig.cameras[u.camera].calibration.intrinsics, world_from_cam);
+    u.cone.light_from_world = (world_from_cam * cam_from_light).inverse();
+    u.cone.width = field.width;
+    u.cone.height = field.height;
+    u.cone.fx = field.fx;
+    u.cone.fy = field.fy;
+    u.cone.cx = field.cx;
+    u.cone.cy = field.cy;
+    u.bits = rig.cameras[u.camera].bit_depth;
+    found.push_back(u);
+  }
+  units.clear();
+  for (const Unit& u : found)
+    if (u.camera == 0) units.push_back(u);
+  if (units.empty())
+    return sdk::failed_precondition(
+        "media-stereo 'helmholtz' needs a light on camera 0 (the reference unit of every reciprocal pair)");
+  for (const Unit& u : found)
+    if (u.camera != 0) units.push_back(u);
+  if (units.size() < 1 + min_others)
+    return sdk::failed_precondition(
+        "media-stereo needs camera 0 and >= " + std::to_string(min_others) +
+        " other cameras each with a light at its centre (helmholtz: >= 3 reciprocal pairs; medium: a light beside "
+        "camera 0); the rig has " + std::to_string(units.size() - 1) + " other camera+light units");
+  return sdk::ok();
+}
+
+// `medium`: one frame of the medium alone (camera 0 lit by unit 1's light),
+// returned as medium_image (the input `helmholtz` fits) with its fit.
+class MediumSession final : public sdk::Session {
+ public:
+  MediumSession(std::vector<Unit> units, const sdk::Rig& rig, const sdk::Params& p)
+      : params_(p.json()), units_(std::move(units)), i0_(p.get_number("light_intensity")),
+        wall_mm_(p.get_number("medium_wall_mm")), saturation_(p.get_number("saturation")),
+        proj_w_(rig.projector_width), proj_h_(rig.projector_height) {}
+
+  sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
+    if (planned_) return sdk::ok();
+    planned_ = true;
+    const uint32_t f = plan.add_frame("medium-alone", proj_w_, proj_h_);
+    plan.settings(f).camera_index = static_cast<int32_t>(units_[0].camera);
+    plan.settings(f).light_index = units_[1].light_index;
+    has_round = true;
+    return sdk::ok();
+  }
+
+  sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
+    sdk::ScopedMs t(decode_ms_);
+    const Unit& u = units_[0];
+    if (sdk::Error e = sdk::check_frame(&frame, u.cam.width, u.cam.height, 1,
+                                        "frame " + std::to_string(index) + " (camera " + std::to_string(u.camera) + ")");
+        !e.ok())
+      return e;
+    frame_to_full_scale(frame, u.bits, image_);
+    return sdk::ok();
+  }
+
+  sdk::Error end_round() override {
+    sdk::ScopedMs t(decode_ms_);
+    fit_ = fit_from_medium_image(units_, image_, i0_, wall_mm_, saturation_);
+    return sdk::ok();
+  }
+
+  sdk::Error outputs(sdk::Outputs& out) override {
+    const PinholeCamera& c = units_[0].cam;
+    out.add_image("medium_image", "",
+                  "camera 0's image of the medium alone lit by unit 1's light, full scale (input medium_image of "
+                  "helmholtz)",
+                  c.width, c.height, image_);
+    size_t valid = 0;
+    for (float v : image_) valid += std::isfinite(v) && static_cast<double>(v) < saturation_ ? 1u : 0u;
+    if (fit_.ok) add_medium_scalars(out, fit_.medium, "fitted from this image (thesis 5.4.1)");
+    sdk::StandardOutputs s;
+    s.decode_ms = decode_ms_;
+    s.pattern_count = 1;
+    s.valid_pixels = valid;
+    s.total_pixels = image_.size();
+    nlohmann::json m = medium_json(fit_.medium);
+    m["fitted"] = fit_.ok ? nlohmann::json{"sigma_per_mm", "beta_per_mm", "g"} : nlohmann::json::array();
+    m["fit_ok"] = fit_.ok;
+    m["fit_rms_residual_fullscale"] = fit_.rms_residual;
+    s.report = {{"method", "medium"},
+                {"medium", m},
+                {"model", "pure single-scattered backscatter B = beta F(sigma, g) (Eq. 5.16), rays ending at a black "
+                          "wall at medium_wall_mm, light clipped to its field; every 4th pixel"},
+                {"camera", units_[0].camera},
+                {"light", units_[1].light_index},
+                {"params", params_}};
+    sdk::add_standard_outputs(out, s);
+    return sdk::ok();
+  }
+
+ private:
+  nlohmann::json params_;
+  std::vector<Unit> units_;
+  double i0_, wall_mm_, saturation_;
+  uint32_t proj_w_, proj_h_;
+  bool planned_ = false;
+  std::vector<float> image_;
+  MediumFit fit_;
+  double decode_ms_ = 0;
+};
+
+}  // namespace
+
+sdk::MethodDescription medium_description() {
+  sdk::MethodDescription d;
+  d.name = "medium";
+  d.summary =
+      "one image of the medium alone (thesis 5.4.1; the scene removed, a black far wall): camera 0 lit by the "
+      "light of the next camera+light unit; fits sigma, beta, g and outputs the image as helmholtz's input "
+      "medium_image";
+  d.patterns = 1;
+  d.outputs = {"medium_image", "medium_extinction_per_mm", "medium_scattering_per_mm", "medium_hg_g", "decode_ms",
+               "pattern_count", "valid_fraction", "report"};
+  d.params = medium_params();
+  return d;
+}
+
+sdk::Error create_medium_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {
+  sdk::Params p;
+  if (sdk::Error e = sdk::parse_params(args.params, medium_params(), p, args.method); !e.ok()) return e;
+  sdk::Rig rig;
+  if (sdk::Error e = sdk::parse_rig(args.rig, rig); !e.ok()) return e;
+  std::vector<Unit> units;
+  if (sdk::Error e = units_from_rig(args.rig, rig, units, 1); !e.ok()) return e;
+  out = std::make_unique<MediumSession>(std::move(units), rig, p);
+  return sdk::ok();
+}
+
+sdk::MethodDescription helmholtz_description() {
+  sdk::MethodDescription d;
+  d.name = "helmholtz";
+  d.summary =
+      "Helmholtz stereo in a scattering medium (thesis Eq. 5.32-5.34): reciprocal pairs of camera+light units "
+      "(camera 0 with each other unit), backscatter removed, depth and normals from the rank-2 condition, then "
+      "integrated depth; medium from params";
+  d.patterns_formula = "2 per reciprocal pair (camera 0 and each other camera with a light)";
+  d.outputs = {"depth_mm", "depth_integrated_mm", "normal_x", "normal_y", "normal_z", "rank_ratio",
+               "decode_ms", "pattern_count", "valid_fraction", "report"};
+  d.params = helmholtz_params();
+  sdk::InputSpec in;
+  in.name = "medium_image";
+  in.unit = "";
+  in.required = false;
+  in.description =
+      "camera 0's image of the medium alone (output medium_image of a `medium` scan, full scale): sigma, beta and g "
+      "are then fitted from it (thesis 5.4.1) instead of taken from the params";
+  d.inputs = {in};
+  return d;
+}
+
+sdk::Error create_helmholtz_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {
+  sdk::Params p;
+  if (sdk::Error e = sdk::parse_params(args.params, helmholtz_params(), p, args.method); !e.ok()) return e;
+  if (!(p.get_number("beta_per_mm") <= p.get_number("sigma_per_mm")))
+    return sdk::invalid_argument("parameter 'beta_per_mm' must be <= sigma_per_mm (scattering is part of extinction)");
+  if (!(p.get_number("z_max_mm") > p.get_number("z_min_mm") + 2 * p.get_number("z_step_mm")))
+    return sdk::invalid_argument("z_max_mm must exceed z_min_mm by at least two z_step_mm (three hypotheses)");
+  if (p.get_int("window") % 2 == 0) return sdk::invalid_argument("parameter 'window' must be odd");
+  sdk::Rig rig;
+  if (sdk::Error e = sdk::parse_rig(args.rig, rig); !e.ok()) return e;
+  std::vector<Unit> units;
+  if (sdk::Error e = units_from_rig(args.rig, rig, units, 3); !e.ok()) return e;
+  std::optional<MediumFit> fit;
+  if (args.inputs.has("medium_image")) {
+    std::vector<float> image;
+    if (sdk::Error e = args.inputs.image_f32("medium_image", units[0].cam.width, units[0].cam.height, image); !e.ok())
+      return e;
+    fit = fit_from_medium_image(units, image, p.get_number("light_intensity"), p.get_number("medium_wall_mm"),
+                                p.get_number("saturation"));
+    if (!fit->ok)
+      return sdk::invalid_argument("input medium_image: no usable backscatter to fit sigma, beta, g (all pixels "
+                                   "invalid, saturated or zero); take it with the scene removed and the lights on");
+  }
+  out = std::make_unique<HelmholtzSession>(std::move(units), rig, p, fit);
+  return sdk::ok();
+}
+
+}  // namespace procam::media_stereo
