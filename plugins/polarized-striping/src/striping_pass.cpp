@@ -7,7 +7,11 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <mutex>
+#include <vector>
 
+#include "media_model.hpp"
+#include "procam/sdk/parallel.hpp"
 #include "procam/sdk/simd.hpp"
 
 namespace procam::polarized_striping {
@@ -343,6 +347,81 @@ bool pass_kernel_available(PassKernel kernel) {
   if (kernel == PassKernel::avx2) return false;
 #endif
   return true;
+}
+
+namespace {
+
+// One worker's share of the DOP sample: the keys of its finite ratios, a
+// histogram of their top 16 bits, and how many pixels passed the sum test
+// (NaN ratios included, as estimate_dop counts them).
+struct DopPart {
+  std::vector<uint32_t> keys;
+  std::vector<uint32_t> hist = std::vector<uint32_t>(65536, 0);
+  size_t counted = 0;
+};
+
+// The k-th smallest (0-based) key over all parts, from the merged histogram
+// `hist`: the bucket holding rank k, then nth_element on that bucket's keys.
+uint32_t select_key(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k) {
+  uint32_t hi = 0;
+  size_t below = 0;
+  while (below + hist[hi] <= k) below += hist[hi++];
+  std::vector<uint32_t> bucket;
+  bucket.reserve(hist[hi]);
+  for (const DopPart& part : parts)
+    for (uint32_t key : part.keys)
+      if ((key >> 16) == hi) bucket.push_back(key);
+  const auto at = bucket.begin() + std::ptrdiff_t(k - below);
+  std::nth_element(bucket.begin(), at, bucket.end());
+  return *at;
+}
+
+}  // namespace
+
+double packed_dop(const PackedView& best, const PackedView& worst, size_t n, double saturation, double min_sum,
+                  double percentile, uint32_t threads, size_t min_pixels) {
+  const size_t stride = std::max<size_t>(1, n / 262144);
+  const size_t samples = n == 0 ? 0 : (n - 1) / stride + 1;  // <= 2^19: fits the rows argument
+  const int32_t sat = static_cast<int32_t>(std::min(std::ceil(saturation), 1e9));
+  const float db = float(int32_t(best.frames) - 2), dw = float(int32_t(worst.frames) - 2);
+  std::vector<DopPart> parts;
+  std::mutex mu;
+  sdk::parallel_rows(static_cast<uint32_t>(samples), threads, [&](uint32_t j0, uint32_t j1) {
+    DopPart part;
+    part.keys.reserve(j1 - j0);
+    for (size_t i = j0 * stride; i < size_t{j1} * stride; i += stride) {
+      const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
+      if (b2 >= sat || w2 >= sat) continue;  // clipped: no background
+      // The backgrounds as the reference pass rounds them (float quotients of
+      // integers), then estimate_dop's ratio in double.
+      const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
+      const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
+      const double sum = double(bw) + double(bb);
+      if (!(sum > min_sum)) continue;
+      ++part.counted;
+      const auto r = static_cast<float>((double(bw) - double(bb)) / sum);
+      if (!std::isfinite(r)) continue;  // quantile() drops these
+      const uint32_t key = key_from_float(r);
+      part.keys.push_back(key);
+      ++part.hist[key >> 16];
+    }
+    const std::lock_guard lock(mu);
+    parts.push_back(std::move(part));
+  });
+  size_t counted = 0, finite = 0;
+  std::vector<uint64_t> hist(65536, 0);
+  for (const DopPart& part : parts) {
+    counted += part.counted, finite += part.keys.size();
+    for (size_t b = 0; b < hist.size(); ++b) hist[b] += part.hist[b];
+  }
+  if (counted < min_pixels || finite == 0) return std::numeric_limits<double>::quiet_NaN();
+  // quantile(): linear interpolation between the lo-th and (lo+1)-th smallest.
+  const double pos = std::clamp(percentile, 0.0, 1.0) * double(finite - 1);
+  const auto lo = static_cast<size_t>(std::floor(pos));
+  const double v_lo = double(float_from_key(select_key(parts, hist, lo)));
+  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(select_key(parts, hist, lo + 1)));
+  const double v = v_lo + (pos - double(lo)) * (v_hi - v_lo);
+  return std::clamp(v, 0.0, 1.0);
 }
 
 size_t striping_pass(const PackedView& best, const PackedView* worst, const PassSettings& s, const PassMaps& m,
