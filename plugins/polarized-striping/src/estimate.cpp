@@ -203,11 +203,16 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
     // The DOP from both backgrounds (A = 0 where a pixel sees only medium),
     // on the same <= 256k-pixel stride estimate_dop uses, before the pass.
     p = choose_dop(cfg, lv, m, [&] {
-      if (pass != StripingPass::reference)  // parallel, no serial quantile; the same p bit for bit
+      const size_t stride = dop_sample_stride(n);
+      if (pass != StripingPass::reference) {  // parallel, no serial quantile; the same p bit for bit
+        if (best.sample_current() && worst->sample_current())  // the compact copies kept at the last frame
+          return packed_dop({best.sample_key1(), best.sample_key2(), best.sample_sum16(), best.frames()},
+                            {worst->sample_key1(), worst->sample_key2(), worst->sample_sum16(), worst->frames()},
+                            best.sample_size(), 1, lv.saturation, lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
         return packed_dop({best.key1(), best.key2(), best.sum16(), best.frames()},
-                          {worst->key1(), worst->key2(), worst->sum16(), worst->frames()}, n, lv.saturation,
-                          lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
-      const size_t stride = std::max<size_t>(1, n / 262144);
+                          {worst->key1(), worst->key2(), worst->sum16(), worst->frames()}, (n + stride - 1) / stride,
+                          stride, lv.saturation, lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
+      }
       std::vector<float> sb, sw;
       sb.reserve(n / stride + 1);
       sw.reserve(n / stride + 1);

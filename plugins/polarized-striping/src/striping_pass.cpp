@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <mutex>
 #include <vector>
 
 #include "media_model.hpp"
@@ -356,38 +355,54 @@ namespace {
 // (NaN ratios included, as estimate_dop counts them).
 struct DopPart {
   std::vector<uint32_t> keys;
-  std::vector<uint32_t> hist = std::vector<uint32_t>(65536, 0);
+  std::vector<uint32_t> hist;
   size_t counted = 0;
 };
 
+// Scratch of packed_dop, kept per calling thread (the session's thread) from
+// call to call: fresh pages for ~1 MB of keys and 256 KiB histograms fault
+// one by one, which cost more than the whole sample on a VM.
+struct DopScratch {
+  std::vector<DopPart> parts;
+  std::vector<uint64_t> hist;
+  std::vector<uint32_t> low;
+};
+
 // The k-th smallest (0-based) key over all parts, from the merged histogram
-// `hist`: the bucket holding rank k, then nth_element on that bucket's keys.
-uint32_t select_key(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k) {
+// `hist` of the top 16 bits: the bucket holding rank k, then a histogram of
+// the low 16 bits of that bucket's keys (a bucket can hold most of the
+// sample: the backgrounds of a hazy scene cluster; O(n), no sort).
+uint32_t select_key(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k,
+                    std::vector<uint32_t>& low) {
   uint32_t hi = 0;
   size_t below = 0;
   while (below + hist[hi] <= k) below += hist[hi++];
-  std::vector<uint32_t> bucket;
-  bucket.reserve(hist[hi]);
+  low.assign(65536, 0);
   for (const DopPart& part : parts)
     for (uint32_t key : part.keys)
-      if ((key >> 16) == hi) bucket.push_back(key);
-  const auto at = bucket.begin() + std::ptrdiff_t(k - below);
-  std::nth_element(bucket.begin(), at, bucket.end());
-  return *at;
+      if ((key >> 16) == hi) ++low[key & 0xffffu];
+  uint32_t lo = 0;
+  while (below + low[lo] <= k) below += low[lo++];
+  return (hi << 16) | lo;
 }
 
 }  // namespace
 
-double packed_dop(const PackedView& best, const PackedView& worst, size_t n, double saturation, double min_sum,
-                  double percentile, uint32_t threads, size_t min_pixels) {
-  const size_t stride = std::max<size_t>(1, n / 262144);
-  const size_t samples = n == 0 ? 0 : (n - 1) / stride + 1;  // <= 2^19: fits the rows argument
+double packed_dop(const PackedView& best, const PackedView& worst, size_t count, size_t stride, double saturation,
+                  double min_sum, double percentile, uint32_t threads, size_t min_pixels) {
+  const auto samples = static_cast<uint32_t>(std::min<size_t>(count, UINT32_MAX));  // <= 2^19 in practice
   const int32_t sat = static_cast<int32_t>(std::min(std::ceil(saturation), 1e9));
   const float db = float(int32_t(best.frames) - 2), dw = float(int32_t(worst.frames) - 2);
-  std::vector<DopPart> parts;
-  std::mutex mu;
-  sdk::parallel_rows(static_cast<uint32_t>(samples), threads, [&](uint32_t j0, uint32_t j1) {
-    DopPart part;
+  thread_local DopScratch scratch;
+  // parallel_rows' bands: min(threads, samples) of them, band b starting at samples * b / bands.
+  const uint32_t bands = std::clamp<uint32_t>(threads, 1u, std::max(samples, 1u));
+  std::vector<DopPart>& parts = scratch.parts;
+  parts.resize(bands);
+  for (DopPart& part : parts) part.keys.clear(), part.hist.assign(65536, 0), part.counted = 0;
+  sdk::parallel_rows(samples, threads, [&](uint32_t j0, uint32_t j1) {
+    uint32_t b = 0;
+    while (b + 1 < bands && uint64_t{samples} * (b + 1) / bands <= j0) ++b;
+    DopPart& part = parts[b];
     part.keys.reserve(j1 - j0);
     for (size_t i = j0 * stride; i < size_t{j1} * stride; i += stride) {
       const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
@@ -405,11 +420,10 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t n, dou
       part.keys.push_back(key);
       ++part.hist[key >> 16];
     }
-    const std::lock_guard lock(mu);
-    parts.push_back(std::move(part));
   });
   size_t counted = 0, finite = 0;
-  std::vector<uint64_t> hist(65536, 0);
+  std::vector<uint64_t>& hist = scratch.hist;
+  hist.assign(65536, 0);
   for (const DopPart& part : parts) {
     counted += part.counted, finite += part.keys.size();
     for (size_t b = 0; b < hist.size(); ++b) hist[b] += part.hist[b];
@@ -418,8 +432,8 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t n, dou
   // quantile(): linear interpolation between the lo-th and (lo+1)-th smallest.
   const double pos = std::clamp(percentile, 0.0, 1.0) * double(finite - 1);
   const auto lo = static_cast<size_t>(std::floor(pos));
-  const double v_lo = double(float_from_key(select_key(parts, hist, lo)));
-  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(select_key(parts, hist, lo + 1)));
+  const double v_lo = double(float_from_key(select_key(parts, hist, lo, scratch.low)));
+  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(select_key(parts, hist, lo + 1, scratch.low)));
   const double v = v_lo + (pos - double(lo)) * (v_hi - v_lo);
   return std::clamp(v, 0.0, 1.0);
 }

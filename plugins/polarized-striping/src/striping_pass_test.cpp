@@ -80,12 +80,16 @@ Maps run(const Case& c, StripingPass pass, uint32_t seed) {
   EXPECT_TRUE(e.ok()) << e.message;
   cfg.threads = 2;
   const Levels lv = levels_for(cfg, 255);
-  StripeStack best(kW, kH, true), worst(kW, kH, true);
+  // Even seeds: the stacks keep the compact DOP sample at the last frame
+  // (the session's way); odd seeds: the DOP reads the full stacks.
+  const uint32_t expected = seed % 2 == 0 ? c.stripes : 0;
+  StripeStack best(kW, kH, true, expected), worst(kW, kH, true, expected);
   for (uint32_t k = 0; k < c.stripes; ++k) {
     const auto fb = frame(c.scene, c.stripes, k, false, seed), fw = frame(c.scene, c.stripes, k, true, seed);
     best.add(sdk::gray_view(fb.data(), kW, kH), static_cast<uint16_t>(k), 2);
     if (c.polarised) worst.add(sdk::gray_view(fw.data(), kW, kH), static_cast<uint16_t>(k), 2);
   }
+  EXPECT_EQ(best.sample_current(), expected > 0);
   return estimate_striping(best, c.polarised ? &worst : nullptr, cfg, lv, kPW, pass);
 }
 
@@ -210,7 +214,7 @@ TEST(StripingPass, PackedDopEqualsEstimateDopOnTheSameSample) {
         EXPECT_TRUE(std::isnan(ref)) << "no pixel that bright: too few samples";
       }
       for (uint32_t threads : {1u, 2u, 3u}) {
-        const double got = packed_dop(best, worst, n, saturation, min_sum, pct, threads);
+        const double got = packed_dop(best, worst, n / 2, 2, saturation, min_sum, pct, threads);
         if (std::isnan(ref)) {
           EXPECT_TRUE(std::isnan(got)) << min_sum << " " << pct << " " << threads;
         } else {
@@ -218,6 +222,31 @@ TEST(StripingPass, PackedDopEqualsEstimateDopOnTheSameSample) {
         }
       }
     }
+}
+
+// The compact DOP sample a packed stack keeps at its expected last frame is
+// its final state at pixels j * dop_sample_stride(n) (an odd width: sample
+// pixels fall at different columns row by row; two threads: two bands), and
+// it stops being current once a frame beyond the plan arrives.
+TEST(StripingPass, StackKeepsTheDopSampleAtTheLastFrame) {
+  constexpr uint32_t w = 701, h = 800, frames = 3;  // n / 262144 = 2
+  const size_t n = size_t{w} * h, stride = dop_sample_stride(n);
+  ASSERT_EQ(stride, 2u);
+  std::mt19937 rng(3);
+  std::vector<uint8_t> f(n);
+  StripeStack st(w, h, true, frames);
+  for (uint32_t k = 0; k <= frames; ++k) {
+    for (auto& v : f) v = static_cast<uint8_t>(rng() % 256);
+    st.add(sdk::gray_view(f.data(), w, h), static_cast<uint16_t>(k), 2);
+    EXPECT_EQ(st.sample_current(), k + 1 == frames) << "after frame " << k;
+    if (k + 1 != frames) continue;
+    ASSERT_EQ(st.sample_size(), (n + stride - 1) / stride);
+    size_t bad = 0;
+    for (size_t j = 0; j < st.sample_size(); ++j)
+      bad += st.sample_key1()[j] != st.key1()[j * stride] || st.sample_key2()[j] != st.key2()[j * stride] ||
+             st.sample_sum16()[j] != st.sum16()[j * stride];
+    EXPECT_EQ(bad, 0u) << "sample entries that differ from the stack";
+  }
 }
 
 }  // namespace
