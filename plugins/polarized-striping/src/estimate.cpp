@@ -33,14 +33,15 @@ Maps blank(uint32_t w, uint32_t h) {
   return m;
 }
 
-// p given (>= 0) or estimated; records how in m.dop.
-double choose_dop(const Config& cfg, std::span<const float> best, std::span<const float> worst, const Levels& lv,
-                  Maps& m) {
+// p given (>= 0) or estimated by estimate() (estimate_dop's rule; called
+// only when p is not given); records how in m.dop.
+template <class Estimate>
+double choose_dop(const Config& cfg, const Levels& lv, Maps& m, Estimate&& estimate) {
   double p = cfg.p;
   if (p >= 0) {
     m.dop = {{"source", "param p"}, {"value", p}};
   } else {
-    p = estimate_dop(best, worst, lv.dop_min_sum, cfg.dop_percentile);
+    p = estimate();
     m.dop = {{"source", "estimated"},
              {"rule", "quantile dop_percentile of (E_w - E_b) / (E_w + E_b) over pixels with E_w + E_b > 40 noise "
                       "sigma; equals p where a pixel sees only medium, less where it sees an object"},
@@ -87,7 +88,8 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
   nan_map(w_ok, eb.size());
   for (size_t i = 0; i < eb.size(); ++i)
     if (double(eb[i]) < lv.saturation && double(ew[i]) < lv.saturation) b_ok[i] = eb[i], w_ok[i] = ew[i];
-  const double p = choose_dop(cfg, b_ok, w_ok, lv, m);
+  const double p =
+      choose_dop(cfg, lv, m, [&] { return estimate_dop(b_ok, w_ok, lv.dop_min_sum, cfg.dop_percentile); });
   const bool separate = p >= cfg.p_min;
   m.p = separate ? p : 0.0;
   for (size_t i = 0; i < eb.size(); ++i) {
@@ -200,31 +202,27 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   if (polarised) {
     // The DOP from both backgrounds (A = 0 where a pixel sees only medium),
     // on the same <= 256k-pixel stride estimate_dop uses, before the pass.
-    const size_t stride = std::max<size_t>(1, n / 262144);
-    std::vector<float> sb, sw;
-    sb.reserve(n / stride + 1);
-    sw.reserve(n / stride + 1);
-    if (pass != StripingPass::reference) {
-      // Packed: background = (sum - top1 - top2) / (K - 2) from the keys; the
-      // float quotient of these integers equals the reference's double one
-      // rounded to float, so p is the same bit for bit.
-      const int32_t sat = static_cast<int32_t>(std::min(std::ceil(lv.saturation), 1e9));
-      const float db = float(best.frames() - 2), dw = float(worst->frames() - 2);
-      const uint16_t *b1 = best.key1(), *b2 = best.key2(), *bs = best.sum16();
-      const uint16_t *w1 = worst->key1(), *w2 = worst->key2(), *ws = worst->sum16();
-      for (size_t i = 0; i < n; i += stride) {
-        if (int32_t(b2[i] >> 8) >= sat || int32_t(w2[i] >> 8) >= sat) continue;
-        sb.push_back(float(int32_t(bs[i]) - (b1[i] >> 8) - (b2[i] >> 8)) / db);
-        sw.push_back(float(int32_t(ws[i]) - (w1[i] >> 8) - (w2[i] >> 8)) / dw);
+    p = choose_dop(cfg, lv, m, [&] {
+      const size_t stride = dop_sample_stride(n);
+      if (pass != StripingPass::reference) {  // parallel, no serial quantile; the same p bit for bit
+        if (best.sample_current() && worst->sample_current())  // the compact copies kept at the last frame
+          return packed_dop({best.sample_key1(), best.sample_key2(), best.sample_sum16(), best.frames()},
+                            {worst->sample_key1(), worst->sample_key2(), worst->sample_sum16(), worst->frames()},
+                            best.sample_size(), 1, lv.saturation, lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
+        return packed_dop({best.key1(), best.key2(), best.sum16(), best.frames()},
+                          {worst->key1(), worst->key2(), worst->sum16(), worst->frames()}, (n + stride - 1) / stride,
+                          stride, lv.saturation, lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
       }
-    } else {
+      std::vector<float> sb, sw;
+      sb.reserve(n / stride + 1);
+      sw.reserve(n / stride + 1);
       for (size_t i = 0; i < n; i += stride)
         if (unclipped(i)) {
           sb.push_back(decode_stripe_pixel(best, i, ds).background);
           sw.push_back(decode_stripe_pixel(*worst, i, ds).background);
         }
-    }
-    p = choose_dop(cfg, sb, sw, lv, m);
+      return estimate_dop(sb, sw, lv.dop_min_sum, cfg.dop_percentile);
+    });
     separate = p >= cfg.p_min;
     m.p = separate ? p : 0.0;
   }

@@ -17,14 +17,13 @@ SignalBackscatter signal_from_polarized(float e_best, float e_worst, double p) n
   return {static_cast<float>(total - b), static_cast<float>(b)};
 }
 
-namespace {
-
-// Order-preserving unsigned key of a finite float (negatives flipped), and back.
-uint32_t key_from_float(float v) {
+uint32_t key_from_float(float v) noexcept {
   const auto b = std::bit_cast<uint32_t>(v);
   return (b & 0x80000000u) ? ~b : (b | 0x80000000u);
 }
-float float_from_key(uint32_t k) { return std::bit_cast<float>((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k); }
+float float_from_key(uint32_t k) noexcept { return std::bit_cast<float>((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k); }
+
+namespace {
 
 // The k-th smallest (0-based) of `keys`: two 16-bit histogram passes, O(n),
 // the same element nth_element would put at k.

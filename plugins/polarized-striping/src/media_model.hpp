@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -49,6 +50,11 @@ double estimate_dop(std::span<const float> best, std::span<const float> worst, d
 // The q-quantile (0..1, linear interpolation) of the finite values; NaN when
 // there are none. Reorders a copy, O(n).
 double quantile(std::vector<float> values, double q);
+
+// Order-preserving unsigned key of a finite float (negatives flipped; a < b
+// <=> key(a) < key(b)), and back: quantiles by radix selection on the keys.
+uint32_t key_from_float(float v) noexcept;
+float float_from_key(uint32_t k) noexcept;
 
 // Eq. 5.8: CQM = S / (S + B (1 - p)); 0 where the denominator is not positive.
 double cqm(double s, double b, double p) noexcept;

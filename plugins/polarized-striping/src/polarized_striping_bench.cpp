@@ -74,6 +74,28 @@ void BM_PolarizedStripingAddFrame(benchmark::State& state) {
 }
 BENCHMARK(BM_PolarizedStripingAddFrame)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The last frame of each analyser (frames 126 and 127, after the 126 others
+// untimed): a stack's final fold also copies the DOP sample's pixels
+// (stripe_stack.hpp), so these two cost a little more than two folds; that
+// is latency after the last frame too.
+void BM_PolarizedStripingLastTwoFrames(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  const auto& f = frames();
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto s = session(threads);
+    for (uint32_t i = 0; i + 2 < 2 * kK; ++i)
+      if (!s->add_frame(i, sdk::gray_view(f[i].data(), kW, kH)).ok()) std::abort();
+    state.ResumeTiming();
+    for (uint32_t i = 2 * kK - 2; i < 2 * kK; ++i)
+      if (!s->add_frame(i, sdk::gray_view(f[i].data(), kW, kH)).ok()) std::abort();
+    state.PauseTiming();
+    s.reset();
+    state.ResumeTiming();
+  }
+}
+BENCHMARK(BM_PolarizedStripingLastTwoFrames)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // end_round + outputs after all 128 frames (the frames are added untimed).
 void BM_PolarizedStripingAfterLastFrame(benchmark::State& state) {
   const auto threads = static_cast<uint32_t>(state.range(0));

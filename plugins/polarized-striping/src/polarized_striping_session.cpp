@@ -89,8 +89,9 @@ class PolarizedStripingSession final : public sdk::Session {
     const Role role = roles_.at(index);
     if (is_striping(cfg_.method)) {
       StripeStack& st = role.analyser == Analyser::worst ? worst_ : best_;
-      if (st.width() == 0)  // U8 frames of <= 256 stripes: the 6-byte packed state
-        st = StripeStack(cam.width, cam.height, frame.pixel_type == PROCAM_PIXEL_U8 && cfg_.stripes <= 256);
+      if (st.width() == 0)  // U8 frames of <= 256 stripes: the 6-byte packed state; cfg_.stripes frames each
+        st = StripeStack(cam.width, cam.height, frame.pixel_type == PROCAM_PIXEL_U8 && cfg_.stripes <= 256,
+                         cfg_.stripes);
       st.add(frame, role.stripe, rig_.threads);
     } else {
       std::vector<float>& m = role.analyser == Analyser::worst ? worst_map_ : best_map_;

@@ -11,8 +11,8 @@
 
 namespace procam::polarized_striping {
 
-StripeStack::StripeStack(uint32_t width, uint32_t height, bool packed)
-    : width_(width), height_(height), packed_(packed) {
+StripeStack::StripeStack(uint32_t width, uint32_t height, bool packed, uint32_t expected_frames)
+    : width_(width), height_(height), packed_(packed), expected_frames_(packed ? expected_frames : 0) {
   const size_t n = size_t{width} * height;
   // allocate_map: huge pages advised, so the first frame faults ~2 MiB pages,
   // not 4 KiB ones.
@@ -20,6 +20,10 @@ StripeStack::StripeStack(uint32_t width, uint32_t height, bool packed)
     sdk::allocate_map(key1_, n);
     sdk::allocate_map(key2_, n);
     sdk::allocate_map(sum16_, n);
+    if (expected_frames_ > 0) {
+      const size_t m = n == 0 ? 0 : (n - 1) / dop_sample_stride(n) + 1;
+      sample_key1_.resize(m), sample_key2_.resize(m), sample_sum_.resize(m);
+    }
     return;
   }
   sdk::allocate_map(top1_, n);
@@ -90,12 +94,20 @@ void StripeStack::add(const procam_image& frame, uint16_t k, uint32_t threads) {
   const uint32_t w = width_;
   if (packed_) {
     const auto low = static_cast<uint16_t>(255u - k);
+    const bool sample = expected_frames_ > 0 && frames_ + 1 == expected_frames_;  // the final state: keep the DOP sample
+    const size_t stride = dop_sample_stride(size_t{w} * height_);
     sdk::parallel_rows(height_, threads, [&](uint32_t y0, uint32_t y1) {
       for (uint32_t y = y0; y < y1; ++y) {
         const size_t o = size_t{y} * w;
         fold_row_u8(sdk::row_bytes(frame, y), w, low, key1_.data() + o, key2_.data() + o, sum16_.data() + o);
+        if (!sample) continue;
+        for (size_t i = (o + stride - 1) / stride * stride; i < o + w; i += stride) {  // rows are disjoint: so are j
+          const size_t j = i / stride;
+          sample_key1_[j] = key1_[i], sample_key2_[j] = key2_[i], sample_sum_[j] = sum16_[i];
+        }
       }
     });
+    if (sample) sample_frames_ = frames_ + 1;
   } else {
     sdk::parallel_rows(height_, threads, [&](uint32_t y0, uint32_t y1) {
       std::vector<float> row(w);

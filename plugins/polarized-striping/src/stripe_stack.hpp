@@ -31,6 +31,10 @@
 
 namespace procam::polarized_striping {
 
+// The pixel stride of the DOP sample (estimate_dop's rule: at most ~256k
+// pixels, evenly spread): pixels 0, s, 2s, ... of the image.
+inline size_t dop_sample_stride(size_t pixels) noexcept { return std::max<size_t>(1, pixels / 262144); }
+
 // One pixel's state: the two largest values, their stripes, the sum.
 struct StripeEntry {
   float top1 = 0, top2 = 0, sum = 0;
@@ -44,7 +48,13 @@ class StripeStack {
   // 6 bytes (keys (value << 8) | (255 - k) for the top two, a 16-bit sum),
   // folded with unsigned max/min only; otherwise 20 bytes of floats/indices.
   // The fold is memory-bound, so the bytes per pixel set its speed.
-  StripeStack(uint32_t width, uint32_t height, bool packed);
+  //
+  // expected_frames (packed only; 0: unknown): the number of frames the scan
+  // plans. The add() that brings the count to it also copies the final state
+  // of the DOP sample's pixels (dop_sample_stride) into compact arrays while
+  // each row is still in cache, so the end of the scan reads ~1/s of the
+  // stack for its DOP instead of every cache line of it.
+  StripeStack(uint32_t width, uint32_t height, bool packed, uint32_t expected_frames = 0);
 
   // Folds stripe image k (checked: width x height, 1 channel; U8 when packed)
   // into the state.
@@ -67,12 +77,22 @@ class StripeStack {
   const uint16_t* key2() const noexcept { return key2_.data(); }
   const uint16_t* sum16() const noexcept { return sum16_.data(); }
   float top1(size_t i) const noexcept { return packed_ ? float(key1_[i] >> 8) : top1_[i]; }
+  // The DOP sample's packed state (pixel j * dop_sample_stride() for j <
+  // sample_size()), valid when sample_current(): copied at the expected
+  // frame count and no frame added since (else read the full arrays).
+  bool sample_current() const noexcept { return packed_ && frames_ > 0 && sample_frames_ == frames_; }
+  size_t sample_size() const noexcept { return sample_sum_.size(); }
+  const uint16_t* sample_key1() const noexcept { return sample_key1_.data(); }
+  const uint16_t* sample_key2() const noexcept { return sample_key2_.data(); }
+  const uint16_t* sample_sum16() const noexcept { return sample_sum_.data(); }
   float top2(size_t i) const noexcept { return packed_ ? float(key2_[i] >> 8) : top2_[i]; }
 
  private:
   uint32_t width_ = 0, height_ = 0, frames_ = 0;
   bool packed_ = false;
+  uint32_t expected_frames_ = 0, sample_frames_ = 0;
   std::vector<uint16_t> key1_, key2_, sum16_;  // packed
+  std::vector<uint16_t> sample_key1_, sample_key2_, sample_sum_;  // packed, the DOP sample
   std::vector<float> top1_, top2_, sum_;       // general
   std::vector<uint16_t> idx1_, idx2_;
 };

@@ -7,7 +7,10 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <vector>
 
+#include "media_model.hpp"
+#include "procam/sdk/parallel.hpp"
 #include "procam/sdk/simd.hpp"
 
 namespace procam::polarized_striping {
@@ -24,6 +27,11 @@ struct Consts {
   int32_t rise_thr = 0;          // L > this: rises by the margin (floor(margin D_b))
   int32_t tie_thr = 0;           // t1 - t2 > this: beats top2 by the margin (floor(margin))
   float mu = 3, z = 1, p = 1, omp = 1;  // omp = 1 - p (p = 0 when not separated)
+  // Reciprocals of the divisors that are the same for every pixel: a
+  // multiply instead of a division (the divider's throughput bounds the AVX2
+  // kernel). The backgrounds and rise keep their exact integer quotients
+  // (B^ = (bg_w - bg_b) / p amplifies an ulp of them by 1 / p).
+  float inv_p = 1, inv_z = 1;
   bool step = false, polarised = false, separate = false;
 };
 
@@ -54,6 +62,8 @@ Consts make_consts(const PackedView& best, const PackedView* worst, const PassSe
   const double p = c.polarised && s.separate ? s.p : 0.0;
   c.p = float(p);
   c.omp = float(1.0 - p);
+  c.inv_p = c.separate && p > 0 ? float(1.0 / p) : 1.0f;
+  c.inv_z = c.step ? 1.0f : float(1.0 / s.z);
   return c;
 }
 
@@ -80,7 +90,7 @@ inline float exp_poly(float x) {
 // would overflow float (t < -88; the double reference rounds that to 0 too).
 inline float weight_of(float s, const Consts& c) {
   if (c.step) return s > c.mu ? 1.0f : (s < c.mu ? 0.0f : 0.5f);
-  const float t = (s - c.mu) / c.z;
+  const float t = (s - c.mu) * c.inv_z;
   if (t > 40.0f) return 1.0f;
   if (-t > 88.0f) return 0.0f;
   return 1.0f / (1.0f + exp_poly(-t));
@@ -114,7 +124,7 @@ __attribute__((noinline)) size_t pass_scalar(const PackedView& best, const Packe
       float sig = 0.0f, bsc = bg + bw;
       if (c.separate) {  // Eq. 5.6 on the backgrounds (signal_from_polarized)
         const float total = maxf(bg + bw, 0.0f);
-        bsc = minf(maxf((bw - bg) / c.p, 0.0f), total);
+        bsc = minf(maxf((bw - bg) * c.inv_p, 0.0f), total);
         sig = total - bsc;
       }
       b = ok ? bsc : kNaNf;
@@ -217,7 +227,7 @@ PROCAM_A2 __m256 weight8(__m256 s, const Consts& c) {  // weight_of, lane by lan
     const __m256 half = _mm256_blendv_ps(_mm256_set1_ps(0.5f), _mm256_setzero_ps(), _mm256_cmp_ps(s, mu, _CMP_LT_OQ));
     return _mm256_blendv_ps(half, one, _mm256_cmp_ps(s, mu, _CMP_GT_OQ));
   }
-  const __m256 t = _mm256_div_ps(_mm256_sub_ps(s, mu), _mm256_set1_ps(c.z));
+  const __m256 t = _mm256_mul_ps(_mm256_sub_ps(s, mu), _mm256_set1_ps(c.inv_z));
   const __m256 x = _mm256_sub_ps(_mm256_setzero_ps(), t);
   __m256 w = _mm256_div_ps(one, _mm256_add_ps(one, exp8(x)));
   w = _mm256_blendv_ps(w, _mm256_setzero_ps(), _mm256_cmp_ps(x, _mm256_set1_ps(88.0f), _CMP_GT_OQ));
@@ -234,7 +244,7 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
   const __m256i tie_thr = _mm256_set1_epi32(c.tie_thr);
   const __m256 fd_b = _mm256_set1_ps(c.fd_b), fd_w = _mm256_set1_ps(c.fd_w), zero = _mm256_setzero_ps();
   const __m256 nan = _mm256_set1_ps(kNaNf), two = _mm256_set1_ps(2.0f), omp = _mm256_set1_ps(c.omp);
-  const __m256 pv = _mm256_set1_ps(c.p);
+  const __m256 inv_p = _mm256_set1_ps(c.inv_p);
   __m256d s_enh = _mm256_setzero_pd(), s_enh2 = s_enh, s_w = s_enh, s_cqm = s_enh, s_cqm_w = s_enh;
   __m256d s_gqm = s_enh, s_gqm_w = s_enh;
   __m256i s_img = _mm256_setzero_si256(), s_img2 = s_img;  // per lane: <= 255 resp. 65025 per pixel, flushed per call
@@ -270,7 +280,7 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
       __m256 sig = zero, bsc = _mm256_add_ps(bg, bw);
       if (c.separate) {
         const __m256 total = _mm256_max_ps(_mm256_add_ps(bg, bw), zero);
-        bsc = _mm256_min_ps(_mm256_max_ps(_mm256_div_ps(_mm256_sub_ps(bw, bg), pv), zero), total);
+        bsc = _mm256_min_ps(_mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(bw, bg), inv_p), zero), total);
         sig = _mm256_sub_ps(total, bsc);
       }
       b = _mm256_blendv_ps(nan, bsc, _mm256_castsi256_ps(ok));
@@ -343,6 +353,96 @@ bool pass_kernel_available(PassKernel kernel) {
   if (kernel == PassKernel::avx2) return false;
 #endif
   return true;
+}
+
+namespace {
+
+// One worker's share of the DOP sample: the keys of its finite ratios, a
+// histogram of their top 16 bits, and how many pixels passed the sum test
+// (NaN ratios included, as estimate_dop counts them).
+struct DopPart {
+  std::vector<uint32_t> keys;
+  std::vector<uint32_t> hist;
+  size_t counted = 0;
+};
+
+// Scratch of packed_dop, kept per calling thread (the session's thread) from
+// call to call: fresh pages for ~1 MB of keys and 256 KiB histograms fault
+// one by one, which cost more than the whole sample on a VM.
+struct DopScratch {
+  std::vector<DopPart> parts;
+  std::vector<uint64_t> hist;
+  std::vector<uint32_t> low;
+};
+
+// The k-th smallest (0-based) key over all parts, from the merged histogram
+// `hist` of the top 16 bits: the bucket holding rank k, then a histogram of
+// the low 16 bits of that bucket's keys (a bucket can hold most of the
+// sample: the backgrounds of a hazy scene cluster; O(n), no sort).
+uint32_t select_key(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k,
+                    std::vector<uint32_t>& low) {
+  uint32_t hi = 0;
+  size_t below = 0;
+  while (below + hist[hi] <= k) below += hist[hi++];
+  low.assign(65536, 0);
+  for (const DopPart& part : parts)
+    for (uint32_t key : part.keys)
+      if ((key >> 16) == hi) ++low[key & 0xffffu];
+  uint32_t lo = 0;
+  while (below + low[lo] <= k) below += low[lo++];
+  return (hi << 16) | lo;
+}
+
+}  // namespace
+
+double packed_dop(const PackedView& best, const PackedView& worst, size_t count, size_t stride, double saturation,
+                  double min_sum, double percentile, uint32_t threads, size_t min_pixels) {
+  const auto samples = static_cast<uint32_t>(std::min<size_t>(count, UINT32_MAX));  // <= 2^19 in practice
+  const int32_t sat = static_cast<int32_t>(std::min(std::ceil(saturation), 1e9));
+  const float db = float(int32_t(best.frames) - 2), dw = float(int32_t(worst.frames) - 2);
+  thread_local DopScratch scratch;
+  // parallel_rows' bands: min(threads, samples) of them, band b starting at samples * b / bands.
+  const uint32_t bands = std::clamp<uint32_t>(threads, 1u, std::max(samples, 1u));
+  std::vector<DopPart>& parts = scratch.parts;
+  parts.resize(bands);
+  for (DopPart& part : parts) part.keys.clear(), part.hist.assign(65536, 0), part.counted = 0;
+  sdk::parallel_rows(samples, threads, [&](uint32_t j0, uint32_t j1) {
+    uint32_t b = 0;
+    while (b + 1 < bands && uint64_t{samples} * (b + 1) / bands <= j0) ++b;
+    DopPart& part = parts[b];
+    part.keys.reserve(j1 - j0);
+    for (size_t i = j0 * stride; i < size_t{j1} * stride; i += stride) {
+      const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
+      if (b2 >= sat || w2 >= sat) continue;  // clipped: no background
+      // The backgrounds as the reference pass rounds them (float quotients of
+      // integers), then estimate_dop's ratio in double.
+      const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
+      const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
+      const double sum = double(bw) + double(bb);
+      if (!(sum > min_sum)) continue;
+      ++part.counted;
+      const auto r = static_cast<float>((double(bw) - double(bb)) / sum);
+      if (!std::isfinite(r)) continue;  // quantile() drops these
+      const uint32_t key = key_from_float(r);
+      part.keys.push_back(key);
+      ++part.hist[key >> 16];
+    }
+  });
+  size_t counted = 0, finite = 0;
+  std::vector<uint64_t>& hist = scratch.hist;
+  hist.assign(65536, 0);
+  for (const DopPart& part : parts) {
+    counted += part.counted, finite += part.keys.size();
+    for (size_t b = 0; b < hist.size(); ++b) hist[b] += part.hist[b];
+  }
+  if (counted < min_pixels || finite == 0) return std::numeric_limits<double>::quiet_NaN();
+  // quantile(): linear interpolation between the lo-th and (lo+1)-th smallest.
+  const double pos = std::clamp(percentile, 0.0, 1.0) * double(finite - 1);
+  const auto lo = static_cast<size_t>(std::floor(pos));
+  const double v_lo = double(float_from_key(select_key(parts, hist, lo, scratch.low)));
+  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(select_key(parts, hist, lo + 1, scratch.low)));
+  const double v = v_lo + (pos - double(lo)) * (v_hi - v_lo);
+  return std::clamp(v, 0.0, 1.0);
 }
 
 size_t striping_pass(const PackedView& best, const PackedView* worst, const PassSettings& s, const PassMaps& m,

@@ -60,4 +60,22 @@ bool pass_kernel_available(PassKernel kernel);
 size_t striping_pass(const PackedView& best, const PackedView* worst, const PassSettings& s, const PassMaps& m,
                      size_t i0, size_t i1, QualitySums& q, PassKernel kernel = PassKernel::best);
 
+// The DOP estimate of a polarized striping scan (estimate_dop's rule, Eq.
+// 5.4–5.5, on the backgrounds bg = (sum - top1 - top2) / (K - 2) of both
+// stacks): r = (bg_w - bg_b) / (bg_w + bg_b) at entries 0, s, ..., (count -
+// 1) s of the views (the full stacks with s = dop_sample_stride(pixels), or
+// a stack's compact DOP sample with s = 1) where neither top2 reaches `saturation` and
+// bg_w + bg_b > min_sum; the `percentile` quantile of r, clamped to [0, 1];
+// NaN with fewer than min_pixels samples. The same value, bit for bit, as
+// estimate_dop() on the float backgrounds of those pixels (what the
+// reference pass does), without its serial steps: the sample is drawn on
+// `threads` workers (sdk::parallel_rows), each keeping a histogram of its
+// keys' top 16 bits, and the two order statistics are then picked from the
+// merged histogram and the few keys of the chosen buckets. O(count) time,
+// no dependence on thread count or order. Threads: reentrant; runs workers
+// itself (sdk::parallel_rows); keeps its scratch (~1.3 MB) per calling
+// thread for the next call. Errors: std::bad_alloc only.
+double packed_dop(const PackedView& best, const PackedView& worst, size_t count, size_t stride, double saturation,
+                  double min_sum, double percentile, uint32_t threads, size_t min_pixels = 16);
+
 }  // namespace procam::polarized_striping

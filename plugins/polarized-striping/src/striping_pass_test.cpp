@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "estimate.hpp"
+#include "media_model.hpp"
 #include "params.hpp"
 #include "procam/plugin_sdk.hpp"
 
@@ -79,12 +80,16 @@ Maps run(const Case& c, StripingPass pass, uint32_t seed) {
   EXPECT_TRUE(e.ok()) << e.message;
   cfg.threads = 2;
   const Levels lv = levels_for(cfg, 255);
-  StripeStack best(kW, kH, true), worst(kW, kH, true);
+  // Even seeds: the stacks keep the compact DOP sample at the last frame
+  // (the session's way); odd seeds: the DOP reads the full stacks.
+  const uint32_t expected = seed % 2 == 0 ? c.stripes : 0;
+  StripeStack best(kW, kH, true, expected), worst(kW, kH, true, expected);
   for (uint32_t k = 0; k < c.stripes; ++k) {
     const auto fb = frame(c.scene, c.stripes, k, false, seed), fw = frame(c.scene, c.stripes, k, true, seed);
     best.add(sdk::gray_view(fb.data(), kW, kH), static_cast<uint16_t>(k), 2);
     if (c.polarised) worst.add(sdk::gray_view(fw.data(), kW, kH), static_cast<uint16_t>(k), 2);
   }
+  EXPECT_EQ(best.sample_current(), expected > 0);
   return estimate_striping(best, c.polarised ? &worst : nullptr, cfg, lv, kPW, pass);
 }
 
@@ -171,6 +176,77 @@ TEST(StripingPass, ScenesCoverEdgesTiesAndClipping) {
     if (std::isfinite(s) && s != std::floor(s)) ++edges;
   }
   EXPECT_GT(edges, kW / 2) << "row 3 straddles adjacent stripes: fractional indices";
+}
+
+// packed_dop (parallel sample, histogram selection) against estimate_dop on
+// the float backgrounds of the same strided pixels, as the reference pass
+// computes them: the same value bit for bit, whatever the thread count. Large
+// enough for a pixel stride of 2; integer backgrounds give many exact ties;
+// some pixels are clipped (top2 = 255) and some too dark for min_sum.
+TEST(StripingPass, PackedDopEqualsEstimateDopOnTheSameSample) {
+  constexpr size_t n = 700 * 800;  // stride n / 262144 = 2
+  constexpr uint32_t kFrames = 16;
+  std::mt19937 rng(11);
+  std::vector<uint16_t> k1[2], k2[2], sum[2];
+  for (int s = 0; s < 2; ++s) k1[s].resize(n), k2[s].resize(n), sum[s].resize(n);
+  for (size_t i = 0; i < n; ++i)
+    for (int s = 0; s < 2; ++s) {
+      const auto t1 = uint32_t(rng() % 256), t2 = rng() % 50 == 0 ? t1 : uint32_t(rng() % (t1 + 1));
+      const auto others = uint32_t(s == 0 ? rng() % (t2 * (kFrames - 2) + 1) : (rng() % 4 == 0 ? 0 : t2 * (kFrames - 2)));
+      k1[s][i] = static_cast<uint16_t>((t1 << 8) | (rng() % 256));
+      k2[s][i] = static_cast<uint16_t>((t2 << 8) | (rng() % 256));
+      sum[s][i] = static_cast<uint16_t>(t1 + t2 + others);
+    }
+  const PackedView best{k1[0].data(), k2[0].data(), sum[0].data(), kFrames};
+  const PackedView worst{k1[1].data(), k2[1].data(), sum[1].data(), kFrames};
+  const double saturation = 250;
+  std::vector<float> sb, sw;
+  for (size_t i = 0; i < n; i += 2) {
+    const int t2b = k2[0][i] >> 8, t2w = k2[1][i] >> 8;
+    if (!(t2b < saturation && t2w < saturation)) continue;
+    sb.push_back(float(int(sum[0][i]) - (k1[0][i] >> 8) - t2b) / float(kFrames - 2));
+    sw.push_back(float(int(sum[1][i]) - (k1[1][i] >> 8) - t2w) / float(kFrames - 2));
+  }
+  for (double min_sum : {0.0, 20.0, 1e9})
+    for (double pct : {0.0, 0.37, 0.9, 1.0}) {
+      const double ref = estimate_dop(sb, sw, min_sum, pct);
+      if (min_sum > 1e6) {
+        EXPECT_TRUE(std::isnan(ref)) << "no pixel that bright: too few samples";
+      }
+      for (uint32_t threads : {1u, 2u, 3u}) {
+        const double got = packed_dop(best, worst, n / 2, 2, saturation, min_sum, pct, threads);
+        if (std::isnan(ref)) {
+          EXPECT_TRUE(std::isnan(got)) << min_sum << " " << pct << " " << threads;
+        } else {
+          EXPECT_EQ(got, ref) << "min_sum " << min_sum << " percentile " << pct << " threads " << threads;
+        }
+      }
+    }
+}
+
+// The compact DOP sample a packed stack keeps at its expected last frame is
+// its final state at pixels j * dop_sample_stride(n) (an odd width: sample
+// pixels fall at different columns row by row; two threads: two bands), and
+// it stops being current once a frame beyond the plan arrives.
+TEST(StripingPass, StackKeepsTheDopSampleAtTheLastFrame) {
+  constexpr uint32_t w = 701, h = 800, frames = 3;  // n / 262144 = 2
+  const size_t n = size_t{w} * h, stride = dop_sample_stride(n);
+  ASSERT_EQ(stride, 2u);
+  std::mt19937 rng(3);
+  std::vector<uint8_t> f(n);
+  StripeStack st(w, h, true, frames);
+  for (uint32_t k = 0; k <= frames; ++k) {
+    for (auto& v : f) v = static_cast<uint8_t>(rng() % 256);
+    st.add(sdk::gray_view(f.data(), w, h), static_cast<uint16_t>(k), 2);
+    EXPECT_EQ(st.sample_current(), k + 1 == frames) << "after frame " << k;
+    if (k + 1 != frames) continue;
+    ASSERT_EQ(st.sample_size(), (n + stride - 1) / stride);
+    size_t bad = 0;
+    for (size_t j = 0; j < st.sample_size(); ++j)
+      bad += st.sample_key1()[j] != st.key1()[j * stride] || st.sample_key2()[j] != st.key2()[j * stride] ||
+             st.sample_sum16()[j] != st.sum16()[j * stride];
+    EXPECT_EQ(bad, 0u) << "sample entries that differ from the stack";
+  }
 }
 
 }  // namespace
