@@ -115,22 +115,18 @@ class SweepSession final : public sdk::Session {
                      sdk::to_json(table_).dump());
       else
         report["table_error"] = table_error_.message;
-      for (size_t i = 0; i < n; ++i)
-        valid_map[i] = std::isfinite(cue_[i]) && std::isfinite(plane_depth_[i]) ? 255 : 0;
-      valid = static_cast<size_t>(std::count(valid_map.begin(), valid_map.end(), uint8_t{255}));
+      valid = valid_where_finite(cue_, &plane_depth_, h, rig_.threads, valid_map);
       if (table_error_.ok())
         report["table"] = {{"name", table_.name}, {"samples", table_.samples.size()},
                            {"x_range", {table_.x_min(), table_.x_max()}}};
     } else if (const CueKind* kind = cue_of(method_)) {
-      for (size_t i = 0; i < n; ++i) valid_map[i] = std::isfinite(depth_[i]) ? 255 : 0;
-      valid = static_cast<size_t>(std::count(valid_map.begin(), valid_map.end(), uint8_t{255}));
+      valid = valid_where_finite(depth_, nullptr, h, rig_.threads, valid_map);
       out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
                                           " table; NaN: invalid", w, h, std::move(depth_));
       report["table"] = {{"name", table_.name}, {"x_range", {table_.x_min(), table_.x_max()}}, {"made", table_.made}};
       report["cue_valid_pixels"] = cue_valid_;
     } else {
-      valid = cue_valid_;
-      for (size_t i = 0; i < n; ++i) valid_map[i] = std::isfinite(cue_[i]) ? 255 : 0;
+      valid = valid_where_finite(cue_, nullptr, h, rig_.threads, valid_map);
     }
     switch (method_) {
       case Method::multi_focal:
@@ -159,10 +155,9 @@ class SweepSession final : public sdk::Session {
       }
       out.add_image("e3_peak_dn", "DN", "largest E(3, f) over the focus settings (pattern contrast)", w, h, std::move(peak_));
     }
-    std::vector<float> mean;
-    sdk::take_map(mean, n);
-    std::copy(acc_->mean().begin(), acc_->mean().end(), mean.begin());
-    out.add_image("mean_dn", "DN", "mean of the temporal profile (focus setting 0)", w, h, std::move(mean));
+    // The accumulator's map itself (outputs() runs once per round and
+    // defocus has one round), not a 9 MB copy of it.
+    out.add_image("mean_dn", "DN", "mean of the temporal profile (focus setting 0)", w, h, acc_->take_mean());
     out.add_image("valid", "", "255 where the method's result is valid, else 0", w, h, std::move(valid_map));
     sdk::StandardOutputs std_out;
     std_out.decode_ms = decode_ms_;

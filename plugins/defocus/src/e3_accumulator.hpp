@@ -71,6 +71,9 @@ class E3Accumulator {
   const std::vector<float>& e3(uint32_t focus) const { return e3_[focus]; }
   // Mean of the profile (DN) over focus setting 0's frames.
   const std::vector<float>& mean() const noexcept { return mean_; }
+  // Moves the mean map out (for a session's outputs, once: mean() is empty
+  // afterwards and must not be used again).
+  std::vector<float> take_mean() noexcept { return std::move(mean_); }
   // Whether pixel (x, y) saturated (kSaturated) in any frame.
   bool saturated(uint32_t x, uint32_t y) const noexcept {
     return (sat_bits_[size_t{y} * bit_stride_ + x / 8] >> (x % 8)) & 1u;

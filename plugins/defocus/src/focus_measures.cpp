@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 
@@ -84,6 +85,46 @@ size_t map_pixels(const E3Accumulator& acc, const Validity& rule, uint32_t threa
   return total;
 }
 }  // namespace
+
+size_t valid_where_finite(const std::vector<float>& a, const std::vector<float>* b, uint32_t rows, uint32_t threads,
+                          std::vector<uint8_t>& valid) {
+  valid.resize(a.size());
+  if (rows == 0 || a.empty()) return 0;
+  const size_t w = a.size() / rows;
+  std::vector<size_t> counts(rows, 0);
+  const float* pa = a.data();
+  const float* pb = b ? b->data() : nullptr;
+  uint8_t* pv = valid.data();
+  // Finite <=> the exponent bits are not all ones (inf and NaN have them).
+  auto finite_bits = [](const float* p, size_t i) {
+    uint32_t u;
+    std::memcpy(&u, p + i, sizeof u);
+    return (u & 0x7f800000u) != 0x7f800000u;
+  };
+  sdk::parallel_rows(rows, threads, [&](uint32_t y0, uint32_t y1) {
+    for (uint32_t y = y0; y < y1; ++y) {
+      const size_t i0 = size_t{y} * w, i1 = i0 + w;
+      size_t c = 0;
+      if (pb) {
+        for (size_t i = i0; i < i1; ++i) {
+          const bool ok = finite_bits(pa, i) & finite_bits(pb, i);
+          pv[i] = ok ? 255 : 0;
+          c += ok;
+        }
+      } else {
+        for (size_t i = i0; i < i1; ++i) {
+          const bool ok = finite_bits(pa, i);
+          pv[i] = ok ? 255 : 0;
+          c += ok;
+        }
+      }
+      counts[y] = c;
+    }
+  });
+  size_t total = 0;
+  for (size_t c : counts) total += c;
+  return total;
+}
 
 size_t fbar_map(const E3Accumulator& acc, const Validity& rule, uint32_t threads, std::vector<float>& out) {
   return fbar_depth_map(acc, rule, nullptr, threads, out, nullptr);

@@ -55,6 +55,14 @@ size_t omega_map(const E3Accumulator& acc, uint32_t f1, uint32_t f2, const Valid
 size_t modulation_map(const E3Accumulator& acc, uint32_t f, const Validity& rule, uint32_t threads,
                       std::vector<float>& out);
 
+// The `valid` output map: valid[i] = 255 where a[i] is finite (and b[i] too
+// when b is not null), else 0, on `threads` row bands of `rows` rows (a.size()
+// must be a multiple of rows; b, when given, a.size() elements). `valid` is
+// resized to a.size(); every element is written. Returns the count of 255s.
+// Finite is tested on the bits (exponent not all ones), so the loop vectorises.
+size_t valid_where_finite(const std::vector<float>& a, const std::vector<float>* b, uint32_t rows, uint32_t threads,
+                          std::vector<uint8_t>& valid);
+
 // Whether pixel (x, y) passes the saturation / black tests (not the E tests).
 bool usable(const E3Accumulator& acc, uint32_t x, uint32_t y, const Validity& rule) noexcept;
 

@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iterator>
+#include <limits>
 #include <vector>
 
 namespace procam::defocus {
@@ -165,6 +167,48 @@ TEST(FbarDepthMap, MatchesThePerPixelReference) {
   EXPECT_TRUE(std::isnan(fbar[2]));
   EXPECT_TRUE(std::isnan(fbar[3]));
   EXPECT_NEAR(fbar[0], 1.5, 1e-4);
+}
+
+// The `valid` map from the bits: every non-finite kind (NaN, +inf, -inf)
+// is 0, every finite value (0, -0, denormals, FLT_MAX) 255, the count is
+// std::isfinite's, and the second map (calibrate-*) vetoes too; on any
+// number of row bands, including more threads than rows.
+TEST(ValidWhereFinite, MatchesIsfiniteOnEveryKindOfFloat) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  const float kinds[] = {0.f, -0.f, 1.f, -3.5f, std::numeric_limits<float>::denorm_min(),
+                         std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                         nan, -nan, inf, -inf, std::numeric_limits<float>::signaling_NaN()};
+  const uint32_t rows = 7, w = 13;
+  std::vector<float> a(rows * w), b(rows * w);
+  for (size_t i = 0; i < a.size(); ++i) {
+    a[i] = kinds[i % std::size(kinds)];
+    b[i] = kinds[(i * 5 + 3) % std::size(kinds)];
+  }
+  for (uint32_t threads : {1u, 2u, 3u, 16u}) {
+    std::vector<uint8_t> valid(3, 42);  // wrong size and stale contents on entry
+    size_t expect = 0;
+    const size_t count = valid_where_finite(a, nullptr, rows, threads, valid);
+    ASSERT_EQ(valid.size(), a.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+      const bool ok = std::isfinite(a[i]);
+      expect += ok;
+      EXPECT_EQ(valid[i], ok ? 255 : 0) << i << " threads " << threads;
+    }
+    EXPECT_EQ(count, expect) << threads;
+    expect = 0;
+    const size_t both = valid_where_finite(a, &b, rows, threads, valid);
+    for (size_t i = 0; i < a.size(); ++i) {
+      const bool ok = std::isfinite(a[i]) && std::isfinite(b[i]);
+      expect += ok;
+      EXPECT_EQ(valid[i], ok ? 255 : 0) << i << " threads " << threads;
+    }
+    EXPECT_EQ(both, expect) << threads;
+    EXPECT_LT(both, count);  // b vetoes some of a's finite pixels
+  }
+  std::vector<float> empty;
+  std::vector<uint8_t> v(5, 1);
+  EXPECT_EQ(valid_where_finite(empty, nullptr, 0, 2, v), 0u);
+  EXPECT_TRUE(v.empty());
 }
 
 TEST(ModulationMap, AmplitudeOverMean) {
