@@ -152,6 +152,8 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(params["max_uncertainty_px"]["default"], 1.5);
   EXPECT_EQ(params["tie_intervals"]["type"], "bool");
   EXPECT_EQ(params["tie_intervals"]["default"], false);
+  EXPECT_EQ(params["fill_passes"]["type"], "int");
+  EXPECT_EQ(params["fill_passes"]["default"], 4);
   for (auto& [name, p] : params) EXPECT_FALSE(p["description"].get<std::string>().empty()) << name;
 }
 
@@ -402,7 +404,7 @@ TEST(PluginAbi, CreateErrors) {
             "modulated-phase-shift");
   EXPECT_EQ(create_error("gray", R"({"bits":3})", PROCAM_ERR_INVALID_ARGUMENT),
             "unknown parameter 'bits' for method 'gray' (known: rows, binarize, min_contrast, "
-            "min_bit_margin, max_weak_error_px, noise_k, max_uncertainty_px, tie_intervals)");
+            "min_bit_margin, max_weak_error_px, noise_k, max_uncertainty_px, tie_intervals, fill_passes)");
   EXPECT_EQ(create_error("gray", R"({"rows":"yes"})", PROCAM_ERR_INVALID_ARGUMENT),
             R"(parameter 'rows' must be true or false, got "yes")");
   EXPECT_EQ(create_error("gray", R"({"min_bit_margin":1.5})", PROCAM_ERR_INVALID_ARGUMENT),
