@@ -612,7 +612,7 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
     // The neighbour fill enumerates ties under an unclipped white whatever
     // rule.ties says: there the neighbours, not the tie, choose.
     const bool enumerable = row.base_ok[k] != 0 && clean && (n_strict > 0 || weak_unc) &&
-                            n_strict <= kT && (!tie || white < fs);
+                            n_strict <= kT && (!tie || (white < fs && (rule.fill_ties || rule.ties)));
     int32_t cand[1 << (kT + 2)];  // at most kT strict + 2 tolerable bits (Gray: 1)
     int32_t n_cand = 0;             // candidates kept for the fill
     if (enumerable && (tie_ok || fill != nullptr)) {

@@ -194,6 +194,7 @@ struct UncertainRule {
   uint32_t weak_mask = 0;   // word bits of the tolerable planes (tolerable_mask)
   float max_half = 1.5f;    // widest half-interval reported, in coordinate units
   bool ties = false;        // enumerate exactly tied planes (white unclipped)
+  bool fill_ties = true;    // the same for the neighbour fill's candidates (FillRow)
 };
 // Word bits (bit bits-1-p for plane p) of the planes flagged in `tolerable`.
 uint32_t tolerable_mask(const std::vector<uint8_t>& tolerable, uint32_t bits);

@@ -86,8 +86,8 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
   const WordMap maps[2] = {word_map(cols_), has_rows_ ? word_map(rows_) : WordMap{}};
   const bool uncertain[2] = {uncertain_, uncertain_ && has_rows_};
   UncertainRule rule[2];
-  rule[0] = {tolerable_mask(tolerable_[0], cols_.bits), max_uncertainty_, ties_};
-  if (has_rows_) rule[1] = {tolerable_mask(tolerable_[1], rows_.bits), max_uncertainty_, ties_};
+  rule[0] = {tolerable_mask(tolerable_[0], cols_.bits), max_uncertainty_, ties_, fill_ties_};
+  if (has_rows_) rule[1] = {tolerable_mask(tolerable_[1], rows_.bits), max_uncertainty_, ties_, fill_ties_};
   if (uncertain_) sdk::take_map(r.cols.uncertainty, n);  // every element written below
   std::vector<float> row_unc;  // rows: the interval is not reported, only its centre
   if (uncertain[1]) row_unc.resize(n);

@@ -102,7 +102,11 @@ class BinaryRoundDecoder {
   // set_uncertain_output(true). rule.passes 0 (the default) = off. The
   // filled pixels count in cols_weak / rows_weak and in cols_filled /
   // rows_filled.
-  void set_neighbour_fill(const NeighbourFillRule& rule) { fill_ = rule; }
+  // fill_ties: exact ties enumerated for the fill's candidates (white unclipped).
+  void set_neighbour_fill(const NeighbourFillRule& rule, bool fill_ties = true) {
+    fill_ = rule;
+    fill_ties_ = fill_ties;
+  }
 
   const Layout& layout() const { return layout_; }
 
@@ -116,6 +120,7 @@ class BinaryRoundDecoder {
   float max_uncertainty_ = 1.5f;
   bool ties_ = false;
   NeighbourFillRule fill_;
+  bool fill_ties_ = true;
   std::vector<uint8_t> tolerable_[2];
   uint32_t width_, height_;
   BitPlaneStream stream_;
