@@ -100,9 +100,9 @@ TEST(OfflineRealCapture, OpencvGraycodeLayoutKeepsPlainCoverageWithFewerOutliers
   // Coverage floors per capture: the measured values rounded down; issue
   // 16's target (>= 97 %) is met with the fill on capture 0 only.
   // Agreement: every interval holds the plain column without the fill; the
-  // fill chooses by the neighbours where the plain decode guessed (41-70 %
-  // of the lost pixels have a plain column jumping > 2 from a row
-  // neighbour), so >= 98.5 % there (measured 98.96-99.77 %).
+  // fill chooses by the neighbours where the plain decode guessed (of the
+  // pixels still lost with it, 58-73 % have a plain column jumping > 2 from
+  // a row neighbour), so >= 98.5 % there (measured 98.96-99.77 %).
   struct Setting {
     const char* params;
     double min_coverage[5];
