@@ -8,8 +8,10 @@
 // Targets (issue 16): the default decode keeps >= 97 % of the pixels the
 // plain decode keeps, with fewer outliers (column more than 3 from both its
 // left and its right neighbour in the row). The outlier target is met by a
-// factor > 100; coverage is 85-95 % with the defaults and 88-97 % with
-// tie_intervals (asserted: those floors, see below).
+// factor > 100; coverage is 85.4-95.1 % with the defaults and 90.0-97.2 %
+// with the neighbour fill (fill_passes=4), which stays off by default
+// because it raises the sim's gross errors (asserted: the measured floors
+// per capture, see below).
 // Skipped (GTEST_SKIP, with the reason) when the data folder shared/data
 // beside the repository (or $PROCAM_DATA_DIR) is absent.
 #include <gtest/gtest.h>
@@ -93,14 +95,21 @@ TEST(OfflineRealCapture, OpencvGraycodeLayoutKeepsPlainCoverageWithFewerOutliers
   ASSERT_TRUE(rig_json.ok()) << rig_json.status().to_string();
   host::PluginHost host(host::LoadOptions{.probe_in_child = false});
   host.load_directories({PROCAM_PLUGIN_DIR});
-  // The defaults, and the real-capture setting tie_intervals (exact ties on
-  // an uncertain plane enumerated too; off by default because it raises the
-  // sim metal lamp's gross errors, docs/report/real.md).
+  // The defaults (neighbour fill off: the sim's gross errors rise with it,
+  // docs/report/real.md), and the real-capture setting fill_passes=4.
+  // Coverage floors per capture: the measured values rounded down; issue
+  // 16's target (>= 97 %) is met with the fill on capture 0 only.
+  // Agreement: every interval holds the plain column without the fill; the
+  // fill chooses by the neighbours where the plain decode guessed (of the
+  // pixels still lost with it, 58-73 % have a plain column jumping > 2 from
+  // a row neighbour), so >= 98.5 % there (measured 98.96-99.77 %).
   struct Setting {
     const char* params;
-    double min_coverage;
+    double min_coverage[5];
+    double min_agreement;
   };
-  for (const Setting& set : {Setting{R"({"rows":true})", 0.85}, Setting{R"({"rows":true,"tie_intervals":true})", 0.88}})
+  for (const Setting& set : {Setting{R"({"rows":true})", {0.95, 0.85, 0.90, 0.90, 0.88}, 1.0},
+                             Setting{R"({"rows":true,"fill_passes":4})", {0.97, 0.90, 0.945, 0.94, 0.92}, 0.985}})
   for (int cap = 0; cap < 5; ++cap) {
     const fs::path dir = kSample / ("capture_" + std::to_string(cap));
     SCOPED_TRACE(dir.string() + " " + set.params);
@@ -154,15 +163,14 @@ TEST(OfflineRealCapture, OpencvGraycodeLayoutKeepsPlainCoverageWithFewerOutliers
                 cap, set.params, sp.kept, sp.outliers, so.kept, so.outliers, 100 * coverage,
                 100.0 * static_cast<double>(agree) / static_cast<double>(both));
     EXPECT_GT(sp.kept, size_t{kW} * kH / 2) << "the plain decode itself should light most pixels";
-    // Issue 16's target is >= 97 %, not met: 85.4-95.1 % with the defaults,
-    // 88.1-96.6 % with tie_intervals (docs/report/real.md: most lost pixels
-    // have a plain column that jumps by > 2 from a row neighbour, i.e. the
-    // plain decode guessed, or more uncertain planes than a narrow interval
-    // allows; wider intervals cost outliers). Asserted: the measured floor of
-    // each setting, every interval holding the plain column (agreement),
-    // and far fewer outliers than the plain decode.
-    EXPECT_GE(coverage, set.min_coverage);
-    EXPECT_EQ(agree, both) << "every decoded column (or its interval) holds the plain column +- 0.5";
+    // Issue 16's target is >= 97 %: met with fill_passes=4 on capture 0
+    // (97.17 %), not on 1-4 (90.0-94.9 %; 85.4-95.1 % without the fill).
+    // Most of what is still lost has a plain column that jumps by > 2 from
+    // a row neighbour (the plain decode guessed) or more uncertain planes
+    // than are tracked (docs/report/real.md).
+    EXPECT_GE(coverage, set.min_coverage[cap]);
+    EXPECT_GE(static_cast<double>(agree), set.min_agreement * static_cast<double>(both))
+        << "decoded columns (or their intervals) holding the plain column +- 0.5";
     EXPECT_LT(so.outliers * 100, sp.outliers) << "at least 100x fewer outliers than the plain decode";
   }
 }

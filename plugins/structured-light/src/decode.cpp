@@ -553,7 +553,7 @@ uint32_t tolerable_mask(const std::vector<uint8_t>& tolerable, uint32_t bits) {
 
 size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
                         const UncertainRule& rule, size_t b, size_t e, const BaseRow& row,
-                        float* coord, uint8_t* valid, float* uncertainty) {
+                        float* coord, uint8_t* valid, float* uncertainty, FillRow* fill) {
   const BitPlaneStream& s = ctx.s;
   const CodeState& st = s.code(c);
   const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -609,19 +609,28 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
     // mostly wrong elsewhere too (docs/report/real.md).
     const float white = s.u8() ? static_cast<float>(s.white8()[i]) : s.white_f()[i];
     const bool tie_ok = !tie || (rule.ties && white < fs);
-    if (row.base_ok[k] != 0 && clean && tie_ok && (n_strict > 0 || weak_unc) && n_strict <= kT) {
+    // The neighbour fill enumerates ties under an unclipped white whatever
+    // rule.ties says: there the neighbours, not the tie, choose.
+    const bool enumerable = row.base_ok[k] != 0 && clean && (n_strict > 0 || weak_unc) &&
+                            n_strict <= kT && (!tie || (white < fs && (rule.fill_ties || rule.ties)));
+    int32_t cand[1 << (kT + 2)];  // at most kT strict + 2 tolerable bits (Gray: 1)
+    int32_t n_cand = 0;             // candidates kept for the fill
+    if (enumerable && (tie_ok || fill != nullptr)) {
       uint32_t mask = weak_unc ? rule.weak_mask : 0u;
       for (int j = 0; j < n_strict; ++j) mask |= 1u << (st.bits - 1 - st.t_plane[j][i]);
       int32_t vlo = std::numeric_limits<int32_t>::max(), vhi = -1, count = 0;
+      const bool room = __builtin_popcount(mask) <= kT + 2;
       for (uint32_t sub = mask;; sub = (sub - 1) & mask) {  // every subset, the empty one last
         const int32_t v = table[word ^ sub];
         if (v >= 0) {
           vlo = std::min(vlo, v);
           vhi = std::max(vhi, v);
+          if (room) cand[count] = v;
           ++count;
         }
         if (sub == 0) break;
       }
+      if (room) n_cand = count;
       // Every candidate a code word (a flip beyond the code's length is no
       // evidence for the others; the one-plane rule before required it of
       // the flipped word too), and contiguous (a flip that jumps is no
@@ -629,7 +638,7 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
       // errors): distinct words have distinct values, so
       // the candidates fill [lo, hi] exactly when there are
       // (hi - lo) / scale + 1 of them.
-      if (vhi >= 0 && count == (int32_t{1} << __builtin_popcount(mask)) && (vhi - vlo) / scale + 1 == count) {
+      if (tie_ok && vhi >= 0 && count == (int32_t{1} << __builtin_popcount(mask)) && (vhi - vlo) / scale + 1 == count) {
         half = 0.5f * static_cast<float>(vhi - vlo) / static_cast<float>(scale);
         centre = 0.5f * static_cast<float>(vlo + vhi) / static_cast<float>(scale);
         take = half <= rule.max_half;
@@ -641,6 +650,12 @@ size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words
       uncertainty[k] = half;
       ++used;
     } else if (n_strict > 0 || weak_unc) {  // uncertain and not resolved: invalid
+      if (fill != nullptr && n_cand > 0) {
+        std::sort(cand, cand + n_cand);
+        fill->x.push_back(static_cast<uint32_t>(k));
+        fill->v.insert(fill->v.end(), cand, cand + n_cand);
+        fill->begin.push_back(static_cast<uint32_t>(fill->v.size()));
+      }
       coord[k] = nan;
       if (valid != nullptr) valid[k] = 0;
       uncertainty[k] = nan;

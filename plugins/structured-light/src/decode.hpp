@@ -194,12 +194,33 @@ struct UncertainRule {
   uint32_t weak_mask = 0;   // word bits of the tolerable planes (tolerable_mask)
   float max_half = 1.5f;    // widest half-interval reported, in coordinate units
   bool ties = false;        // enumerate exactly tied planes (white unclipped)
+  bool fill_ties = true;    // the same for the neighbour fill's candidates (FillRow)
 };
 // Word bits (bit bits-1-p for plane p) of the planes flagged in `tolerable`.
 uint32_t tolerable_mask(const std::vector<uint8_t>& tolerable, uint32_t bits);
+// Candidates of the pixels decode_uncertain rejected although their own
+// data names a few possible coordinates (neighbour_fill.hpp picks among
+// them): one per camera row, pixel x (offset in the row) with its candidate
+// table values v[begin[j] .. begin[j + 1]) in ascending order.
+struct FillRow {
+  std::vector<uint32_t> x;
+  std::vector<uint32_t> begin{0};
+  std::vector<int32_t> v;
+  void clear() {
+    x.clear();
+    begin.assign(1, 0);
+    v.clear();
+  }
+};
+// `fill` (may be null): receives every rejected pixel that passes rule 1, is
+// clean, has at most kTracked uncertain strict planes and whose white is
+// unclipped where a plane ties, with the code-word values of every word its
+// uncertain planes allow (ties included) — the rejected interval's
+// candidates. [b, e) must be one camera row for it (x = i - b).
 size_t decode_uncertain(const DecodeContext& ctx, size_t c, const WordMap& words,
                         const UncertainRule& rule, size_t b, size_t e, const BaseRow& row,
-                        float* coord, uint8_t* valid, float* uncertainty);
+                        float* coord, uint8_t* valid, float* uncertainty,
+                        FillRow* fill = nullptr);
 
 // The per-row decode loop shared by the decoders: on the stream's pool, for
 // every row, decode_base into a per-band BaseRow (lit / intensity written

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -789,6 +790,111 @@ TEST(UncertainPlanes, SeveralStrictPlanesGiveTheirIntervalWhenNarrow) {
   }
   EXPECT_GT(narrow, 20u) << "the probes must exercise narrow intervals";
   EXPECT_GT(wide, 20u) << "and wide ones";
+}
+
+
+// Neighbour fill (neighbour_fill.hpp) on synthetic frames. Rows 30..79 hold
+// a depth edge: from x = 480 the surface sees columns 300 lower (a jump no
+// blur explains). Two bands are blurred: each pixel there sees the mean of
+// the columns of the pixels x-1, x, x+1, x+2 (a 4-pixel box blur along the
+// row, 5-6 projector columns at 1.3 columns per pixel), so fine planes tie
+// or nearly tie and most band pixels have too many uncertain planes for an
+// interval. Band A (x 300..307) lies on one smooth surface: the fill must
+// recover most of it. Band B (x 474..489) straddles the edge. Everywhere a
+// filled pixel's column must lie within 1 of the span of the columns it sees
+// on ONE surface — never an in-between column across the edge, and a pixel
+// that sees only the far surface never takes the near one's columns.
+TEST(NeighbourFill, FillsABlurredBandButDoesNotBridgeADepthEdge) {
+  const StripeCode cols = make_gray_code(kProjW);
+  std::vector<int32_t> col = truth_columns();
+  constexpr uint32_t kY0 = 30, kY1 = 80, kEdge = 480;
+  for (uint32_t y = kY0; y < kY1; ++y)
+    for (uint32_t x = kEdge; x < kCamW; ++x)
+      if (col[size_t{y} * kCamW + x] >= 0) col[size_t{y} * kCamW + x] -= 300;
+  const Layout layout = make_layout(cols, nullptr, true);
+  const Sensor s = kCases[0].sensor;  // 8 bit, +-3 DN noise
+  std::vector<TestFrame> frames = render(layout, cols, col, s, 53);
+  auto in_band = [](uint32_t x) { return (x >= 300 && x < 308) || (x >= 474 && x < 490); };
+  for (uint32_t y = kY0; y < kY1; ++y)
+    for (uint32_t x = 0; x < kCamW; ++x) {
+      if (!in_band(x)) continue;
+      const size_t i = size_t{y} * kCamW + x;
+      for (size_t f = 0; f < layout.frames.size(); ++f) {
+        const FrameRole& role = layout.frames[f];
+        if (role.kind != FrameKind::plane && role.kind != FrameKind::inverse) continue;
+        double lit = 0;
+        for (int d = -1; d <= 2; ++d) {
+          const bool b = cols.bit(role.plane, static_cast<uint32_t>(col[static_cast<size_t>(static_cast<int64_t>(i) + d)]));
+          lit += (role.kind == FrameKind::plane ? b : !b) ? 0.25 : 0.0;
+        }
+        frames[f].set(i, s.black + s.contrast * lit, s);
+      }
+    }
+  auto run = [&](uint32_t passes, uint32_t threads) {
+    BinaryRoundDecoder dec(layout, cols, nullptr, kCamW, kCamH, threads, 1);
+    dec.set_uncertain_output(true, 1.5f);
+    NeighbourFillRule rule;
+    rule.passes = passes;
+    dec.set_neighbour_fill(rule);
+    for (uint32_t i = 0; i < frames.size(); ++i) EXPECT_TRUE(dec.add_frame(i, frames[i].img).ok());
+    return dec.finish(0.03, 0.1, 3.0);
+  };
+  const RoundResult off = run(0, 1), on = run(4, 1), on3 = run(4, 3);
+  EXPECT_EQ(off.cols_filled, 0u);
+  // Within 1 column of the span of the columns pixel i sees on one surface.
+  auto plausible = [&](size_t i, uint32_t x, float c) {
+    for (int side = 0; side < 2; ++side) {
+      float lo = 1e9f, hi = -1e9f;
+      for (int d = -1; d <= 2; ++d) {
+        if ((int64_t{x} + d >= int64_t{kEdge}) != (side == 1)) continue;
+        const auto v = static_cast<float>(col[static_cast<size_t>(static_cast<int64_t>(i) + d)]);
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+      if (c >= lo - 1 && c <= hi + 1) return true;
+    }
+    return false;
+  };
+  size_t a_total = 0, a_off = 0, a_on = 0;
+  for (uint32_t y = kY0; y < kY1; ++y)
+    for (uint32_t x = 300; x < 308; ++x) {
+      const size_t i = size_t{y} * kCamW + x;
+      ++a_total;
+      a_off += off.cols.valid[i] != 0 ? 1u : 0u;
+      if (on.cols.valid[i] == 0) continue;
+      ++a_on;
+      if (off.cols.valid[i] != 0) continue;  // decoded from its own bits, unchanged
+      EXPECT_TRUE(plausible(i, x, on.cols.coord[i])) << "band A pixel " << x << "," << y << ": " << on.cols.coord[i];
+      EXPECT_GE(on.cols.uncertainty[i], 0.5f) << "a filled pixel reports an interval";
+    }
+  std::printf("band A: %zu px, valid without fill %zu, with fill %zu (filled in all: %zu)\n", a_total, a_off,
+              a_on, on.cols_filled);
+  EXPECT_LT(a_off * 2, a_total) << "the blur must defeat the interval rule on most band pixels";
+  EXPECT_GE(a_on * 100, a_total * 80) << "4 passes from both sides reach across the 8-pixel band";
+  size_t b_valid = 0, b_off = 0;
+  for (uint32_t y = kY0; y < kY1; ++y)
+    for (uint32_t x = 474; x < 490; ++x) {
+      const size_t i = size_t{y} * kCamW + x;
+      b_off += off.cols.valid[i] != 0 ? 1u : 0u;
+      if (on.cols.valid[i] == 0 || off.cols.valid[i] != 0) continue;
+      ++b_valid;
+      EXPECT_TRUE(plausible(i, x, on.cols.coord[i])) << "band B pixel " << x << "," << y << ": " << on.cols.coord[i];
+    }
+  std::printf("band B: valid without fill %zu, filled %zu of %u\n", b_off, b_valid, (kY1 - kY0) * 16);
+  EXPECT_GT(b_valid, 0u) << "the fill must act on band B for the edge check to mean something";
+  // Outside the bands the fill changes nothing; the result does not depend
+  // on the thread count (Jacobi passes).
+  for (size_t i = 0; i < col.size(); ++i) {
+    const uint32_t x = static_cast<uint32_t>(i % kCamW), y = static_cast<uint32_t>(i / kCamW);
+    if (!(y >= kY0 && y < kY1 && in_band(x))) {
+      EXPECT_EQ(on.cols.valid[i], off.cols.valid[i]) << i;
+    }
+    ASSERT_EQ(on.cols.valid[i], on3.cols.valid[i]) << i;
+    if (on.cols.valid[i] != 0) {
+      ASSERT_EQ(on.cols.coord[i], on3.cols.coord[i]) << i;
+    }
+  }
+  EXPECT_EQ(on.cols_filled, on3.cols_filled);
 }
 
 }  // namespace

@@ -138,7 +138,7 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(d[7]["patterns"], 3 * 6 * 9);
   std::map<std::string, nlohmann::json> params;
   for (const auto& p : d[0]["params"]) params[p["name"].get<std::string>()] = p;
-  ASSERT_EQ(params.size(), 8u);
+  ASSERT_EQ(params.size(), 12u);
   EXPECT_EQ(params["rows"]["type"], "bool");
   EXPECT_EQ(params["rows"]["default"], false);
   EXPECT_EQ(params["binarize"]["default"], "inverse");
@@ -152,6 +152,11 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(params["max_uncertainty_px"]["default"], 1.5);
   EXPECT_EQ(params["tie_intervals"]["type"], "bool");
   EXPECT_EQ(params["tie_intervals"]["default"], false);
+  EXPECT_EQ(params["fill_passes"]["type"], "int");
+  EXPECT_EQ(params["fill_passes"]["default"], 0);
+  EXPECT_EQ(params["fill_min_neighbours"]["default"], 1);
+  EXPECT_EQ(params["fill_extrapolate"]["default"], true);
+  EXPECT_EQ(params["fill_ties"]["default"], true);
   for (auto& [name, p] : params) EXPECT_FALSE(p["description"].get<std::string>().empty()) << name;
 }
 
@@ -402,7 +407,8 @@ TEST(PluginAbi, CreateErrors) {
             "modulated-phase-shift");
   EXPECT_EQ(create_error("gray", R"({"bits":3})", PROCAM_ERR_INVALID_ARGUMENT),
             "unknown parameter 'bits' for method 'gray' (known: rows, binarize, min_contrast, "
-            "min_bit_margin, max_weak_error_px, noise_k, max_uncertainty_px, tie_intervals)");
+            "min_bit_margin, max_weak_error_px, noise_k, max_uncertainty_px, tie_intervals, fill_passes, "
+            "fill_min_neighbours, fill_extrapolate, fill_ties)");
   EXPECT_EQ(create_error("gray", R"({"rows":"yes"})", PROCAM_ERR_INVALID_ARGUMENT),
             R"(parameter 'rows' must be true or false, got "yes")");
   EXPECT_EQ(create_error("gray", R"({"min_bit_margin":1.5})", PROCAM_ERR_INVALID_ARGUMENT),

@@ -86,11 +86,17 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
   const WordMap maps[2] = {word_map(cols_), has_rows_ ? word_map(rows_) : WordMap{}};
   const bool uncertain[2] = {uncertain_, uncertain_ && has_rows_};
   UncertainRule rule[2];
-  rule[0] = {tolerable_mask(tolerable_[0], cols_.bits), max_uncertainty_, ties_};
-  if (has_rows_) rule[1] = {tolerable_mask(tolerable_[1], rows_.bits), max_uncertainty_, ties_};
+  rule[0] = {tolerable_mask(tolerable_[0], cols_.bits), max_uncertainty_, ties_, fill_ties_};
+  if (has_rows_) rule[1] = {tolerable_mask(tolerable_[1], rows_.bits), max_uncertainty_, ties_, fill_ties_};
   if (uncertain_) sdk::take_map(r.cols.uncertainty, n);  // every element written below
   std::vector<float> row_unc;  // rows: the interval is not reported, only its centre
   if (uncertain[1]) row_unc.resize(n);
+  // Rejected pixels' candidates for the neighbour fill, one FillRow per
+  // camera row (each written by the band that decodes the row).
+  const bool fill[2] = {uncertain[0] && fill_.passes > 0, uncertain[1] && fill_.passes > 0};
+  std::vector<FillRow> fill_rows[2];
+  for (size_t axis = 0; axis < 2; ++axis)
+    if (fill[axis]) fill_rows[axis].resize(height_);
   std::vector<size_t> weak;
   decode_rows(stream_, ctx, nullptr, stream_.intensity_to_write(r.intensity), has_rows_ ? 2 : 1,
               weak, [&](size_t b, size_t e, const BaseRow& base, int32_t* idx, size_t* band_weak) {
@@ -104,7 +110,8 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
                     float* unc = axis == 0 ? r.cols.uncertainty.data() : row_unc.data();
                     band_weak[axis] += decode_uncertain(
                         ctx, axis, maps[axis], rule[axis], b, e, base, m.coord.data() + b,
-                        m.valid.empty() ? nullptr : m.valid.data() + b, unc + b);
+                        m.valid.empty() ? nullptr : m.valid.data() + b, unc + b,
+                        fill[axis] ? &fill_rows[axis][b / width_] : nullptr);
                   } else {
                     band_weak[axis] += tolerated;
                     if (axis == 0 && uncertain_)  // no tolerable planes: exact or invalid
@@ -115,6 +122,18 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
               });
   r.cols_weak = weak[0];
   r.rows_weak = has_rows_ ? weak[1] : 0;
+  if (fill[0]) {
+    r.cols_filled = fill_from_neighbours(stream_.pool(), width_, height_, std::max(maps[0].scale, 1),
+                                         fill_, fill_rows[0], r.cols.coord.data(), r.cols.valid.data(),
+                                         r.cols.uncertainty.data(), r.cols.confidence.data());
+    r.cols_weak += r.cols_filled;
+  }
+  if (fill[1]) {
+    r.rows_filled = fill_from_neighbours(stream_.pool(), width_, height_, std::max(maps[1].scale, 1),
+                                         fill_, fill_rows[1], r.rows.coord.data(), nullptr,
+                                         row_unc.data(), nullptr);
+    r.rows_weak += r.rows_filled;
+  }
   RoundResult out = std::move(result_);
   result_ = RoundResult{};
   return out;

@@ -25,6 +25,7 @@
 
 #include "bitplane_stream.hpp"
 #include "decode.hpp"
+#include "neighbour_fill.hpp"
 #include "plan_layout.hpp"
 #include "procam/plugin_sdk.hpp"
 #include "stripe_code.hpp"
@@ -50,6 +51,7 @@ struct RoundResult {
   double full_scale = 0;          // of the input frames
   size_t cols_weak = 0, rows_weak = 0;  // valid pixels kept through a tolerated weak plane
                                         // (with uncertain output: given an interval)
+  size_t cols_filled = 0, rows_filled = 0;  // of those, given by the neighbour fill
   NoiseFit noise;                       // the capture's noise model (bitplane_stream.hpp)
   double noise_k = 0;                   // the noise rule's k (0: off or not measured)
 };
@@ -95,6 +97,17 @@ class BinaryRoundDecoder {
     stream_.track_single_planes(on);
   }
 
+  // Neighbour-consistent candidate selection (neighbour_fill.hpp) for the
+  // pixels the uncertain output rejects, on both axes; needs
+  // set_uncertain_output(true). rule.passes 0 (the default) = off. The
+  // filled pixels count in cols_weak / rows_weak and in cols_filled /
+  // rows_filled.
+  // fill_ties: exact ties enumerated for the fill's candidates (white unclipped).
+  void set_neighbour_fill(const NeighbourFillRule& rule, bool fill_ties = true) {
+    fill_ = rule;
+    fill_ties_ = fill_ties;
+  }
+
   const Layout& layout() const { return layout_; }
 
  private:
@@ -106,6 +119,8 @@ class BinaryRoundDecoder {
   bool uncertain_ = false;
   float max_uncertainty_ = 1.5f;
   bool ties_ = false;
+  NeighbourFillRule fill_;
+  bool fill_ties_ = true;
   std::vector<uint8_t> tolerable_[2];
   uint32_t width_, height_;
   BitPlaneStream stream_;
