@@ -54,6 +54,25 @@ bool run(const std::string& plugin, const std::string& method, const std::string
 
 const float* image(const ScanRun& r, const std::string& name) { return testing::output_image(r, name); }
 
+// An image output of any pixel type as floats (the polarized-striping
+// plugin's image_dn is U8 for 8-bit striping scans, F32 otherwise); empty
+// when absent.
+std::vector<float> image_values(const ScanRun& r, const std::string& name) {
+  for (const auto& o : r.outputs) {
+    if (o.kind != PROCAM_OUTPUT_IMAGE || o.name != name || o.image.channels != 1) continue;
+    const size_t n = size_t{o.image.width} * o.image.height;
+    std::vector<float> v(n);
+    switch (o.image.pixel_type) {
+      case PROCAM_PIXEL_F32: std::copy_n(static_cast<const float*>(o.image.data), n, v.begin()); return v;
+      case PROCAM_PIXEL_U8: std::copy_n(static_cast<const uint8_t*>(o.image.data), n, v.begin()); return v;
+      case PROCAM_PIXEL_U16: std::copy_n(static_cast<const uint16_t*>(o.image.data), n, v.begin()); return v;
+      default: break;
+    }
+  }
+  ADD_FAILURE() << "no image output " << name;
+  return {};
+}
+
 double report_number(const ScanRun& r, const char* section, const char* key) {
   const nlohmann::json j = testing::output_report(r);
   if (j.is_object() && j.contains(section) && j[section].contains(key) && j[section][key].is_number())
@@ -143,7 +162,9 @@ TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
     // 12 ms, then one scaled so the 99.5th percentile of the frames' maximum
     // (image_dn) sits at 200 of 255 DN.
     ASSERT_TRUE(run("polarized-striping", m, "media-chart-heavy", r)) << m;
-    const double p995 = percentile_of(image(r, "image_dn"), r.truth.lit.pixel_count(), 0.995);
+    const std::vector<float> first = image_values(r, "image_dn");
+    ASSERT_EQ(first.size(), r.truth.lit.pixel_count()) << m;
+    const double p995 = percentile_of(first.data(), first.size(), 0.995);
     ASSERT_GT(p995, 0.0) << m << ": black frames";
     const double exposure_us = std::min(12000.0 * 200.0 / p995, 2e6);
     r = ScanRun{};
@@ -152,8 +173,9 @@ TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
     ASSERT_FALSE(r.truth.medium_direct.empty()) << "the sim gave no medium truth";
     const ChartPixels px = chart_pixels(r.truth);
     ASSERT_GT(px.lo.size(), 500u) << "too few chart pixels";
-    const float* img = image(r, "image_dn");
-    ASSERT_NE(img, nullptr);
+    const std::vector<float> img_values = image_values(r, "image_dn");
+    ASSERT_EQ(img_values.size(), r.truth.lit.pixel_count()) << m;
+    const float* img = img_values.data();
     // Stripe methods light a surface point only under its own sheet (gaps
     // between sheets): compare them where the stripe map is valid.
     ChartPixels use = px;
@@ -212,7 +234,9 @@ TEST(MediaClaims, ModerateMilkSeparationDirectAndPolarizedStripingSignalAgainstT
   // One camera exposure for both: the flood image's 99.5th percentile at 200 DN.
   ScanRun flood;
   ASSERT_TRUE(run("polarized-striping", "flood", "media-chart-moderate", flood));
-  const double p995 = percentile_of(image(flood, "image_dn"), flood.truth.lit.pixel_count(), 0.995);
+  const std::vector<float> flood_image = image_values(flood, "image_dn");
+  ASSERT_EQ(flood_image.size(), flood.truth.lit.pixel_count());
+  const double p995 = percentile_of(flood_image.data(), flood_image.size(), 0.995);
   ASSERT_GT(p995, 0.0);
   const double exposure_us = std::min(12000.0 * 200.0 / p995, 2e6);
   ScanRun sep, ps;

@@ -139,32 +139,36 @@ __attribute__((noinline)) size_t pass_scalar(const PackedView& best, const Packe
     }
     const bool stripe = dec && ok;
     img += t1, img2 += int64_t(t1) * t1;
-    m.image[i] = float(t1);
+    if (m.image) m.image[i] = float(t1);
+    if (m.image_u8) m.image_u8[i] = static_cast<uint8_t>(t1);
     m.enhanced[i] = s;
     m.backscatter[i] = b;
     if (!stripe) {
-      m.stripe[i] = m.col[i] = m.cqm[i] = m.weight[i] = kNaNf;
-      if (m.gqm) m.gqm[i] = kNaNf;
+      m.stripe[i] = kNaNf;
+      for (float* p : {m.col, m.cqm, m.weight, m.gqm})
+        if (p) p[i] = kNaNf;
       continue;
     }
     ++valid;
-    // Index clamped to the 257-entry table (NaN -> 0, as cvttps gives INT_MIN).
-    const int32_t k0 = stripe_v >= 0.0f && stripe_v < 256.0f ? int32_t(stripe_v) : (stripe_v >= 256.0f ? 255 : 0);
-    const float f = stripe_v - float(k0);
     m.stripe[i] = stripe_v;
-    m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
+    if (m.col) {
+      // Index clamped to the 257-entry table (NaN -> 0, as cvttps gives INT_MIN).
+      const int32_t k0 = stripe_v >= 0.0f && stripe_v < 256.0f ? int32_t(stripe_v) : (stripe_v >= 256.0f ? 255 : 0);
+      const float f = stripe_v - float(k0);
+      m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
+    }
     const float w = weight_of(s, c);
     const float bp = b * c.omp;
     const float den_c = s + bp;  // Eq. 5.8
     const float cq = den_c > 0.0f ? minf(maxf(s / den_c, 0.0f), 1.0f) : 0.0f;
-    m.weight[i] = w;
-    m.cqm[i] = cq;
+    if (m.weight) m.weight[i] = w;
+    if (m.cqm) m.cqm[i] = cq;
     q.enh += double(s), q.enh2 += double(s) * double(s);
     q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
-    if (m.gqm) {
+    if (c.polarised) {
       const float den_g = d + a + bp;  // Eq. 5.9
       const float g = den_g > 0.0f ? minf(maxf((d + bp) / den_g, 0.0f), 1.0f) : 0.0f;
-      m.gqm[i] = g;
+      if (m.gqm) m.gqm[i] = g;
       q.gqm += double(g), q.gqm_w += double(g) * double(w);
     }
   }
@@ -186,6 +190,14 @@ PROCAM_A2 void store8(float* p, __m256 v) {
     _mm_stream_ps(p + 4, _mm256_extractf128_ps(v, 1));
   }
   else _mm256_storeu_ps(p, v);
+}
+// The 8 values (0..255 in 32-bit lanes) as bytes; non-temporal: one 8-byte movnti.
+template <bool kStream>
+PROCAM_A2 void store8_u8(uint8_t* p, __m256i v) {
+  const __m128i w16 = _mm_packus_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+  const __m128i b8 = _mm_packus_epi16(w16, w16);
+  if constexpr (kStream) _mm_stream_si64(reinterpret_cast<long long*>(p), _mm_cvtsi128_si64(b8));
+  else _mm_storel_epi64(reinterpret_cast<__m128i*>(p), b8);
 }
 // Adds the 8 floats (zero where not selected) to a 4-lane double accumulator.
 PROCAM_A2 __m256d add8(__m256d acc, __m256 v) {
@@ -292,10 +304,6 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
       d = s = rise;
     }
     const __m256 sel = _mm256_castsi256_ps(_mm256_and_si256(dec, ok));
-    const __m256i k0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), _mm256_castps_si256(sel)),
-                                                         _mm256_setzero_si256()), c255);
-    const __m256 c0 = _mm256_i32gather_ps(centre, k0, 4), c1 = _mm256_i32gather_ps(centre, _mm256_add_epi32(k0, one_i), 4);
-    const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
     const __m256 w = weight8(s, c);
     const __m256 bp = _mm256_mul_ps(b, omp);
     const __m256 den_c = _mm256_add_ps(s, bp);
@@ -311,22 +319,30 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
       s_img = s_img2 = _mm256_setzero_si256();
       since_flush = 0;
     }
-    store8<kStream>(m.image + i, _mm256_cvtepi32_ps(t1));
+    if (m.image_u8) store8_u8<kStream>(m.image_u8 + i, t1);
+    else store8<kStream>(m.image + i, _mm256_cvtepi32_ps(t1));
     store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
     store8<kStream>(m.backscatter + i, b);
     store8<kStream>(m.stripe + i, _mm256_blendv_ps(nan, stripe_v, sel));
-    store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
-    store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
-    store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
+    if (m.col) {
+      const __m256i k0 = _mm256_min_epi32(
+          _mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), _mm256_castps_si256(sel)), _mm256_setzero_si256()),
+          c255);
+      const __m256 c0 = _mm256_i32gather_ps(centre, k0, 4), c1 = _mm256_i32gather_ps(centre, _mm256_add_epi32(k0, one_i), 4);
+      const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
+      store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
+    }
+    if (m.weight) store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
+    if (m.cqm) store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
     valid += size_t(__builtin_popcount(unsigned(_mm256_movemask_ps(sel))));
     const __m256 s0 = _mm256_and_ps(s, sel), w0 = _mm256_and_ps(w, sel), cq0 = _mm256_and_ps(cq, sel);
     s_enh = add8(s_enh, s0), s_enh2 = add8_prod(s_enh2, s0, s0);
     s_w = add8(s_w, w0), s_cqm = add8(s_cqm, cq0), s_cqm_w = add8_prod(s_cqm_w, cq0, w0);
-    if (m.gqm) {
+    if (c.polarised) {
       const __m256 den_g = _mm256_add_ps(_mm256_add_ps(d, a), bp);
       const __m256 g = _mm256_and_ps(clamp01(_mm256_div_ps(_mm256_add_ps(d, bp), den_g)),
                                      _mm256_cmp_ps(den_g, zero, _CMP_GT_OQ));
-      store8<kStream>(m.gqm + i, _mm256_blendv_ps(nan, g, sel));
+      if (m.gqm) store8<kStream>(m.gqm + i, _mm256_blendv_ps(nan, g, sel));
       const __m256 g0 = _mm256_and_ps(g, sel);
       s_gqm = add8(s_gqm, g0), s_gqm_w = add8_prod(s_gqm_w, g0, w0);
     }
@@ -453,22 +469,23 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
   q.n_img += n;
   const auto count = [&](size_t v) {
     q.n_enh += v, q.n_w += v, q.n_cqm += v, q.n_cqm_w += v;
-    if (m.gqm) q.n_gqm += v, q.n_gqm_w += v;
+    if (worst) q.n_gqm += v, q.n_gqm_w += v;
     return v;
   };
   if (kernel == PassKernel::best) kernel = pass_kernel_available(PassKernel::avx2) ? PassKernel::avx2 : PassKernel::scalar;
 #ifdef PROCAM_SDK_X86
   if (kernel == PassKernel::avx2 && sdk::cpu_has_avx2()) {
     // Head up to a 16-byte boundary of the image map, 8-pixel blocks, tail.
-    // Non-temporal stores (the maps are not read again here; ~74 MB written
+    // Non-temporal stores (the maps are not read again here; ~30 MB written
+    // with the core maps, ~74 MB with all of them at 1920x1200,
     // without reading them into the cache first) when every map shares that
     // alignment.
+    // (The U8 image's 8-byte movnti needs no alignment.)
     const auto mis = [&](const float* p) { return (reinterpret_cast<uintptr_t>(p + i0) & 15u) / 4u; };
-    const size_t head = std::min(n, size_t((4 - mis(m.image)) & 3u));
+    const size_t head = std::min(n, size_t((4 - mis(m.enhanced)) & 3u));
     bool same = true;
-    for (const float* p : {m.enhanced, m.backscatter, m.stripe, m.col, m.cqm, m.weight})
-      same = same && mis(p) == mis(m.image);
-    if (m.gqm) same = same && mis(m.gqm) == mis(m.image);
+    for (const float* p : {m.image, m.backscatter, m.stripe, m.col, m.cqm, m.weight, m.gqm})
+      same = same && (p == nullptr || mis(p) == mis(m.enhanced));
     const size_t body = (n - head) / 8 * 8;
     valid += pass_scalar(best, worst, c, s.centre, m, i0, i0 + head, q);
     valid += same ? pass_avx2<true>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q)
