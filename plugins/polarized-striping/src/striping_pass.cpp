@@ -272,18 +272,13 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     const __m256i l1 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t1), n);
     const __m256i l2 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t2), n);
     const __m256 bg = _mm256_div_ps(_mm256_cvtepi32_ps(n), fd_b);
-    const __m256 rise = _mm256_max_ps(_mm256_div_ps(_mm256_cvtepi32_ps(l1), fd_b), zero);
     const __m256i di = _mm256_sub_epi32(i1x, i2x);
     const __m256i adj = _mm256_or_si256(_mm256_cmpeq_epi32(di, one_i), _mm256_cmpeq_epi32(di, m_one));
     const __m256i edge = _mm256_and_si256(adj, _mm256_cmpgt_epi32(l2, rise_thr));
     __m256i ok = _mm256_cmpgt_epi32(sat_top, t2);
     __m256i dec = _mm256_and_si256(_mm256_and_si256(ok, _mm256_cmpgt_epi32(sat_n, n)), _mm256_cmpgt_epi32(l1, rise_thr));
     dec = _mm256_and_si256(dec, _mm256_or_si256(edge, _mm256_cmpgt_epi32(_mm256_sub_epi32(t1, t2), tie_thr)));
-    const __m256 frac_e = _mm256_div_ps(_mm256_cvtepi32_ps(l2), _mm256_cvtepi32_ps(_mm256_add_epi32(l1, l2)));
-    const __m256 fi1 = _mm256_cvtepi32_ps(i1x);
-    const __m256 stripe_e = _mm256_add_ps(fi1, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_sub_epi32(i2x, i1x)), frac_e));
-    const __m256 stripe_v = _mm256_blendv_ps(fi1, stripe_e, _mm256_castsi256_ps(edge));
-    __m256 b, s, d = nan, a = nan;
+    __m256 b, a = nan;
     if (c.polarised) {
       const __m256i w1 = _mm256_srli_epi32(load8(worst->key1 + i), 8), w2 = _mm256_srli_epi32(load8(worst->key2 + i), 8);
       const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst->sum + i), w1), w2);
@@ -296,18 +291,12 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
         sig = _mm256_sub_ps(total, bsc);
       }
       b = _mm256_blendv_ps(nan, bsc, _mm256_castsi256_ps(ok));
-      d = _mm256_mul_ps(two, rise);
       a = sig;
-      s = _mm256_add_ps(d, a);
     } else {
       b = _mm256_blendv_ps(nan, bg, _mm256_castsi256_ps(ok));
-      d = s = rise;
     }
-    const __m256 sel = _mm256_castsi256_ps(_mm256_and_si256(dec, ok));
-    const __m256 w = weight8(s, c);
-    const __m256 bp = _mm256_mul_ps(b, omp);
-    const __m256 den_c = _mm256_add_ps(s, bp);
-    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
+    const __m256i sel_i = _mm256_and_si256(dec, ok);
+    const __m256 sel = _mm256_castsi256_ps(sel_i);
     const __m256i img_v = t1;
     s_img = _mm256_add_epi32(s_img, img_v);
     s_img2 = _mm256_add_epi32(s_img2, _mm256_mullo_epi32(img_v, img_v));
@@ -321,20 +310,50 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     }
     if (m.image_u8) store8_u8<kStream>(m.image_u8 + i, t1);
     else store8<kStream>(m.image + i, _mm256_cvtepi32_ps(t1));
-    store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
     store8<kStream>(m.backscatter + i, b);
+    const int sel_bits = _mm256_movemask_ps(sel);
+    if (sel_bits == 0) {
+      // No valid stripe in these 8 pixels (gaps between sheets, medium only,
+      // clipped): every other map is NaN, and the report's sums would add
+      // zeros. Skipping their arithmetic (rise, stripe, Eq. 5.8-5.10) keeps
+      // every bit and makes the pass's work follow the lit pixels.
+      store8<kStream>(m.enhanced + i, nan);
+      store8<kStream>(m.stripe + i, nan);
+      for (float* p : {m.col, m.weight, m.cqm, m.gqm})
+        if (p) store8<kStream>(p + i, nan);
+      continue;
+    }
+    const __m256 rise = _mm256_max_ps(_mm256_div_ps(_mm256_cvtepi32_ps(l1), fd_b), zero);
+    const __m256 fi1 = _mm256_cvtepi32_ps(i1x);
+    __m256 stripe_v = fi1;
+    if (_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(edge, sel_i))) != 0) {  // a valid pixel on a stripe edge
+      const __m256 frac_e = _mm256_div_ps(_mm256_cvtepi32_ps(l2), _mm256_cvtepi32_ps(_mm256_add_epi32(l1, l2)));
+      const __m256 stripe_e = _mm256_add_ps(fi1, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_sub_epi32(i2x, i1x)), frac_e));
+      stripe_v = _mm256_blendv_ps(fi1, stripe_e, _mm256_castsi256_ps(edge));
+    }
+    __m256 s, d;
+    if (c.polarised) {
+      d = _mm256_mul_ps(two, rise);
+      s = _mm256_add_ps(d, a);
+    } else {
+      d = s = rise;
+    }
+    const __m256 w = weight8(s, c);
+    const __m256 bp = _mm256_mul_ps(b, omp);
+    const __m256 den_c = _mm256_add_ps(s, bp);
+    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
+    store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
     store8<kStream>(m.stripe + i, _mm256_blendv_ps(nan, stripe_v, sel));
     if (m.col) {
       const __m256i k0 = _mm256_min_epi32(
-          _mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), _mm256_castps_si256(sel)), _mm256_setzero_si256()),
-          c255);
+          _mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), sel_i), _mm256_setzero_si256()), c255);
       const __m256 c0 = _mm256_i32gather_ps(centre, k0, 4), c1 = _mm256_i32gather_ps(centre, _mm256_add_epi32(k0, one_i), 4);
       const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
       store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
     }
     if (m.weight) store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
     if (m.cqm) store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
-    valid += size_t(__builtin_popcount(unsigned(_mm256_movemask_ps(sel))));
+    valid += size_t(__builtin_popcount(unsigned(sel_bits)));
     const __m256 s0 = _mm256_and_ps(s, sel), w0 = _mm256_and_ps(w, sel), cq0 = _mm256_and_ps(cq, sel);
     s_enh = add8(s_enh, s0), s_enh2 = add8_prod(s_enh2, s0, s0);
     s_w = add8(s_w, w0), s_cqm = add8(s_cqm, cq0), s_cqm_w = add8_prod(s_cqm_w, cq0, w0);
