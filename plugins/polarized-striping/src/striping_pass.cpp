@@ -407,26 +407,106 @@ struct DopPart {
 struct DopScratch {
   std::vector<DopPart> parts;
   std::vector<uint64_t> hist;
-  std::vector<uint32_t> low;
+  std::vector<uint32_t> low, low2;
 };
 
-// The k-th smallest (0-based) key over all parts, from the merged histogram
-// `hist` of the top 16 bits: the bucket holding rank k, then a histogram of
-// the low 16 bits of that bucket's keys (a bucket can hold most of the
-// sample: the backgrounds of a hazy scene cluster; O(n), no sort).
-uint32_t select_key(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k,
-                    std::vector<uint32_t>& low) {
+// The bucket (top 16 bits) holding rank k of the merged histogram, and the
+// number of keys in the buckets below it.
+uint32_t bucket_of_rank(const std::vector<uint64_t>& hist, size_t k, size_t& below) {
   uint32_t hi = 0;
-  size_t below = 0;
+  below = 0;
   while (below + hist[hi] <= k) below += hist[hi++];
-  low.assign(65536, 0);
-  for (const DopPart& part : parts)
-    for (uint32_t key : part.keys)
-      if ((key >> 16) == hi) ++low[key & 0xffffu];
+  return hi;
+}
+uint32_t low_of_rank(const std::vector<uint32_t>& low, size_t below, size_t k) {
   uint32_t lo = 0;
   while (below + low[lo] <= k) below += low[lo++];
-  return (hi << 16) | lo;
+  return lo;
 }
+
+// The k-th and (k+1)-th smallest (0-based) keys over all parts (k + 1 <
+// total), from the merged histogram `hist` of the top 16 bits: the buckets
+// holding ranks k and k + 1, then histograms of the low 16 bits of those
+// buckets' keys, both filled in one pass over the keys (a bucket can hold
+// most of the sample: the backgrounds of a hazy scene cluster; O(n), no sort).
+void select_keys(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k, uint32_t& key_k,
+                 uint32_t& key_k1, DopScratch& scratch) {
+  size_t below_a = 0, below_b = 0;
+  const uint32_t hi_a = bucket_of_rank(hist, k, below_a), hi_b = bucket_of_rank(hist, k + 1, below_b);
+  scratch.low.assign(65536, 0);
+  if (hi_b != hi_a) scratch.low2.assign(65536, 0);
+  for (const DopPart& part : parts)
+    for (uint32_t key : part.keys) {
+      const uint32_t h = key >> 16;
+      if (h == hi_a) ++scratch.low[key & 0xffffu];
+      else if (h == hi_b) ++scratch.low2[key & 0xffffu];
+    }
+  key_k = (hi_a << 16) | low_of_rank(scratch.low, below_a, k);
+  key_k1 = (hi_b << 16) | (hi_b == hi_a ? low_of_rank(scratch.low, below_a, k + 1)
+                                        : low_of_rank(scratch.low2, below_b, k + 1));
+}
+
+// One DopPart entry: pixel i's ratio r = (bg_w - bg_b) / (bg_w + bg_b) as
+// packed_dop draws it (the scalar rule; dop_keys_avx2 mirrors it).
+inline void dop_sample(const PackedView& best, const PackedView& worst, size_t i, int32_t sat, float db, float dw,
+                       double min_sum, DopPart& part) {
+  const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
+  if (b2 >= sat || w2 >= sat) return;  // clipped: no background
+  // The backgrounds as the reference pass rounds them (float quotients of
+  // integers), then estimate_dop's ratio in double.
+  const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
+  const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
+  const double sum = double(bw) + double(bb);
+  if (!(sum > min_sum)) return;
+  ++part.counted;
+  const auto r = static_cast<float>((double(bw) - double(bb)) / sum);
+  if (!std::isfinite(r)) return;  // quantile() drops these
+  const uint32_t key = key_from_float(r);
+  part.keys.push_back(key);
+  ++part.hist[key >> 16];
+}
+
+#ifdef PROCAM_SDK_X86
+// dop_sample for the contiguous entries [j0, j1) (stride 1: a stack's
+// compact DOP sample), 8 at a time: the same IEEE operations in the same
+// order (float quotients, then double sum, difference and quotient rounded
+// to float), so the same keys; returns where it stopped (the rest: scalar).
+__attribute__((target("avx2"))) size_t dop_keys_avx2(const PackedView& best, const PackedView& worst, size_t j0,
+                                                     size_t j1, int32_t sat, float db, float dw, double min_sum,
+                                                     DopPart& part) {
+  const __m256i satv = _mm256_set1_epi32(sat);
+  const __m256 fdb = _mm256_set1_ps(db), fdw = _mm256_set1_ps(dw);
+  const __m256d ms = _mm256_set1_pd(min_sum);
+  size_t j = j0;
+  alignas(32) float r8[8];
+  for (; j + 8 <= j1; j += 8) {
+    const __m256i b2 = _mm256_srli_epi32(load8(best.key2 + j), 8), w2 = _mm256_srli_epi32(load8(worst.key2 + j), 8);
+    const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(satv, b2), _mm256_cmpgt_epi32(satv, w2));
+    const __m256i nb = _mm256_sub_epi32(_mm256_sub_epi32(load8(best.sum + j), _mm256_srli_epi32(load8(best.key1 + j), 8)), b2);
+    const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst.sum + j), _mm256_srli_epi32(load8(worst.key1 + j), 8)), w2);
+    const __m256 bb = _mm256_div_ps(_mm256_cvtepi32_ps(nb), fdb), bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fdw);
+    const __m256d bb_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bb)), bb_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bb, 1));
+    const __m256d bw_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bw)), bw_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bw, 1));
+    const __m256d sum_lo = _mm256_add_pd(bw_lo, bb_lo), sum_hi = _mm256_add_pd(bw_hi, bb_hi);
+    const int bits = _mm256_movemask_ps(_mm256_castsi256_ps(ok)) &
+                     (_mm256_movemask_pd(_mm256_cmp_pd(sum_lo, ms, _CMP_GT_OQ)) |
+                      (_mm256_movemask_pd(_mm256_cmp_pd(sum_hi, ms, _CMP_GT_OQ)) << 4));
+    if (bits == 0) continue;
+    const __m128 r_lo = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_lo, bb_lo), sum_lo));
+    const __m128 r_hi = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_hi, bb_hi), sum_hi));
+    _mm256_store_ps(r8, _mm256_set_m128(r_hi, r_lo));
+    for (int l = 0; l < 8; ++l) {
+      if (!((bits >> l) & 1)) continue;
+      ++part.counted;
+      if (!std::isfinite(r8[l])) continue;
+      const uint32_t key = key_from_float(r8[l]);
+      part.keys.push_back(key);
+      ++part.hist[key >> 16];
+    }
+  }
+  return j;
+}
+#endif
 
 }  // namespace
 
@@ -446,22 +526,11 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t count,
     while (b + 1 < bands && uint64_t{samples} * (b + 1) / bands <= j0) ++b;
     DopPart& part = parts[b];
     part.keys.reserve(j1 - j0);
-    for (size_t i = j0 * stride; i < size_t{j1} * stride; i += stride) {
-      const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
-      if (b2 >= sat || w2 >= sat) continue;  // clipped: no background
-      // The backgrounds as the reference pass rounds them (float quotients of
-      // integers), then estimate_dop's ratio in double.
-      const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
-      const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
-      const double sum = double(bw) + double(bb);
-      if (!(sum > min_sum)) continue;
-      ++part.counted;
-      const auto r = static_cast<float>((double(bw) - double(bb)) / sum);
-      if (!std::isfinite(r)) continue;  // quantile() drops these
-      const uint32_t key = key_from_float(r);
-      part.keys.push_back(key);
-      ++part.hist[key >> 16];
-    }
+    size_t j = j0;
+#ifdef PROCAM_SDK_X86
+    if (stride == 1 && sdk::cpu_has_avx2()) j = dop_keys_avx2(best, worst, j0, j1, sat, db, dw, min_sum, part);
+#endif
+    for (size_t i = j * stride; i < size_t{j1} * stride; i += stride) dop_sample(best, worst, i, sat, db, dw, min_sum, part);
   });
   size_t counted = 0, finite = 0;
   std::vector<uint64_t>& hist = scratch.hist;
@@ -474,8 +543,20 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t count,
   // quantile(): linear interpolation between the lo-th and (lo+1)-th smallest.
   const double pos = std::clamp(percentile, 0.0, 1.0) * double(finite - 1);
   const auto lo = static_cast<size_t>(std::floor(pos));
-  const double v_lo = double(float_from_key(select_key(parts, hist, lo, scratch.low)));
-  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(select_key(parts, hist, lo + 1, scratch.low)));
+  uint32_t key_lo = 0, key_hi = 0;
+  if (lo + 1 < finite) {
+    select_keys(parts, hist, lo, key_lo, key_hi, scratch);
+  } else {  // the largest key: the top non-empty bucket's largest low bits
+    size_t below = 0;
+    const uint32_t hi = bucket_of_rank(hist, lo, below);
+    uint32_t low_max = 0;
+    for (const DopPart& part : parts)
+      for (uint32_t key : part.keys)
+        if ((key >> 16) == hi) low_max = std::max(low_max, key & 0xffffu);
+    key_lo = key_hi = (hi << 16) | low_max;
+  }
+  const double v_lo = double(float_from_key(key_lo));
+  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(key_hi));
   const double v = v_lo + (pos - double(lo)) * (v_hi - v_lo);
   return std::clamp(v, 0.0, 1.0);
 }
