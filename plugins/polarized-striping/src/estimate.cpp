@@ -76,7 +76,7 @@ Maps estimate_flood(std::vector<float> e, const Config& cfg, const Levels& lv, u
     ++m.valid;
   }
   m.image = std::move(e);
-  fill_quality(m, lv, cfg.threads);
+  fill_quality(m, lv, cfg.threads, cfg.all_maps);
   return m;
 }
 
@@ -106,7 +106,7 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
   m.image = std::move(eb);
   sdk::give_map(std::move(b_ok));
   sdk::give_map(std::move(w_ok));
-  fill_quality(m, lv, cfg.threads);
+  fill_quality(m, lv, cfg.threads, cfg.all_maps);
   return m;
 }
 
@@ -164,12 +164,14 @@ inline void finish_pixel(Maps& m, size_t i, float s, float b, float d, float a, 
       }
     }
   }
-  m.weight[i] = w;
-  m.cqm[i] = c;
-  if (has_gqm) m.gqm[i] = g;
+  if (!m.weight.empty()) m.weight[i] = w;
+  if (!m.cqm.empty()) m.cqm[i] = c;
+  if (!m.gqm.empty()) m.gqm[i] = g;
 }
 
-void take_quality_maps(Maps& m, size_t n, bool has_gqm) {
+// The per-pixel quality maps, when requested (Config::all_maps).
+void take_quality_maps(Maps& m, size_t n, bool has_gqm, bool maps) {
+  if (!maps) return;
   for (auto* v : {&m.cqm, &m.weight}) sdk::take_map(*v, n);
   if (has_gqm) sdk::take_map(m.gqm, n);
 }
@@ -177,7 +179,7 @@ void take_quality_maps(Maps& m, size_t n, bool has_gqm) {
 }  // namespace
 
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
-                       uint32_t proj_width, StripingPass pass) {
+                       uint32_t proj_width, StripingPass pass, bool want_col) {
   const uint32_t w = best.width(), h = best.height();
   const size_t n = size_t{w} * h;
   const bool polarised = worst != nullptr;
@@ -185,9 +187,12 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   m.width = w;
   m.height = h;
   // Every map is written in full by the pass below (no NaN pre-fill);
-  // storage from the map cache.
-  for (auto* v : {&m.image, &m.enhanced, &m.backscatter, &m.stripe, &m.col}) sdk::take_map(*v, n);
-  take_quality_maps(m, n, polarised);
+  // storage from the map cache. The column map only where it is handed over
+  // or triangulated.
+  want_col = want_col || cfg.all_maps;
+  for (auto* v : {&m.enhanced, &m.backscatter, &m.stripe}) sdk::take_map(*v, n);
+  if (want_col) sdk::take_map(m.col, n);
+  take_quality_maps(m, n, polarised, cfg.all_maps);
   const auto ds = StripeDecodeSettings::make(lv.sigma, cfg.margin_sigma, lv.saturation, best.frames());
   auto unclipped = [&](size_t i) {
     return double(best.top2(i)) < lv.saturation && (!polarised || double(worst->top2(i)) < lv.saturation);
@@ -197,6 +202,9 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   const bool packed = best.packed() && best.frames() >= 3 &&
                       (!polarised || (worst->packed() && worst->frames() >= 3));
   if (!packed) pass = StripingPass::reference;
+  // The composite of a packed scan is a frame value: U8, 1 byte a pixel.
+  if (pass != StripingPass::reference) sdk::take_map(m.image_u8, n);
+  else sdk::take_map(m.image, n);
   double p = 0;
   bool separate = false;
   if (polarised) {
@@ -239,8 +247,16 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
     PackedView vw;
     if (polarised) vw = {worst->key1(), worst->key2(), worst->sum16(), worst->frames()};
     const PassSettings ps{ds.margin_dn, ds.saturation_dn, lv.mu, lv.z, p, separate, centre_f.data()};
-    const PassMaps pm{m.image.data(), m.enhanced.data(), m.backscatter.data(), m.stripe.data(), m.col.data(),
-                      m.cqm.data(),   m.weight.data(),   polarised ? m.gqm.data() : nullptr};
+    const auto or_null = [](std::vector<float>& v) { return v.empty() ? nullptr : v.data(); };
+    PassMaps pm;
+    pm.image_u8 = m.image_u8.data();
+    pm.enhanced = m.enhanced.data();
+    pm.backscatter = m.backscatter.data();
+    pm.stripe = m.stripe.data();
+    pm.col = or_null(m.col);
+    pm.cqm = or_null(m.cqm);
+    pm.weight = or_null(m.weight);
+    pm.gqm = or_null(m.gqm);
     const PassKernel kernel = pass == StripingPass::scalar ? PassKernel::scalar
                               : pass == StripingPass::avx2 ? PassKernel::avx2
                                                            : PassKernel::best;
@@ -263,11 +279,11 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
       const bool ok = unclipped(i);
       const bool stripe = px.valid && ok;
       m.stripe[i] = stripe ? px.stripe : kNaN;
-      m.col[i] = kNaN;
+      if (want_col) m.col[i] = kNaN;
       if (stripe) {
         const auto k0 = static_cast<uint32_t>(px.stripe);
         const double frac = double(px.stripe) - double(k0);
-        m.col[i] = static_cast<float>(centre[k0] + frac * (centre[k0 + 1] - centre[k0]));
+        if (want_col) m.col[i] = static_cast<float>(centre[k0] + frac * (centre[k0 + 1] - centre[k0]));
         ++band_valid;
       }
       float s = kNaN, b = kNaN, d = kNaN, a = kNaN;
@@ -294,8 +310,8 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   return m;
 }
 
-void fill_quality(Maps& m, const Levels& lv, uint32_t threads) {
-  take_quality_maps(m, m.enhanced.size(), false);
+void fill_quality(Maps& m, const Levels& lv, uint32_t threads, bool maps) {
+  take_quality_maps(m, m.enhanced.size(), false, maps);
   const uint32_t w = m.width;
   const QualitySums sums = for_bands(m.height, threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
     for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i)

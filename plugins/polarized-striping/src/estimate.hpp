@@ -20,8 +20,13 @@ struct Maps {
   uint32_t width = 0, height = 0;
   // Outputs (NaN: invalid). image: what the method shows (flood image, E_b,
   // composite CI); enhanced: S^; backscatter: B^.
+  // cqm, gqm, weight: only with Config::all_maps (empty otherwise; the
+  // report's means are computed either way). image_u8: the composite of a
+  // packed (8-bit) striping scan, whose values are frame values; `image` is
+  // empty then.
   std::vector<float> image, enhanced, backscatter, cqm, gqm, weight;
-  std::vector<float> stripe, col;  // striping: fractional stripe index, projector column
+  std::vector<uint8_t> image_u8;
+  std::vector<float> stripe, col;  // striping: fractional stripe index, projector column (col: see estimate_striping)
   size_t valid = 0;                // pixels with a valid enhanced value (striping: a valid stripe)
   double p = 0;                    // DOP used in Eq. 5.6–5.9 (0: unpolarised or not separable)
   nlohmann::json dop;              // how p was found
@@ -53,7 +58,8 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 //             D^ = 2 rise_b; p from estimate_dop(bg_b, bg_w) (A = 0 where the
 //             pixel sees only medium); B^ = (bg_w - bg_b) / p; A^ = bg_w +
 //             bg_b - B^; S^ = D^ + A^. p < p_min: B^ = bg_w + bg_b, A^ = 0.
-// Stripe index -> projector column through stripe_columns().
+// Stripe index -> projector column through stripe_columns(); the column map
+// `col` is made only with Config::all_maps or `want_col` (triangulation).
 // Which per-pixel pass runs: for packed stacks (U8 frames, K <= 256, >= 3
 // frames) the one-pass kernels of striping_pass.hpp (fastest: AVX2 where the
 // CPU has it, else the scalar twin); `reference` (and any stack that is not
@@ -61,11 +67,12 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 // the packed kernels' test reference.
 enum class StripingPass { fastest, avx2, scalar, reference };
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
-                       uint32_t proj_width, StripingPass pass = StripingPass::fastest);
+                       uint32_t proj_width, StripingPass pass = StripingPass::fastest, bool want_col = false);
 
 // Eq. 5.8–5.10 per valid pixel of a flood method (S = enhanced, B =
-// backscatter; no GQM) into the maps, NaN elsewhere, and the report's
-// `quality` object (see Maps::quality). Rows split over `threads` workers.
-void fill_quality(Maps& m, const Levels& lv, uint32_t threads);
+// backscatter; no GQM) into the maps (only when `maps`), NaN elsewhere, and
+// the report's `quality` object (see Maps::quality). Rows split over
+// `threads` workers.
+void fill_quality(Maps& m, const Levels& lv, uint32_t threads, bool maps);
 
 }  // namespace procam::polarized_striping

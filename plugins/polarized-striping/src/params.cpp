@@ -39,7 +39,12 @@ std::vector<ParamSpec> specs_for(Method m) {
        "footnote 3). Raise it until the brightest backscatter nears full scale (clipped backscatter is invalid)"},
       {"w_z", ParamType::number, -1.0, -1.0, 1.0, {},
        "steepness z of the SNR weight W (Eq. 5.10) as a fraction of full scale; -1 = noise (the thesis: z = the "
-       "Gaussian noise's standard deviation)"}};
+       "Gaussian noise's standard deviation)"},
+      {"maps", ParamType::string, "core", 0, 0, {"core", "all"},
+       "which per-pixel maps are handed over: \"core\" = image_dn, enhanced_dn, backscatter_dn (and for striping "
+       "stripe_index, depth_mm, points); \"all\" adds the quality maps cqm, snr_weight (and gqm, stripe_col_px). "
+       "The report's quality means (cqm_mean, gqm_mean, snr_weight_mean, ...) are there either way. \"core\" "
+       "because each 1920x1200 F32 map is 9 MB written after the last frame: the end of a scan is memory-bound"}};
   if (is_polarized(m)) {
     p.push_back({"polarizer_deg", ParamType::number, 0.0, 0.0, 180.0, {},
                  "projector polariser angle, degrees; the best analyser is crossed to it (+90), the worst parallel. "
@@ -93,6 +98,7 @@ sdk::Error parse_config(const std::string& method, const nlohmann::json& params,
   cfg.w_mu = p.get_number("w_mu");
   cfg.w_z = p.get_number("w_z");
   cfg.exposure_us = p.get_number("exposure_us");
+  cfg.all_maps = p.get_string("maps") == "all";
   if (is_polarized(cfg.method)) {
     cfg.polarizer_deg = p.get_number("polarizer_deg");
     cfg.p = p.get_number("p");

@@ -37,6 +37,11 @@ struct Config {
   double backscatter_percentile = 0.02; // flood
   uint32_t stripes = 64, stripe_px = 0; // striping; stripe_px 0 = pitch / 3
   uint32_t threads = 1;                 // the rig's suggestion, for end-of-scan work
+  // Param `maps`: "core" (default) hands over image_dn, enhanced_dn,
+  // backscatter_dn and stripe_index (+ depth); "all" adds the per-pixel
+  // quality maps cqm, snr_weight, gqm and stripe_col_px. The report's quality
+  // summaries are computed in the same pass either way.
+  bool all_maps = false;
 };
 
 sdk::Error parse_config(const std::string& method, const nlohmann::json& params, uint32_t proj_width, Config& cfg);

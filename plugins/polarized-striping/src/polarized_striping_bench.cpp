@@ -2,9 +2,10 @@
 // Speed of method "polarized-striping" with K = 64 stripes x 2 analyser
 // angles (128 frames) at 1920x1200 8-bit: the work per added frame (one fold
 // into the top-2/sum state) and what happens after the last frame
-// (end_round: stripe map, DOP, S/A/B, quality maps; outputs: handing them
-// over), for 1 and 2 threads, without and with triangulation (a calibrated
-// rig adds depth_mm). Issue 13's goals at 2 threads: <= 0.5 ms per frame,
+// (end_round: stripe map, DOP, S/A/B, quality sums; outputs: handing the
+// maps over), for 1 and 2 threads, without and with triangulation (a
+// calibrated rig adds depth_mm), with the default core maps and with all
+// maps (param maps = "all"). Issue 13's goals at 2 threads: <= 0.5 ms per frame,
 // <= 5 ms after the last frame.
 // Run: build/plugins/polarized-striping/procam_polarized_striping_bench
 #include <benchmark/benchmark.h>
@@ -51,9 +52,12 @@ const std::vector<std::vector<uint8_t>>& frames() {
   return f;
 }
 
-std::unique_ptr<sdk::Session> session(uint32_t threads, bool calibrated = false) {
+// maps: the `maps` param ("core" by default; "all" adds cqm, snr_weight,
+// gqm and stripe_col_px: the output contract before issue 13's end-of-scan goal).
+std::unique_ptr<sdk::Session> session(uint32_t threads, bool calibrated = false, bool all_maps = false) {
   std::unique_ptr<sdk::Session> s;
-  if (!create_session({"polarized-striping", nlohmann::json::object(), rig(threads, calibrated)}, s).ok())
+  const nlohmann::json params = {{"maps", all_maps ? "all" : "core"}};
+  if (!create_session({"polarized-striping", params, rig(threads, calibrated)}, s).ok())
     std::abort();
   sdk::Plan plan;
   bool has = false;
@@ -99,11 +103,11 @@ BENCHMARK(BM_PolarizedStripingLastTwoFrames)->Arg(2)->Unit(benchmark::kMilliseco
 // end_round + outputs after all 128 frames (the frames are added untimed).
 void BM_PolarizedStripingAfterLastFrame(benchmark::State& state) {
   const auto threads = static_cast<uint32_t>(state.range(0));
-  const bool calibrated = state.range(1) != 0;
+  const bool calibrated = state.range(1) != 0, all_maps = state.range(2) != 0;
   const auto& f = frames();
   for (auto _ : state) {
     state.PauseTiming();
-    auto s = session(threads, calibrated);
+    auto s = session(threads, calibrated, all_maps);
     for (uint32_t i = 0; i < 2 * kK; ++i)
       if (!s->add_frame(i, sdk::gray_view(f[i].data(), kW, kH)).ok()) std::abort();
     sdk::Outputs out;
@@ -116,8 +120,8 @@ void BM_PolarizedStripingAfterLastFrame(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_PolarizedStripingAfterLastFrame)
-    ->Args({1, 0})->Args({2, 0})->Args({2, 1})
-    ->ArgNames({"threads", "depth"})
+    ->Args({1, 0, 0})->Args({2, 0, 0})->Args({2, 1, 0})->Args({2, 0, 1})
+    ->ArgNames({"threads", "depth", "all_maps"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

@@ -110,19 +110,27 @@ class PolarizedStripingSession final : public sdk::Session {
       case Method::polarized_flood:
         maps_ = estimate_polarized_flood(std::move(best_map_), worst_map_, cfg_, levels_, cam.width, cam.height);
         break;
-      case Method::striping: maps_ = estimate_striping(best_, nullptr, cfg_, levels_, rig_.projector_width); break;
+      case Method::striping:
+        maps_ = estimate_striping(best_, nullptr, cfg_, levels_, rig_.projector_width, StripingPass::fastest,
+                                  rig_.can_triangulate(0));
+        break;
       case Method::polarized_striping:
-        maps_ = estimate_striping(best_, &worst_, cfg_, levels_, rig_.projector_width);
+        maps_ = estimate_striping(best_, &worst_, cfg_, levels_, rig_.projector_width, StripingPass::fastest,
+                                  rig_.can_triangulate(0));
         break;
     }
     // The stacks (~28 MB at 1920x1200) are freed with the session, not here:
     // unmapping them would add to the latency after the last frame.
     if (!worst_map_.empty()) sdk::give_map(std::move(worst_map_));
     if (is_striping(cfg_.method) && rig_.can_triangulate(0)) {
-      std::vector<float> intensity(maps_.image.size());
-      for (size_t i = 0; i < intensity.size(); ++i) intensity[i] = static_cast<float>(double(maps_.image[i]) / full_scale_);
+      std::vector<float> intensity(maps_.col.size());
+      for (size_t i = 0; i < intensity.size(); ++i) {
+        const double v = maps_.image_u8.empty() ? double(maps_.image[i]) : double(maps_.image_u8[i]);
+        intensity[i] = static_cast<float>(v / full_scale_);
+      }
       depth_ = sdk::triangulate_columns(cam.calibration, rig_.projector, cam.width, cam.height, maps_.col.data(),
                                         intensity.data(), rig_.threads);
+      if (!cfg_.all_maps) sdk::give_map(std::move(maps_.col));  // made for depth only
     }
     return sdk::ok();
   }
@@ -138,23 +146,31 @@ class PolarizedStripingSession final : public sdk::Session {
     // The maps move into the outputs and go back to the map cache at
     // session_destroy (the next scan of this size reuses their pages).
     out.set_release(sdk::give_map, sdk::give_map);
-    out.add_image("image_dn", "DN", image_description(), w, h, std::move(maps_.image));
+    // image_dn: U8 for an 8-bit striping scan (the composite is a frame value), else F32.
+    if (!maps_.image_u8.empty())
+      out.add_image("image_dn", "DN", image_description(), w, h, std::move(maps_.image_u8));
+    else
+      out.add_image("image_dn", "DN", image_description(), w, h, std::move(maps_.image));
     out.add_image("enhanced_dn", "DN", enhanced_description(), w, h, std::move(maps_.enhanced));
     out.add_image("backscatter_dn", "DN",
                   "backscatter estimate B^ in the unpolarised image's units (NaN: clipped or not separable)", w, h,
                   std::move(maps_.backscatter));
-    out.add_image("cqm", "", "contrast quality measure S / (S + B(1 - p)) per pixel (Eq. 5.8; NaN: invalid)", w, h,
-                  std::move(maps_.cqm));
-    out.add_image("snr_weight", "", "SNR weight W = sigmoid((S - mu) / z) per pixel (Eq. 5.10; NaN: invalid)", w, h,
-                  std::move(maps_.weight));
+    // The quality maps only with param maps = "all" (their means are in the report).
+    if (!maps_.cqm.empty())
+      out.add_image("cqm", "", "contrast quality measure S / (S + B(1 - p)) per pixel (Eq. 5.8; NaN: invalid)", w, h,
+                    std::move(maps_.cqm));
+    if (!maps_.weight.empty())
+      out.add_image("snr_weight", "", "SNR weight W = sigmoid((S - mu) / z) per pixel (Eq. 5.10; NaN: invalid)", w,
+                    h, std::move(maps_.weight));
     if (is_polarized(cfg_.method))
       out.add_scalar("dop", "", "degree of polarization p of the backscatter used in Eq. 5.6 (0: not separated)",
                      maps_.p);
     if (is_striping(cfg_.method)) {
       out.add_image("stripe_index", "", "index k of the light sheet that lit the pixel (argmax_k SI_k; fractional "
                                         "between two adjacent sheets; NaN: no stripe)", w, h, std::move(maps_.stripe));
-      out.add_image("stripe_col_px", "px", "projector column of the centre of that sheet (NaN: no stripe); sparse: "
-                                           "only pixels a sheet lit", w, h, std::move(maps_.col));
+      if (cfg_.all_maps)
+        out.add_image("stripe_col_px", "px", "projector column of the centre of that sheet (NaN: no stripe); "
+                                             "sparse: only pixels a sheet lit", w, h, std::move(maps_.col));
       if (!maps_.gqm.empty())
         out.add_image("gqm", "", "gradient quality measure (D + B(1 - p)) / (D + A + B(1 - p)) per pixel (Eq. 5.9)",
                       w, h, std::move(maps_.gqm));

@@ -203,6 +203,52 @@ TEST(Params, RejectWhatCannotWork) {
   EXPECT_EQ(create_session({"striping", {{"stripes", 16}, {"stripe_px", 9}}, rig(8, false)}, s).code,
             PROCAM_ERR_INVALID_ARGUMENT);
   EXPECT_EQ(create_session({"flood", {{"p", 0.5}}, rig(8, false)}, s).code, PROCAM_ERR_INVALID_ARGUMENT);
+  EXPECT_EQ(create_session({"striping", {{"maps", "quality"}}, rig(8, false)}, s).code, PROCAM_ERR_INVALID_ARGUMENT);
+}
+
+// The output contract (param maps): by default each method hands over the
+// core maps only (image_dn, enhanced_dn, backscatter_dn; striping adds
+// stripe_index and, calibrated, depth_mm/points); "all" adds cqm,
+// snr_weight, gqm and stripe_col_px. The core maps, depth and the report
+// are the same bits either way. image_dn is U8 for 8-bit striping scans
+// (the composite is a frame value) and F32 otherwise.
+TEST(Outputs, CoreMapsByDefaultAllOnRequest) {
+  const char* methods[] = {"flood", "polarized-flood", "striping", "polarized-striping"};
+  Truth t;
+  t.a_level = 0.05;
+  for (const char* m : methods)
+    for (uint32_t bits : {8u, 12u}) {
+      const bool striping = std::string(m).find("striping") != std::string::npos;
+      const nlohmann::json base = striping ? nlohmann::json{{"stripes", 16}} : nlohmann::json::object();
+      nlohmann::json all = base;
+      all["maps"] = "all";
+      const uint32_t type = bits == 8 ? PROCAM_PIXEL_U8 : PROCAM_PIXEL_U16;
+      ScanRun core_run, all_run;
+      scan(m, base, t, core_run, type, bits, striping);
+      scan(m, all, t, all_run, type, bits, striping);
+      const std::string label = std::string(m) + " " + std::to_string(bits) + "-bit";
+      for (const char* name : {"cqm", "snr_weight", "gqm", "stripe_col_px"})
+        EXPECT_EQ(core_run.find(name), nullptr) << label << ": " << name << " is opt-in";
+      for (const char* name : {"cqm", "snr_weight"}) EXPECT_NE(all_run.find(name), nullptr) << label << " " << name;
+      EXPECT_EQ(all_run.find("gqm") != nullptr, std::string(m) == "polarized-striping") << label;
+      EXPECT_EQ(all_run.find("stripe_col_px") != nullptr, striping) << label;
+      std::vector<const char*> kept = {"image_dn", "enhanced_dn", "backscatter_dn"};
+      if (striping) kept.insert(kept.end(), {"stripe_index", "depth_mm"});
+      for (const char* name : kept) {
+        const procam_output* a = core_run.find(name);
+        const procam_output* b = all_run.find(name);
+        ASSERT_TRUE(a && b) << label << " " << name;
+        ASSERT_EQ(a->image.pixel_type, b->image.pixel_type) << label << " " << name;
+        const size_t bytes = size_t{a->image.width} * a->image.height * sdk::bytes_per_sample(a->image.pixel_type);
+        EXPECT_EQ(std::memcmp(a->image.data, b->image.data, bytes), 0) << label << " " << name << ": same bits";
+      }
+      const uint32_t image_type = core_run.find("image_dn")->image.pixel_type;
+      EXPECT_EQ(image_type, uint32_t(striping && bits == 8 ? PROCAM_PIXEL_U8 : PROCAM_PIXEL_F32)) << label;
+      nlohmann::json qa = core_run.report(), qb = all_run.report();
+      EXPECT_EQ(qa["quality"], qb["quality"]) << label << ": the report's means do not depend on the maps";
+      EXPECT_FALSE(qa["quality"]["cqm_mean"].is_null()) << label;
+      EXPECT_EQ(qa["params"]["maps"], "core");
+    }
 }
 
 // Flood: uniform backscatter, the medium-only rows give B; S^ = E - B^.
@@ -210,7 +256,7 @@ TEST(Flood, SignalAndBackscatterFromTheDarkestPixels) {
   Truth t;
   t.uniform_b = true;
   ScanRun r;
-  scan("flood", nlohmann::json::object(), t, r);
+  scan("flood", {{"maps", "all"}}, t, r);
   const Map s = r.map("enhanced_dn"), b = r.map("backscatter_dn"), cq = r.map("cqm");
   ASSERT_TRUE(s && b && cq);
   double worst = 0;
@@ -232,7 +278,7 @@ TEST(PolarizedFlood, EstimatedDopAndSignal) {
     Truth t;
     t.p = p;
     ScanRun r;
-    scan("polarized-flood", nlohmann::json::object(), t, r);
+    scan("polarized-flood", {{"maps", "all"}}, t, r);
     const double p_est = r.find("dop")->scalar;
     EXPECT_NEAR(p_est, p, 0.03);
     double max_s = 0;
@@ -305,7 +351,7 @@ std::vector<int> true_stripes(const sdk::Plan& plan, uint32_t frames_per_stripe)
 TEST(Striping, StripeMapSignalBackscatterAndDepth) {
   Truth t;
   ScanRun r;
-  scan("striping", {{"stripes", 16}}, t, r, PROCAM_PIXEL_U8, 8, true);
+  scan("striping", {{"stripes", 16}, {"maps", "all"}}, t, r, PROCAM_PIXEL_U8, 8, true);
   const std::vector<int> truth_k = true_stripes(r.plan, 1);
   const Map k = r.map("stripe_index"), col = r.map("stripe_col_px"), s = r.map("enhanced_dn"),
               b = r.map("backscatter_dn"), cq = r.map("cqm"), z = r.map("depth_mm");
@@ -382,7 +428,7 @@ TEST_P(PolarizedStriping, SeparatesDirectIndirectAndBackscatter) {
   Truth t;
   t.a_level = 0.05;
   ScanRun r;
-  scan("polarized-striping", {{"stripes", 16}}, t, r, type, bits);
+  scan("polarized-striping", {{"stripes", 16}, {"maps", "all"}}, t, r, type, bits);
   EXPECT_NEAR(r.find("dop")->scalar, t.p, 0.03);
   const std::vector<int> truth_k = true_stripes(r.plan, 2);
   const Map k = r.map("stripe_index"), s = r.map("enhanced_dn"), b = r.map("backscatter_dn"),

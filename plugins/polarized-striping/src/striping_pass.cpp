@@ -139,32 +139,36 @@ __attribute__((noinline)) size_t pass_scalar(const PackedView& best, const Packe
     }
     const bool stripe = dec && ok;
     img += t1, img2 += int64_t(t1) * t1;
-    m.image[i] = float(t1);
+    if (m.image) m.image[i] = float(t1);
+    if (m.image_u8) m.image_u8[i] = static_cast<uint8_t>(t1);
     m.enhanced[i] = s;
     m.backscatter[i] = b;
     if (!stripe) {
-      m.stripe[i] = m.col[i] = m.cqm[i] = m.weight[i] = kNaNf;
-      if (m.gqm) m.gqm[i] = kNaNf;
+      m.stripe[i] = kNaNf;
+      for (float* p : {m.col, m.cqm, m.weight, m.gqm})
+        if (p) p[i] = kNaNf;
       continue;
     }
     ++valid;
-    // Index clamped to the 257-entry table (NaN -> 0, as cvttps gives INT_MIN).
-    const int32_t k0 = stripe_v >= 0.0f && stripe_v < 256.0f ? int32_t(stripe_v) : (stripe_v >= 256.0f ? 255 : 0);
-    const float f = stripe_v - float(k0);
     m.stripe[i] = stripe_v;
-    m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
+    if (m.col) {
+      // Index clamped to the 257-entry table (NaN -> 0, as cvttps gives INT_MIN).
+      const int32_t k0 = stripe_v >= 0.0f && stripe_v < 256.0f ? int32_t(stripe_v) : (stripe_v >= 256.0f ? 255 : 0);
+      const float f = stripe_v - float(k0);
+      m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
+    }
     const float w = weight_of(s, c);
     const float bp = b * c.omp;
     const float den_c = s + bp;  // Eq. 5.8
     const float cq = den_c > 0.0f ? minf(maxf(s / den_c, 0.0f), 1.0f) : 0.0f;
-    m.weight[i] = w;
-    m.cqm[i] = cq;
+    if (m.weight) m.weight[i] = w;
+    if (m.cqm) m.cqm[i] = cq;
     q.enh += double(s), q.enh2 += double(s) * double(s);
     q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
-    if (m.gqm) {
+    if (c.polarised) {
       const float den_g = d + a + bp;  // Eq. 5.9
       const float g = den_g > 0.0f ? minf(maxf((d + bp) / den_g, 0.0f), 1.0f) : 0.0f;
-      m.gqm[i] = g;
+      if (m.gqm) m.gqm[i] = g;
       q.gqm += double(g), q.gqm_w += double(g) * double(w);
     }
   }
@@ -186,6 +190,14 @@ PROCAM_A2 void store8(float* p, __m256 v) {
     _mm_stream_ps(p + 4, _mm256_extractf128_ps(v, 1));
   }
   else _mm256_storeu_ps(p, v);
+}
+// The 8 values (0..255 in 32-bit lanes) as bytes; non-temporal: one 8-byte movnti.
+template <bool kStream>
+PROCAM_A2 void store8_u8(uint8_t* p, __m256i v) {
+  const __m128i w16 = _mm_packus_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
+  const __m128i b8 = _mm_packus_epi16(w16, w16);
+  if constexpr (kStream) _mm_stream_si64(reinterpret_cast<long long*>(p), _mm_cvtsi128_si64(b8));
+  else _mm_storel_epi64(reinterpret_cast<__m128i*>(p), b8);
 }
 // Adds the 8 floats (zero where not selected) to a 4-lane double accumulator.
 PROCAM_A2 __m256d add8(__m256d acc, __m256 v) {
@@ -260,18 +272,13 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     const __m256i l1 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t1), n);
     const __m256i l2 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t2), n);
     const __m256 bg = _mm256_div_ps(_mm256_cvtepi32_ps(n), fd_b);
-    const __m256 rise = _mm256_max_ps(_mm256_div_ps(_mm256_cvtepi32_ps(l1), fd_b), zero);
     const __m256i di = _mm256_sub_epi32(i1x, i2x);
     const __m256i adj = _mm256_or_si256(_mm256_cmpeq_epi32(di, one_i), _mm256_cmpeq_epi32(di, m_one));
     const __m256i edge = _mm256_and_si256(adj, _mm256_cmpgt_epi32(l2, rise_thr));
     __m256i ok = _mm256_cmpgt_epi32(sat_top, t2);
     __m256i dec = _mm256_and_si256(_mm256_and_si256(ok, _mm256_cmpgt_epi32(sat_n, n)), _mm256_cmpgt_epi32(l1, rise_thr));
     dec = _mm256_and_si256(dec, _mm256_or_si256(edge, _mm256_cmpgt_epi32(_mm256_sub_epi32(t1, t2), tie_thr)));
-    const __m256 frac_e = _mm256_div_ps(_mm256_cvtepi32_ps(l2), _mm256_cvtepi32_ps(_mm256_add_epi32(l1, l2)));
-    const __m256 fi1 = _mm256_cvtepi32_ps(i1x);
-    const __m256 stripe_e = _mm256_add_ps(fi1, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_sub_epi32(i2x, i1x)), frac_e));
-    const __m256 stripe_v = _mm256_blendv_ps(fi1, stripe_e, _mm256_castsi256_ps(edge));
-    __m256 b, s, d = nan, a = nan;
+    __m256 b, a = nan;
     if (c.polarised) {
       const __m256i w1 = _mm256_srli_epi32(load8(worst->key1 + i), 8), w2 = _mm256_srli_epi32(load8(worst->key2 + i), 8);
       const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst->sum + i), w1), w2);
@@ -284,22 +291,12 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
         sig = _mm256_sub_ps(total, bsc);
       }
       b = _mm256_blendv_ps(nan, bsc, _mm256_castsi256_ps(ok));
-      d = _mm256_mul_ps(two, rise);
       a = sig;
-      s = _mm256_add_ps(d, a);
     } else {
       b = _mm256_blendv_ps(nan, bg, _mm256_castsi256_ps(ok));
-      d = s = rise;
     }
-    const __m256 sel = _mm256_castsi256_ps(_mm256_and_si256(dec, ok));
-    const __m256i k0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), _mm256_castps_si256(sel)),
-                                                         _mm256_setzero_si256()), c255);
-    const __m256 c0 = _mm256_i32gather_ps(centre, k0, 4), c1 = _mm256_i32gather_ps(centre, _mm256_add_epi32(k0, one_i), 4);
-    const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
-    const __m256 w = weight8(s, c);
-    const __m256 bp = _mm256_mul_ps(b, omp);
-    const __m256 den_c = _mm256_add_ps(s, bp);
-    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
+    const __m256i sel_i = _mm256_and_si256(dec, ok);
+    const __m256 sel = _mm256_castsi256_ps(sel_i);
     const __m256i img_v = t1;
     s_img = _mm256_add_epi32(s_img, img_v);
     s_img2 = _mm256_add_epi32(s_img2, _mm256_mullo_epi32(img_v, img_v));
@@ -311,22 +308,60 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
       s_img = s_img2 = _mm256_setzero_si256();
       since_flush = 0;
     }
-    store8<kStream>(m.image + i, _mm256_cvtepi32_ps(t1));
-    store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
+    if (m.image_u8) store8_u8<kStream>(m.image_u8 + i, t1);
+    else store8<kStream>(m.image + i, _mm256_cvtepi32_ps(t1));
     store8<kStream>(m.backscatter + i, b);
+    const int sel_bits = _mm256_movemask_ps(sel);
+    if (sel_bits == 0) {
+      // No valid stripe in these 8 pixels (gaps between sheets, medium only,
+      // clipped): every other map is NaN, and the report's sums would add
+      // zeros. Skipping their arithmetic (rise, stripe, Eq. 5.8-5.10) keeps
+      // every bit and makes the pass's work follow the lit pixels.
+      store8<kStream>(m.enhanced + i, nan);
+      store8<kStream>(m.stripe + i, nan);
+      for (float* p : {m.col, m.weight, m.cqm, m.gqm})
+        if (p) store8<kStream>(p + i, nan);
+      continue;
+    }
+    const __m256 rise = _mm256_max_ps(_mm256_div_ps(_mm256_cvtepi32_ps(l1), fd_b), zero);
+    const __m256 fi1 = _mm256_cvtepi32_ps(i1x);
+    __m256 stripe_v = fi1;
+    if (_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(edge, sel_i))) != 0) {  // a valid pixel on a stripe edge
+      const __m256 frac_e = _mm256_div_ps(_mm256_cvtepi32_ps(l2), _mm256_cvtepi32_ps(_mm256_add_epi32(l1, l2)));
+      const __m256 stripe_e = _mm256_add_ps(fi1, _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_sub_epi32(i2x, i1x)), frac_e));
+      stripe_v = _mm256_blendv_ps(fi1, stripe_e, _mm256_castsi256_ps(edge));
+    }
+    __m256 s, d;
+    if (c.polarised) {
+      d = _mm256_mul_ps(two, rise);
+      s = _mm256_add_ps(d, a);
+    } else {
+      d = s = rise;
+    }
+    const __m256 w = weight8(s, c);
+    const __m256 bp = _mm256_mul_ps(b, omp);
+    const __m256 den_c = _mm256_add_ps(s, bp);
+    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
+    store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
     store8<kStream>(m.stripe + i, _mm256_blendv_ps(nan, stripe_v, sel));
-    store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
-    store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
-    store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
-    valid += size_t(__builtin_popcount(unsigned(_mm256_movemask_ps(sel))));
+    if (m.col) {
+      const __m256i k0 = _mm256_min_epi32(
+          _mm256_max_epi32(_mm256_and_si256(_mm256_cvttps_epi32(stripe_v), sel_i), _mm256_setzero_si256()), c255);
+      const __m256 c0 = _mm256_i32gather_ps(centre, k0, 4), c1 = _mm256_i32gather_ps(centre, _mm256_add_epi32(k0, one_i), 4);
+      const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
+      store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
+    }
+    if (m.weight) store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
+    if (m.cqm) store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
+    valid += size_t(__builtin_popcount(unsigned(sel_bits)));
     const __m256 s0 = _mm256_and_ps(s, sel), w0 = _mm256_and_ps(w, sel), cq0 = _mm256_and_ps(cq, sel);
     s_enh = add8(s_enh, s0), s_enh2 = add8_prod(s_enh2, s0, s0);
     s_w = add8(s_w, w0), s_cqm = add8(s_cqm, cq0), s_cqm_w = add8_prod(s_cqm_w, cq0, w0);
-    if (m.gqm) {
+    if (c.polarised) {
       const __m256 den_g = _mm256_add_ps(_mm256_add_ps(d, a), bp);
       const __m256 g = _mm256_and_ps(clamp01(_mm256_div_ps(_mm256_add_ps(d, bp), den_g)),
                                      _mm256_cmp_ps(den_g, zero, _CMP_GT_OQ));
-      store8<kStream>(m.gqm + i, _mm256_blendv_ps(nan, g, sel));
+      if (m.gqm) store8<kStream>(m.gqm + i, _mm256_blendv_ps(nan, g, sel));
       const __m256 g0 = _mm256_and_ps(g, sel);
       s_gqm = add8(s_gqm, g0), s_gqm_w = add8_prod(s_gqm_w, g0, w0);
     }
@@ -372,26 +407,106 @@ struct DopPart {
 struct DopScratch {
   std::vector<DopPart> parts;
   std::vector<uint64_t> hist;
-  std::vector<uint32_t> low;
+  std::vector<uint32_t> low, low2;
 };
 
-// The k-th smallest (0-based) key over all parts, from the merged histogram
-// `hist` of the top 16 bits: the bucket holding rank k, then a histogram of
-// the low 16 bits of that bucket's keys (a bucket can hold most of the
-// sample: the backgrounds of a hazy scene cluster; O(n), no sort).
-uint32_t select_key(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k,
-                    std::vector<uint32_t>& low) {
+// The bucket (top 16 bits) holding rank k of the merged histogram, and the
+// number of keys in the buckets below it.
+uint32_t bucket_of_rank(const std::vector<uint64_t>& hist, size_t k, size_t& below) {
   uint32_t hi = 0;
-  size_t below = 0;
+  below = 0;
   while (below + hist[hi] <= k) below += hist[hi++];
-  low.assign(65536, 0);
-  for (const DopPart& part : parts)
-    for (uint32_t key : part.keys)
-      if ((key >> 16) == hi) ++low[key & 0xffffu];
+  return hi;
+}
+uint32_t low_of_rank(const std::vector<uint32_t>& low, size_t below, size_t k) {
   uint32_t lo = 0;
   while (below + low[lo] <= k) below += low[lo++];
-  return (hi << 16) | lo;
+  return lo;
 }
+
+// The k-th and (k+1)-th smallest (0-based) keys over all parts (k + 1 <
+// total), from the merged histogram `hist` of the top 16 bits: the buckets
+// holding ranks k and k + 1, then histograms of the low 16 bits of those
+// buckets' keys, both filled in one pass over the keys (a bucket can hold
+// most of the sample: the backgrounds of a hazy scene cluster; O(n), no sort).
+void select_keys(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k, uint32_t& key_k,
+                 uint32_t& key_k1, DopScratch& scratch) {
+  size_t below_a = 0, below_b = 0;
+  const uint32_t hi_a = bucket_of_rank(hist, k, below_a), hi_b = bucket_of_rank(hist, k + 1, below_b);
+  scratch.low.assign(65536, 0);
+  if (hi_b != hi_a) scratch.low2.assign(65536, 0);
+  for (const DopPart& part : parts)
+    for (uint32_t key : part.keys) {
+      const uint32_t h = key >> 16;
+      if (h == hi_a) ++scratch.low[key & 0xffffu];
+      else if (h == hi_b) ++scratch.low2[key & 0xffffu];
+    }
+  key_k = (hi_a << 16) | low_of_rank(scratch.low, below_a, k);
+  key_k1 = (hi_b << 16) | (hi_b == hi_a ? low_of_rank(scratch.low, below_a, k + 1)
+                                        : low_of_rank(scratch.low2, below_b, k + 1));
+}
+
+// One DopPart entry: pixel i's ratio r = (bg_w - bg_b) / (bg_w + bg_b) as
+// packed_dop draws it (the scalar rule; dop_keys_avx2 mirrors it).
+inline void dop_sample(const PackedView& best, const PackedView& worst, size_t i, int32_t sat, float db, float dw,
+                       double min_sum, DopPart& part) {
+  const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
+  if (b2 >= sat || w2 >= sat) return;  // clipped: no background
+  // The backgrounds as the reference pass rounds them (float quotients of
+  // integers), then estimate_dop's ratio in double.
+  const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
+  const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
+  const double sum = double(bw) + double(bb);
+  if (!(sum > min_sum)) return;
+  ++part.counted;
+  const auto r = static_cast<float>((double(bw) - double(bb)) / sum);
+  if (!std::isfinite(r)) return;  // quantile() drops these
+  const uint32_t key = key_from_float(r);
+  part.keys.push_back(key);
+  ++part.hist[key >> 16];
+}
+
+#ifdef PROCAM_SDK_X86
+// dop_sample for the contiguous entries [j0, j1) (stride 1: a stack's
+// compact DOP sample), 8 at a time: the same IEEE operations in the same
+// order (float quotients, then double sum, difference and quotient rounded
+// to float), so the same keys; returns where it stopped (the rest: scalar).
+__attribute__((target("avx2"))) size_t dop_keys_avx2(const PackedView& best, const PackedView& worst, size_t j0,
+                                                     size_t j1, int32_t sat, float db, float dw, double min_sum,
+                                                     DopPart& part) {
+  const __m256i satv = _mm256_set1_epi32(sat);
+  const __m256 fdb = _mm256_set1_ps(db), fdw = _mm256_set1_ps(dw);
+  const __m256d ms = _mm256_set1_pd(min_sum);
+  size_t j = j0;
+  alignas(32) float r8[8];
+  for (; j + 8 <= j1; j += 8) {
+    const __m256i b2 = _mm256_srli_epi32(load8(best.key2 + j), 8), w2 = _mm256_srli_epi32(load8(worst.key2 + j), 8);
+    const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(satv, b2), _mm256_cmpgt_epi32(satv, w2));
+    const __m256i nb = _mm256_sub_epi32(_mm256_sub_epi32(load8(best.sum + j), _mm256_srli_epi32(load8(best.key1 + j), 8)), b2);
+    const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst.sum + j), _mm256_srli_epi32(load8(worst.key1 + j), 8)), w2);
+    const __m256 bb = _mm256_div_ps(_mm256_cvtepi32_ps(nb), fdb), bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fdw);
+    const __m256d bb_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bb)), bb_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bb, 1));
+    const __m256d bw_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bw)), bw_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bw, 1));
+    const __m256d sum_lo = _mm256_add_pd(bw_lo, bb_lo), sum_hi = _mm256_add_pd(bw_hi, bb_hi);
+    const int bits = _mm256_movemask_ps(_mm256_castsi256_ps(ok)) &
+                     (_mm256_movemask_pd(_mm256_cmp_pd(sum_lo, ms, _CMP_GT_OQ)) |
+                      (_mm256_movemask_pd(_mm256_cmp_pd(sum_hi, ms, _CMP_GT_OQ)) << 4));
+    if (bits == 0) continue;
+    const __m128 r_lo = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_lo, bb_lo), sum_lo));
+    const __m128 r_hi = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_hi, bb_hi), sum_hi));
+    _mm256_store_ps(r8, _mm256_set_m128(r_hi, r_lo));
+    for (int l = 0; l < 8; ++l) {
+      if (!((bits >> l) & 1)) continue;
+      ++part.counted;
+      if (!std::isfinite(r8[l])) continue;
+      const uint32_t key = key_from_float(r8[l]);
+      part.keys.push_back(key);
+      ++part.hist[key >> 16];
+    }
+  }
+  return j;
+}
+#endif
 
 }  // namespace
 
@@ -411,22 +526,11 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t count,
     while (b + 1 < bands && uint64_t{samples} * (b + 1) / bands <= j0) ++b;
     DopPart& part = parts[b];
     part.keys.reserve(j1 - j0);
-    for (size_t i = j0 * stride; i < size_t{j1} * stride; i += stride) {
-      const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
-      if (b2 >= sat || w2 >= sat) continue;  // clipped: no background
-      // The backgrounds as the reference pass rounds them (float quotients of
-      // integers), then estimate_dop's ratio in double.
-      const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
-      const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
-      const double sum = double(bw) + double(bb);
-      if (!(sum > min_sum)) continue;
-      ++part.counted;
-      const auto r = static_cast<float>((double(bw) - double(bb)) / sum);
-      if (!std::isfinite(r)) continue;  // quantile() drops these
-      const uint32_t key = key_from_float(r);
-      part.keys.push_back(key);
-      ++part.hist[key >> 16];
-    }
+    size_t j = j0;
+#ifdef PROCAM_SDK_X86
+    if (stride == 1 && sdk::cpu_has_avx2()) j = dop_keys_avx2(best, worst, j0, j1, sat, db, dw, min_sum, part);
+#endif
+    for (size_t i = j * stride; i < size_t{j1} * stride; i += stride) dop_sample(best, worst, i, sat, db, dw, min_sum, part);
   });
   size_t counted = 0, finite = 0;
   std::vector<uint64_t>& hist = scratch.hist;
@@ -439,8 +543,20 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t count,
   // quantile(): linear interpolation between the lo-th and (lo+1)-th smallest.
   const double pos = std::clamp(percentile, 0.0, 1.0) * double(finite - 1);
   const auto lo = static_cast<size_t>(std::floor(pos));
-  const double v_lo = double(float_from_key(select_key(parts, hist, lo, scratch.low)));
-  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(select_key(parts, hist, lo + 1, scratch.low)));
+  uint32_t key_lo = 0, key_hi = 0;
+  if (lo + 1 < finite) {
+    select_keys(parts, hist, lo, key_lo, key_hi, scratch);
+  } else {  // the largest key: the top non-empty bucket's largest low bits
+    size_t below = 0;
+    const uint32_t hi = bucket_of_rank(hist, lo, below);
+    uint32_t low_max = 0;
+    for (const DopPart& part : parts)
+      for (uint32_t key : part.keys)
+        if ((key >> 16) == hi) low_max = std::max(low_max, key & 0xffffu);
+    key_lo = key_hi = (hi << 16) | low_max;
+  }
+  const double v_lo = double(float_from_key(key_lo));
+  const double v_hi = lo + 1 >= finite ? v_lo : double(float_from_key(key_hi));
   const double v = v_lo + (pos - double(lo)) * (v_hi - v_lo);
   return std::clamp(v, 0.0, 1.0);
 }
@@ -453,22 +569,23 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
   q.n_img += n;
   const auto count = [&](size_t v) {
     q.n_enh += v, q.n_w += v, q.n_cqm += v, q.n_cqm_w += v;
-    if (m.gqm) q.n_gqm += v, q.n_gqm_w += v;
+    if (worst) q.n_gqm += v, q.n_gqm_w += v;
     return v;
   };
   if (kernel == PassKernel::best) kernel = pass_kernel_available(PassKernel::avx2) ? PassKernel::avx2 : PassKernel::scalar;
 #ifdef PROCAM_SDK_X86
   if (kernel == PassKernel::avx2 && sdk::cpu_has_avx2()) {
     // Head up to a 16-byte boundary of the image map, 8-pixel blocks, tail.
-    // Non-temporal stores (the maps are not read again here; ~74 MB written
+    // Non-temporal stores (the maps are not read again here; ~30 MB written
+    // with the core maps, ~74 MB with all of them at 1920x1200,
     // without reading them into the cache first) when every map shares that
     // alignment.
+    // (The U8 image's 8-byte movnti needs no alignment.)
     const auto mis = [&](const float* p) { return (reinterpret_cast<uintptr_t>(p + i0) & 15u) / 4u; };
-    const size_t head = std::min(n, size_t((4 - mis(m.image)) & 3u));
+    const size_t head = std::min(n, size_t((4 - mis(m.enhanced)) & 3u));
     bool same = true;
-    for (const float* p : {m.enhanced, m.backscatter, m.stripe, m.col, m.cqm, m.weight})
-      same = same && mis(p) == mis(m.image);
-    if (m.gqm) same = same && mis(m.gqm) == mis(m.image);
+    for (const float* p : {m.image, m.backscatter, m.stripe, m.col, m.cqm, m.weight, m.gqm})
+      same = same && (p == nullptr || mis(p) == mis(m.enhanced));
     const size_t body = (n - head) / 8 * 8;
     valid += pass_scalar(best, worst, c, s.centre, m, i0, i0 + head, q);
     valid += same ? pass_avx2<true>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q)

@@ -44,9 +44,17 @@ struct PassSettings {
   const float* centre = nullptr;        // projector column of stripe k's centre, k = 0..256
 };
 
-// Output maps (full image size; gqm null when not polarised).
+// Output maps (full image size). The composite goes to `image` (F32) or
+// `image_u8` (U8: it is a frame value, top1), whichever is not null;
+// enhanced, backscatter and stripe are required; col, cqm, weight and gqm may
+// be null: not written (and `col` not computed). The
+// report's sums are the same whichever maps are written (GQM's only when
+// polarised).
 struct PassMaps {
-  float *image, *enhanced, *backscatter, *stripe, *col, *cqm, *weight, *gqm;
+  float* image = nullptr;
+  uint8_t* image_u8 = nullptr;
+  float *enhanced = nullptr, *backscatter = nullptr, *stripe = nullptr;
+  float *col = nullptr, *cqm = nullptr, *weight = nullptr, *gqm = nullptr;
 };
 
 enum class PassKernel { best, scalar, avx2 };
@@ -54,7 +62,9 @@ enum class PassKernel { best, scalar, avx2 };
 // Whether `kernel` can run on this CPU.
 bool pass_kernel_available(PassKernel kernel);
 
-// Pixels [i0, i1): writes the maps, adds to q, returns the number of valid stripes.
+// Pixels [i0, i1): writes the maps that are not null, adds to q, returns the
+// number of valid stripes. Every written value is the same bit for bit
+// whichever other maps are requested.
 size_t striping_pass(const PackedView& best, const PackedView* worst, const PassSettings& s, const PassMaps& m,
                      size_t i0, size_t i1, QualitySums& q, PassKernel kernel = PassKernel::best);
 

@@ -10,7 +10,9 @@
 //  - DOP p, image, background-derived B^ (unpolarised) and the stripe index of
 //    non-edge pixels are identical; every value within 1e-5 relative (or 1e-5
 //    absolute below 1) of the reference; report means within 1e-5;
-//  - the AVX2 kernel and the scalar twin give bit-identical maps.
+//  - the AVX2 kernel and the scalar twin give bit-identical maps;
+//  - the packed passes' composite is U8 with the reference's values, and the
+//    default "core" maps are the "all" maps' bits (the output contract).
 #include "striping_pass.hpp"
 
 #include <gtest/gtest.h>
@@ -72,9 +74,11 @@ struct Case {
   uint32_t stripes;
 };
 
-Maps run(const Case& c, StripingPass pass, uint32_t seed) {
+// maps: the `maps` param ("all": every per-pixel map, as the reference
+// pass is compared on; "core": the default contract).
+Maps run(const Case& c, StripingPass pass, uint32_t seed, const char* maps = "all", bool want_col = false) {
   Config cfg;
-  nlohmann::json params = {{"stripes", c.stripes}, {"noise", c.noise}};
+  nlohmann::json params = {{"stripes", c.stripes}, {"noise", c.noise}, {"maps", maps}};
   if (c.p >= 0) params["p"] = c.p;
   const sdk::Error e = parse_config(c.polarised ? "polarized-striping" : "striping", params, kPW, cfg);
   EXPECT_TRUE(e.ok()) << e.message;
@@ -90,7 +94,15 @@ Maps run(const Case& c, StripingPass pass, uint32_t seed) {
     if (c.polarised) worst.add(sdk::gray_view(fw.data(), kW, kH), static_cast<uint16_t>(k), 2);
   }
   EXPECT_EQ(best.sample_current(), expected > 0);
-  return estimate_striping(best, c.polarised ? &worst : nullptr, cfg, lv, kPW, pass);
+  return estimate_striping(best, c.polarised ? &worst : nullptr, cfg, lv, kPW, pass, want_col);
+}
+
+// The packed passes' U8 composite holds the same values as the reference's F32 one.
+void expect_same_image(const std::vector<uint8_t>& u8, const std::vector<float>& ref, const std::string& label) {
+  ASSERT_EQ(u8.size(), ref.size()) << label;
+  size_t bad = 0;
+  for (size_t i = 0; i < ref.size(); ++i) bad += float(u8[i]) != ref[i];
+  EXPECT_EQ(bad, 0u) << label << ": composite pixels that differ from the reference";
 }
 
 void expect_same_nan_and_close(const std::vector<float>& got, const std::vector<float>& ref, const char* what,
@@ -133,7 +145,8 @@ TEST(StripingPass, AgreesWithTheReferencePass) {
       const Maps fast = run(c, StripingPass::scalar, seed);
       EXPECT_EQ(fast.valid, ref.valid) << label;
       EXPECT_EQ(fast.p, ref.p) << label;  // identical DOP
-      expect_bit_identical(fast.image, ref.image, "image");
+      EXPECT_TRUE(fast.image.empty()) << label << ": a packed scan's composite is U8";
+      expect_same_image(fast.image_u8, ref.image, label);
       expect_same_nan_and_close(fast.enhanced, ref.enhanced, "enhanced", label);
       expect_same_nan_and_close(fast.backscatter, ref.backscatter, "backscatter", label);
       expect_same_nan_and_close(fast.stripe, ref.stripe, "stripe", label);
@@ -157,11 +170,47 @@ TEST(StripingPass, AgreesWithTheReferencePass) {
       if (!pass_kernel_available(PassKernel::avx2)) continue;
       const Maps vec = run(c, StripingPass::avx2, seed);
       EXPECT_EQ(vec.valid, fast.valid) << label;
+      EXPECT_EQ(vec.image_u8, fast.image_u8) << label;
       for (auto mp : {&Maps::image, &Maps::enhanced, &Maps::backscatter, &Maps::stripe, &Maps::col, &Maps::cqm,
                       &Maps::weight, &Maps::gqm})
         expect_bit_identical(vec.*mp, fast.*mp, label.c_str());
     }
   }
+}
+
+// The output contract (param maps): "core" leaves out the quality maps and
+// the column map, and every map it keeps is the same bit for bit as with
+// "all", on both kernels; the report (quality sums, valid count, p) does not
+// change. With want_col (a calibrated rig triangulates) the column map is
+// made under "core" too, again the same bits.
+TEST(StripingPass, CoreMapsAreTheAllMapsBitForBit) {
+  const Case cases[] = {
+      {Scene::stripes, true, -1, 0.004, 16},  {Scene::stripes, false, -1, 0.004, 16},
+      {Scene::stripes, true, 0.01, 0.004, 16}, {Scene::uniform_random, true, -1, 0.004, 16},
+      {Scene::low_ties, false, -1, 0.0, 8},   {Scene::stripes, true, -1, 0.004, 3},
+  };
+  for (const Case& c : cases)
+    for (StripingPass pass : {StripingPass::scalar, StripingPass::avx2, StripingPass::reference}) {
+      if (pass == StripingPass::avx2 && !pass_kernel_available(PassKernel::avx2)) continue;
+      const std::string label = "scene " + std::to_string(int(c.scene)) + (c.polarised ? " polarised" : "") +
+                                " K " + std::to_string(c.stripes) + " pass " + std::to_string(int(pass));
+      const Maps all = run(c, pass, 2, "all");
+      const Maps core = run(c, pass, 2, "core");
+      const Maps core_col = run(c, pass, 2, "core", true);
+      EXPECT_EQ(core.valid, all.valid) << label;
+      EXPECT_EQ(core.p, all.p) << label;
+      EXPECT_EQ(core.quality, all.quality) << label << ": the report's means do not depend on the maps";
+      EXPECT_EQ(core.image_u8, all.image_u8) << label;
+      for (auto mp : {&Maps::image, &Maps::enhanced, &Maps::backscatter, &Maps::stripe})
+        expect_bit_identical(core.*mp, all.*mp, label.c_str());
+      for (auto mp : {&Maps::cqm, &Maps::weight, &Maps::gqm, &Maps::col})
+        EXPECT_TRUE((core.*mp).empty()) << label << ": a map \"core\" leaves out";
+      EXPECT_EQ(all.cqm.empty(), false) << label;
+      EXPECT_EQ(all.gqm.empty(), !c.polarised) << label;
+      ASSERT_FALSE(core_col.col.empty()) << label;
+      expect_bit_identical(core_col.col, all.col, label.c_str());
+      EXPECT_EQ(core_col.quality, all.quality) << label;
+    }
 }
 
 // The scenes above must actually reach the hard cases they claim to.
@@ -200,8 +249,13 @@ TEST(StripingPass, PackedDopEqualsEstimateDopOnTheSameSample) {
   const PackedView best{k1[0].data(), k2[0].data(), sum[0].data(), kFrames};
   const PackedView worst{k1[1].data(), k2[1].data(), sum[1].data(), kFrames};
   const double saturation = 250;
+  // Stride 2 (the full stacks' sample) and stride 1 (a compact sample: the
+  // AVX2 key kernel where the CPU has it, its scalar tail) over the first
+  // 200003 entries (estimate_dop itself subsamples above 262144 values).
+  for (size_t stride : {size_t{2}, size_t{1}}) {
+  const size_t count = stride == 2 ? n / 2 : 200003;
   std::vector<float> sb, sw;
-  for (size_t i = 0; i < n; i += 2) {
+  for (size_t i = 0; i < count * stride; i += stride) {
     const int t2b = k2[0][i] >> 8, t2w = k2[1][i] >> 8;
     if (!(t2b < saturation && t2w < saturation)) continue;
     sb.push_back(float(int(sum[0][i]) - (k1[0][i] >> 8) - t2b) / float(kFrames - 2));
@@ -214,14 +268,16 @@ TEST(StripingPass, PackedDopEqualsEstimateDopOnTheSameSample) {
         EXPECT_TRUE(std::isnan(ref)) << "no pixel that bright: too few samples";
       }
       for (uint32_t threads : {1u, 2u, 3u}) {
-        const double got = packed_dop(best, worst, n / 2, 2, saturation, min_sum, pct, threads);
+        const double got = packed_dop(best, worst, count, stride, saturation, min_sum, pct, threads);
         if (std::isnan(ref)) {
           EXPECT_TRUE(std::isnan(got)) << min_sum << " " << pct << " " << threads;
         } else {
-          EXPECT_EQ(got, ref) << "min_sum " << min_sum << " percentile " << pct << " threads " << threads;
+          EXPECT_EQ(got, ref) << "stride " << stride << " min_sum " << min_sum << " percentile " << pct << " threads "
+                              << threads;
         }
       }
     }
+  }
 }
 
 // The compact DOP sample a packed stack keeps at its expected last frame is
