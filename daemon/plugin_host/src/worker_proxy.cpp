@@ -415,7 +415,12 @@ Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, c
 }
 
 Result<std::optional<Plan>> WorkerProxy::next_plan(uint32_t round) {
-  plan_blob_ = wire::Mapping();  // the previous plan's patterns die with this call
+  // The previous plan's blob stays mapped until a new plan replaces it (or
+  // the session ends): unmapping it is the last reference to 32 MB of
+  // shared memory for the ensemble (41 patterns), and freeing those pages
+  // must not fall on the closing next_plan, which the client waits for
+  // after the last frame (README.md "Speed"). The Plan contract (views valid
+  // until the next call) holds: they stay valid longer.
   auto m = call(wire::Msg::next_plan, "next_plan", {}, -1, options_.call_timeout);
   if (!m) return m.status();
   wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());

@@ -6,8 +6,10 @@
 //
 // Ownership: one WorkerProxy per isolated Session; it owns the worker
 // process (killed and reaped on destruction), the socket, the frame ring and
-// the mappings the Session's views point into (the plan's patterns until the
-// next call, the outputs until destruction).
+// the mappings the Session's views point into (the plan's patterns at least
+// until the next call -- kept until the next plan arrives or the session
+// ends, so their pages are not freed on the client's time -- the outputs
+// until destruction).
 // Threads: like Session, one thread at a time.
 // Errors: a worker that dies (signal, exit), misses its deadline or sends a
 // malformed message is killed and reaped; the call fails with a Status that
@@ -169,7 +171,7 @@ private:
   std::optional<wire::Ring> ring_;
   uint32_t next_slot_ = 0;
   size_t last_round_frames_ = 0;
-  wire::Mapping plan_blob_;     // the current plan's patterns
+  wire::Mapping plan_blob_;     // the last plan's patterns, kept until the next plan or the session's end
   // The outputs' images and points: the daemon's private copy of the
   // worker's output arena (output_arena.hpp), kept across the sessions of a
   // reused worker; `outputs_` is what this session's outputs() returned

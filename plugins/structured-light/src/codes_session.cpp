@@ -318,7 +318,18 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         if (spec.round_code[k] < 0) spec.external[k] = stage_maps_.at(k).data();
       // Conflict rule (correction.hpp) once all four codes are in the vote.
       spec.conflicts = first_pass && (!auto_mode() || step_ == Step::codes);
+      // The pixel counts in the vote's own pass where the session keeps the
+      // vote's maps as they are: the first round's lit, valid and classes
+      // (auto's second step keeps round 1's lit; a correction merges).
+      spec.count = first_pass && round_ == 1;
       MultiResult& r = decoder_->finish_vote(cfg_.min_contrast, cfg_.min_bit_margin, spec);
+      fused_counts_ = spec.count;
+      if (fused_counts_) {
+        stats.errors += r.counts.flagged;
+        stats.lit += r.counts.lit;
+        valid_count_ = r.counts.valid;
+        std::copy(std::begin(r.counts.cls), std::end(r.counts.cls), class_counts_.begin());
+      }
       full_scale_ = r.full_scale;
       if (first_pass)
         for (size_t j = 0; j < round_codes_.size(); ++j) weak_[round_codes_[j]] += r.weak[j];
@@ -352,7 +363,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     // and freeing its memory took 6-10 ms of the time after the last frame at
     // load ~12 (issue 17).
     round_open_ = false;
-    count_pixels(stats);
+    if (!fused_counts_) count_pixels(stats);  // else counted by the vote, above
+    fused_counts_ = false;
     if (step_ != Step::first && !steps_.empty()) {  // measured change of the step
       nlohmann::json& st = steps_.back();
       st["flagged_after"] = fraction(stats.errors, stats.lit);
@@ -651,6 +663,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
   bool keep_white_ = false;
   std::vector<uint32_t> plan_to_decoder_;  // this round's plan frame -> decoder (layout) frame
   bool round_open_ = false;        // decoder_ takes frames: between next_plan and end_round
+  bool fused_counts_ = false;      // end_round: finish_vote counted the pixels (VoteSpec::count)
   RoundForecast forecast_;         // of the last probe
   size_t conflicts_ = 0;           // pixels labelled kConflict by the first pass
   size_t valid_count_ = 0;         // valid pixels after the last end_round (count_pixels)

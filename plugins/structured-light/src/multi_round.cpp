@@ -274,6 +274,7 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::mutex conflicts_mutex;
   r.conflicts = 0;
+  r.counts = MultiResult::Counts{};
   decode_rows(stream_, ctx, r.lit.data(), stream_.intensity_to_write(r.intensity), codes_.size(),
               r.weak, [&](size_t b, size_t e, const BaseRow& base, int32_t* scratch, size_t* weak) {
                 const int32_t* key_rows[kEnsembleCodes];
@@ -330,6 +331,23 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
                                                           r.vote.cls.data() + b);
                   const std::lock_guard<std::mutex> lock(conflicts_mutex);
                   r.conflicts += got;
+                }
+                if (spec.count) {  // the final maps of this band, still in cache
+                  MultiResult::Counts c;
+                  const uint8_t* lit = r.lit.data() + b;
+                  const uint8_t* valid = r.vote.valid.data() + b;
+                  const uint8_t* cls = r.vote.cls.data() + b;
+                  for (size_t i = 0; i < e - b; ++i) {
+                    c.lit += lit[i] != 0 ? 1u : 0u;
+                    c.valid += valid[i] != 0 ? 1u : 0u;
+                    c.flagged += flagged(cls[i]) ? 1u : 0u;
+                    ++c.cls[std::min<size_t>(cls[i], kTransportClassCount - 1)];
+                  }
+                  const std::lock_guard<std::mutex> lock(conflicts_mutex);
+                  r.counts.lit += c.lit;
+                  r.counts.valid += c.valid;
+                  r.counts.flagged += c.flagged;
+                  for (uint32_t k = 0; k < kTransportClassCount; ++k) r.counts.cls[k] += c.cls[k];
                 }
               });
   return r;

@@ -75,6 +75,14 @@ struct MultiResult {
   NoiseFit noise;                // finish() with noise_k > 0 and inverse frames
   double noise_k = 0;            // the noise rule's k (0: off or not measured)
   size_t conflicts = 0;          // finish_vote with VoteSpec::conflicts: pixels set to kConflict
+  // finish_vote with VoteSpec::count: the per-pixel counts of the final maps
+  // (lit, vote.valid, vote.cls after the conflict rule), taken in the vote's
+  // own pass over each row band while it is in cache (issue 17: a second pass
+  // over 7 MB after the last frame). flagged: correction.hpp flagged().
+  struct Counts {
+    size_t lit = 0, valid = 0, flagged = 0;
+    size_t cls[kTransportClassCount] = {};  // classes >= kTransportClassCount - 1 in the last
+  } counts;
 };
 
 // Gives every map of `r` to the map cache (map_cache.hpp), as the session
@@ -94,6 +102,8 @@ struct VoteSpec {
   // Also apply the conflict rule (correction.hpp label_conflicts_keys) to the
   // vote's maps in the same pass; MultiResult::conflicts counts the pixels.
   bool conflicts = false;
+  // Also fill MultiResult::counts in the same pass.
+  bool count = false;
 };
 
 class MultiCodeDecoder {

@@ -22,6 +22,7 @@
 #include "gray_session.hpp"
 #include "procam/sdk/map_cache.hpp"
 #include "phase_session.hpp"
+#include "vote.hpp"
 
 namespace procam::sl {
 namespace {
@@ -383,6 +384,59 @@ TEST(Sessions, SingleCodesGiveStripeEdgesAnInterval) {
     EXPECT_GT(far, 20u * kH);
     EXPECT_EQ(with.report["max_uncertainty_px"], 0.5);
     EXPECT_EQ(with.report["noise_k"], 3.0);
+  }
+}
+
+// The report's pixel counts (transport_classes, valid_fraction,
+// error_fraction) are counted in the vote's own pass on the first round
+// (VoteSpec::count, issue 17) and in a separate pass otherwise (auto's
+// second step, correction rounds): either way they must be the counts of
+// the maps the scan returns. Unlit pixels are class unlit, so lit = all -
+// unlit, and the flagged ones are error + conflict.
+TEST(Sessions, ReportedPixelCountsAreThoseOfTheReturnedMaps) {
+  const Distort tie = [](uint32_t, const std::string& label, uint32_t x, uint32_t y, double v) {
+    if (x >= 50 && x < 60 && label != "white") return 110.0;            // errors in every code
+    if (x >= 200 && y < 10) return 10.0;                                 // shadow: unlit
+    if (x >= 150 && x < 160 && label.find("gray") != std::string::npos)  // gray alone broken
+      return 255.0 - v;
+    return v;
+  };
+  const Global inter = [](const uint8_t* pat, uint32_t x, uint32_t y) {  // mirror: flagged, then corrected
+    if (x < 100 || x >= 140) return 0.0;
+    return 0.95 * 80.0 * pat[size_t{y} * kW + (x - 80)] / 255.0;
+  };
+  struct Case {
+    const char* method;
+    nlohmann::json params;
+    bool corrected;
+  };
+  for (const Case& k : {Case{"ensemble", nlohmann::json::object(), false}, Case{"auto", nlohmann::json::object(), false},
+                        Case{"ensemble", {{"code_maps", true}}, false},
+                        Case{"ensemble", {{"correction_rounds", 1}}, true}}) {
+    const ScanRun r = k.corrected ? run(k.method, k.params, nullptr, calibrated_rig_json(), kShift, inter)
+                                  : run(k.method, k.params, tie);
+    const std::string what = std::string(k.method) + " " + k.params.dump();
+    const auto& cls = r.maps8.at("transport_class");
+    const auto& valid = r.maps8.at("valid");
+    std::vector<size_t> hist(kTransportClassCount, 0);
+    size_t n_valid = 0;
+    for (size_t i = 0; i < cls.size(); ++i) {
+      ++hist.at(cls[i]);
+      n_valid += valid[i] != 0 ? 1u : 0u;
+    }
+    const auto& classes = r.report.at("transport_classes");
+    size_t kinds = 0;
+    for (uint8_t c = 0; c < kTransportClassCount; ++c) {
+      EXPECT_EQ(classes.at(transport_class_name(c)).get<size_t>(), hist[c]) << what << " class " << int(c);
+      kinds += hist[c] > 0 ? 1u : 0u;
+    }
+    EXPECT_GE(kinds, 3u) << what << ": the scene should give several classes";  // not vacuous
+    const double n = static_cast<double>(cls.size());
+    EXPECT_DOUBLE_EQ(r.scalars.at("valid_fraction"), static_cast<double>(n_valid) / n) << what;
+    const size_t lit = cls.size() - hist[kUnlit];
+    EXPECT_DOUBLE_EQ(r.scalars.at("error_fraction"),
+                     static_cast<double>(hist[kError] + hist[kConflict]) / static_cast<double>(lit))
+        << what;
   }
 }
 
