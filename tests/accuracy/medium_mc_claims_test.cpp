@@ -13,6 +13,7 @@
 // (linearity test, stop rule), as the `concentration` method runs them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -228,6 +229,208 @@ TEST(MediumMonteCarloClaims, Fig411PremiseSingleScatteringFitIsBiasedByForwardSc
         EXPECT_LT(f.g.value, truth.g) << fit_volume;
       }
     }
+  }
+}
+
+// ---- Fig. 4.11 as the issue states it ---------------------------------------
+
+// Eq. 4.8 in one tank: sigma and beta scale with the volume (c2 / c1 = V2 /
+// V1), g does not. A fit with beta > sigma (albedo > 1: the all-orders fit
+// below) is not a medium; it is clamped to beta = sigma before rendering (a
+// Monte Carlo's path weights would grow without bound), and `clamped` says so.
+sim::Medium scaled_fit(const medium::FitResult& f, const sim::Medium& truth_at_v, double fit_ml, double v_ml,
+                       bool& clamped) {
+  sim::Medium m = truth_at_v;  // tank, bulb
+  m.sigma_t_per_mm = f.sigma.value * v_ml / fit_ml;
+  m.sigma_s_per_mm = f.beta.value * v_ml / fit_ml;
+  m.g = f.g.value;
+  clamped = m.sigma_s_per_mm > m.sigma_t_per_mm;
+  m.sigma_s_per_mm = std::min(m.sigma_s_per_mm, m.sigma_t_per_mm);
+  return m;
+}
+
+struct FacePoint {
+  double x_mm, y_mm;
+};
+
+// The compared points: the fit's 14 row points (25-265 mm right of the
+// bulb's axis) and a coarse 6 x 5 image of the whole face (cell centres,
+// 50 mm apart), leaving out the bulb's own image (r + 2 mm) as
+// tank_energy_monte_carlo() does: 44 points.
+std::vector<FacePoint> fig411_points(const sim::Medium& m) {
+  std::vector<FacePoint> pts;
+  for (double r : kFitRho) pts.push_back({m.bulb->center_mm.x + r, m.bulb->center_mm.y});
+  constexpr int nx = 6, ny = 5;
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const double x = m.box_min_mm.x + (i + 0.5) * (m.box_max_mm.x - m.box_min_mm.x) / nx;
+      const double y = m.box_min_mm.y + (j + 0.5) * (m.box_max_mm.y - m.box_min_mm.y) / ny;
+      if (std::hypot(x - m.bulb->center_mm.x, y - m.bulb->center_mm.y) < m.bulb->radius_mm + 2) continue;
+      pts.push_back({x, y});
+    }
+  return pts;
+}
+
+// The Monte Carlo reference (every order) at the points, each point in two
+// halves of `paths` with seeds seed + 2i and seed + 2i + 1: the mean is the
+// render, the halves' disagreement its noise. Common random numbers: two
+// renders with the same seed draw the same numbers path for path
+// (TankMcOptions::common_random_numbers), so noise cancels in a difference.
+// Unforced flights (at 50-150 ml the tank is 11-23 mean free paths deep and
+// paths leave by themselves; forced ones would roulette for ~1000 vertices),
+// 2 x 2 split bulb connection, exact single scattering as control variate.
+struct McRender {
+  std::vector<double> half[2];
+};
+McRender mc_render(const sim::Medium& m, const std::vector<FacePoint>& pts, size_t paths, uint64_t seed,
+                  const sim::Medium& sampling) {
+  const sim::TankMcOptions opt{2, false, true, true, sampling.sigma_t_per_mm, sampling.g};
+  McRender out;
+  for (const FacePoint& p : pts)
+    for (int h = 0; h < 2; ++h)
+      out.half[h].push_back(
+          sim::tank_monte_carlo(m, p.x_mm, p.y_mm, paths / 2, seed + 2 * out.half[0].size() + uint64_t(h), 1 << 20, opt)
+              .total);
+  return out;
+}
+
+double quantile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? std::nan("") : v[size_t(std::lround(q * double(v.size() - 1)))];
+}
+
+// Per point r = a / b - 1 (b: the truth's render); its noise |r_1 - r_2| / 2
+// from the halves (the standard error of their mean, one degree of freedom
+// per point: read the median). Summaries over the points: median and 90th
+// percentile of |r|, median of the noise, and the mean signed r.
+struct Comparison {
+  double median = 0, p90 = 0, noise_median = 0, mean_signed = 0;
+};
+Comparison compare(const McRender& a, const McRender& b) {
+  std::vector<double> r, noise;
+  Comparison c;
+  for (size_t i = 0; i < b.half[0].size(); ++i) {
+    const double ra = 0.5 * (a.half[0][i] + a.half[1][i]), rb = 0.5 * (b.half[0][i] + b.half[1][i]);
+    const double r1 = a.half[0][i] / b.half[0][i] - 1, r2 = a.half[1][i] / b.half[1][i] - 1;
+    r.push_back(std::abs(ra / rb - 1));
+    c.mean_signed += (ra / rb - 1) / double(b.half[0].size());
+    noise.push_back(0.5 * std::abs(r1 - r2));
+  }
+  c.median = quantile(r, 0.5);
+  c.p90 = quantile(r, 0.9);
+  c.noise_median = quantile(noise, 0.5);
+  return c;
+}
+
+constexpr double kFig411FitMl = 8;
+const std::vector<double> kFig411Volumes = {50, 100, 150};
+constexpr size_t kFig411Paths = 2000;  // per point, both halves
+
+// The renderer's single-scattering profile at the fit's points (tank_profile:
+// the function the sim's renderer tabulates for the tank image claim 1 fits).
+Profile single_scattering_profile(const sim::Medium& m) {
+  Profile p;
+  for (double r : kFitRho) {
+    p.rho.push_back(r);
+    p.value.push_back(sim::tank_profile(m, r, 768).scatter);
+    p.se.push_back(0);
+  }
+  return p;
+}
+
+// Sensitivity of the 50-150 ml renders to the medium (what the tolerance
+// below rests on): common-random-number renders of the truth with sigma and
+// beta both +1 % (the albedo kept), with kappa = sigma - beta +10 % (sigma
+// kept), and with g +0.002, each against the truth as the sampling medium.
+// Exploration, not a claim: run by hand with --gtest_also_run_disabled_tests.
+// Measured 2026-11-24 at 1000 paths per point (per-point |r| median / p90;
+// the Monte Carlo noise is in them, so they are upper bounds):
+//   volume  sigma,beta +1 %   kappa +10 %    g +0.002
+//   50 ml   0.63 / 1.9 %      0.22 / 0.37 %  2.6 / 7.2 %
+//   100 ml  1.17 / 3.7 %      0.42 / 0.65 %  4.0 / 10.0 %
+//   150 ml  1.31 / 5.1 %      0.60 / 0.94 %  3.3 / 9.7 %
+TEST(MediumMonteCarloClaims, DISABLED_Fig411Sensitivity) {
+  for (double v : kFig411Volumes) {
+    const sim::Medium truth = tank_medium("Lowfat Chocolate Milk", v, sim::ColorChannel::green);
+    const std::vector<FacePoint> pts = fig411_points(truth);
+    const McRender b = mc_render(truth, pts, 1000, 4111, truth);
+    sim::Medium scale = truth, kappa = truth, g = truth;
+    scale.sigma_t_per_mm *= 1.01;
+    scale.sigma_s_per_mm *= 1.01;
+    kappa.sigma_s_per_mm = truth.sigma_t_per_mm - 1.1 * (truth.sigma_t_per_mm - truth.sigma_s_per_mm);
+    g.g += 0.002;
+    for (const auto& [name, m] : {std::pair{"sigma,beta +1 %", scale}, {"kappa +10 %", kappa}, {"g +0.002", g}}) {
+      const Comparison c = compare(mc_render(m, pts, 1000, 4111, truth), b);
+      std::printf("%3.0f ml %-16s |r| median %.3f %% p90 %.3f %% (noise median %.3f %%) mean r %+.3f %%\n", v, name,
+                  100 * c.median, 100 * c.p90, 100 * c.noise_median, 100 * c.mean_signed);
+    }
+  }
+}
+
+// Fig. 4.11 read as the issue states it, consistently with its first claim:
+// the 8 ml image of lowfat chocolate milk (green) as the sim's
+// single-scattering renderer makes it (the renderer's profile, claim 1's
+// images) fitted by the plugin's fit; sigma and beta scaled by Eq. 4.8 to
+// 50, 100 and 150 ml; the tank rendered there by the Monte Carlo reference
+// (every order) (a) with the scaled fit and (b) with Table 4.1's own
+// parameters at that volume, and the two renders compared at 44 face points
+// (the fit's row and a coarse 6 x 5 image). (a) and (b) use common random
+// numbers (the same seed, the same numbers path for path), so most of the
+// Monte Carlo noise cancels in the difference; the halves of each render
+// measure what is left.
+//
+// TOLERANCE, per volume: the per-point |a / b - 1| has median <= 1.5 % and
+// 90th percentile <= 4.5 % (stated before (a) was first rendered). Why:
+// Eq. 4.8 is exact in the sim (the library scales Table 4.1 the same way),
+// so the fit's relative errors at 8 ml carry unchanged to every volume and
+// (a) differs from (b) only through them. The fit's accuracy on the
+// renderer's 8 ml image, asserted below as this test's premise: sigma and
+// beta within 0.4 % (measured -0.27 % each), kappa = sigma - beta within 5 %
+// (measured +1.6 %: the absorption is 0.3 % of sigma, a difference of two
+// fitted numbers), g within 0.0003 (measured -0.0001). Through the
+// sensitivities of the renders (DISABLED_Fig411Sensitivity above: per point,
+// per 1 % of sigma and beta, per 10 % of kappa, per 0.002 of g), at those
+// bounds, with the signs aligned and the worst volume for each term:
+// median 0.4 x 1.31 + 0.54 x 0.60 + 0.15 x 3.95 = 1.4 %, 90th percentile
+// 0.4 x 5.1 + 0.54 x 0.94 + 0.15 x 10.0 = 4.1 %. The remaining Monte Carlo
+// noise of the difference is in those sensitivities already (measured at
+// half this test's paths); for a medium 0.3 % from the sampling one it is
+// a few tenths of a percent (the halves measure it, printed). Cost: 6
+// renders of 44 points x 2000 paths, ~4 s CPU; fewer paths raise the noise
+// as 1 / sqrt(paths), not the tolerance's deterministic part.
+constexpr double kFig411TolMedian = 0.015, kFig411TolP90 = 0.045;
+TEST(MediumMonteCarloClaims, Fig411FitAt8mlScaledByEq48MatchesMonteCarloAt50To150ml) {
+  const std::string material = "Lowfat Chocolate Milk";
+  const sim::Medium truth8 = tank_medium(material, kFig411FitMl, sim::ColorChannel::green);
+  const medium::FitResult f = fit_mc_profile(single_scattering_profile(truth8), truth8);
+  ASSERT_TRUE(f.error.empty()) << f.error;
+  const double kappa8 = truth8.sigma_t_per_mm - truth8.sigma_s_per_mm;
+  const double e_sigma = f.sigma.value / truth8.sigma_t_per_mm - 1, e_beta = f.beta.value / truth8.sigma_s_per_mm - 1;
+  const double e_kappa = (f.sigma.value - f.beta.value) / kappa8 - 1, e_g = f.g.value - truth8.g;
+  std::printf("8 ml fit of the single-scattered image: sigma %+.2f %%  beta %+.2f %%  kappa = sigma - beta %+.1f %%  "
+              "g %+.4f  rms %.2f %%\n",
+              100 * e_sigma, 100 * e_beta, 100 * e_kappa, e_g, f.rms_percent);
+  // The tolerance's premise: the fit's accuracy at 8 ml.
+  ASSERT_LT(std::abs(e_sigma), 0.004);
+  ASSERT_LT(std::abs(e_beta), 0.004);
+  ASSERT_LT(std::abs(e_kappa), 0.05);
+  ASSERT_LT(std::abs(e_g), 0.0003);
+  for (double v : kFig411Volumes) {
+    const sim::Medium truth = tank_medium(material, v, sim::ColorChannel::green);
+    bool clamped = false;
+    const sim::Medium fitted = scaled_fit(f, truth, kFig411FitMl, v, clamped);
+    EXPECT_FALSE(clamped);
+    const std::vector<FacePoint> pts = fig411_points(truth);
+    // Both traced in the true medium and weighted (common random numbers).
+    const uint64_t seed = 4111 + uint64_t(v);
+    const Comparison c = compare(mc_render(fitted, pts, kFig411Paths, seed, truth),
+                                 mc_render(truth, pts, kFig411Paths, seed, truth));
+    std::printf("%3.0f ml: sigma %.5f /mm (true %.5f)  %zu points: |a/b - 1| median %.2f %% (tolerance %.1f %%), p90 "
+                "%.2f %% (%.1f %%); noise median %.2f %%; mean a/b - 1 %+.2f %%\n",
+                v, fitted.sigma_t_per_mm, truth.sigma_t_per_mm, pts.size(), 100 * c.median, 100 * kFig411TolMedian,
+                100 * c.p90, 100 * kFig411TolP90, 100 * c.noise_median, 100 * c.mean_signed);
+    EXPECT_LE(c.median, kFig411TolMedian) << v << " ml";
+    EXPECT_LE(c.p90, kFig411TolP90) << v << " ml";
   }
 }
 
