@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT
 // Thesis ch. 4 claims (issue 14) on multiple-scattering data: the sim's Monte
 // Carlo reference of the dilution tank (hw/sim tank_mc.cpp, all orders of
-// scattering) as the "photograph", the `medium` plugin's analysis on it.
+// scattering) as the "photograph", the `medium` plugin's analysis on it;
+// and Fig. 4.11 (fit at 8 ml, Eq. 4.8, Monte Carlo at 50-150 ml) as stated.
 //
 // Fig. 4.7: sigma-hat from the bulb's attenuation (Eq. 4.3) stays linear in
 // the volume for an absorber (Merlot) and departs from the line for milk,
@@ -182,56 +183,6 @@ medium::FitResult fit_mc_profile(const Profile& p, const sim::Medium& m) {
   return medium::fit_profile(rp, s, {}, 0, 0);
 }
 
-// Fig. 4.11's premise: a fit at a dilution "where single scattering is
-// dominant" gives sigma and beta that Eq. 4.8 can scale. On the Monte Carlo
-// photograph (all orders) of lowfat chocolate milk it does not: sigma comes
-// out far too low at every dilution, because forward-scattered light (g =
-// 0.93) still travels with the bulb's and the profile falls as if the medium
-// were thinner. The attenuation that carries sigma (~ sigma d) and the light
-// forward scattering adds (~ beta g d) both grow linearly with the volume,
-// so diluting does not remove the bias. The control, the same fit on the same
-// face points with one scattering event only (the Monte Carlo's first vertex
-// = the renderer's single scattering), recovers the medium: the bias is the
-// physics, not the fit. So the extrapolation to 50-150 ml is not tested
-// (docs/medium.md "Limits"): the scaled medium would have a third or less of
-// the true sigma.
-TEST(MediumMonteCarloClaims, Fig411PremiseSingleScatteringFitIsBiasedByForwardScattering) {
-  const std::string material = "Lowfat Chocolate Milk";  // Fig. 4.11 (green channel)
-  const sim::TankMcOptions low_var{4, true, true};
-  for (double fit_volume : {1.0, 8.0}) {  // 1 ml: 5 % of the energy missed (docs/media.md); 8 ml: the thesis's
-    const sim::Medium truth = tank_medium(material, fit_volume, sim::ColorChannel::green);
-    const double reduced = truth.sigma_t_per_mm * (1 - truth.g * truth.sigma_s_per_mm / truth.sigma_t_per_mm);
-    for (int vertices : {1, 1 << 20}) {
-      Profile photo;
-      for (double r : kFitRho) {
-        const sim::TankMonteCarlo mc = sim::tank_monte_carlo(truth, truth.bulb->center_mm.x + r, truth.bulb->center_mm.y,
-                                                             2000, 11 + uint64_t(r), vertices, low_var);
-        photo.rho.push_back(r);
-        photo.value.push_back(mc.total);
-        photo.se.push_back(mc.total_se);
-      }
-      const medium::FitResult f = fit_mc_profile(photo, truth);
-      ASSERT_TRUE(f.error.empty()) << f.error;
-      std::printf("%.0f ml, %s: sigma %+.1f %% (sigma (1 - g beta / sigma) would be %+.1f %%)  beta %+.1f %%  g %.3f "
-                  "(true %.3f)  rms %.2f %%\n",
-                  fit_volume, vertices == 1 ? "single scattering" : "all orders",
-                  100 * (f.sigma.value / truth.sigma_t_per_mm - 1), 100 * (reduced / truth.sigma_t_per_mm - 1),
-                  100 * (f.beta.value / truth.sigma_s_per_mm - 1), f.g.value, truth.g, f.rms_percent);
-      if (vertices == 1) {
-        // The control: the sphere model against the sim's renderer (two
-        // implementations of Eq. 4.1-4.2; the claims test measures < 1 %) on 14
-        // noiseless points; sigma is weakly constrained at 1 ml (sigma D = 0.15).
-        EXPECT_LT(std::abs(f.sigma.value / truth.sigma_t_per_mm - 1), 0.05) << fit_volume;
-        EXPECT_LT(std::abs(f.beta.value / truth.sigma_s_per_mm - 1), 0.03) << fit_volume;
-        EXPECT_NEAR(f.g.value, truth.g, 0.01) << fit_volume;
-      } else {
-        EXPECT_LT(f.sigma.value, 0.5 * truth.sigma_t_per_mm) << fit_volume << " ml: sigma far too low";
-        EXPECT_LT(f.g.value, truth.g) << fit_volume;
-      }
-    }
-  }
-}
-
 // ---- Fig. 4.11 as the issue states it ---------------------------------------
 
 // Eq. 4.8 in one tank: sigma and beta scale with the volume (c2 / c1 = V2 /
@@ -256,7 +207,7 @@ struct FacePoint {
 // The compared points: the fit's 14 row points (25-265 mm right of the
 // bulb's axis) and a coarse 6 x 5 image of the whole face (cell centres,
 // 50 mm apart), leaving out the bulb's own image (r + 2 mm) as
-// tank_energy_monte_carlo() does: 44 points.
+// tank_energy_monte_carlo() does: 43 points.
 std::vector<FacePoint> fig411_points(const sim::Medium& m) {
   std::vector<FacePoint> pts;
   for (double r : kFitRho) pts.push_back({m.bulb->center_mm.x + r, m.bulb->center_mm.y});
@@ -373,7 +324,7 @@ TEST(MediumMonteCarloClaims, DISABLED_Fig411Sensitivity) {
 // images) fitted by the plugin's fit; sigma and beta scaled by Eq. 4.8 to
 // 50, 100 and 150 ml; the tank rendered there by the Monte Carlo reference
 // (every order) (a) with the scaled fit and (b) with Table 4.1's own
-// parameters at that volume, and the two renders compared at 44 face points
+// parameters at that volume, and the two renders compared at 43 face points
 // (the fit's row and a coarse 6 x 5 image). (a) and (b) use common random
 // numbers (the same seed, the same numbers path for path), so most of the
 // Monte Carlo noise cancels in the difference; the halves of each render
@@ -396,7 +347,7 @@ TEST(MediumMonteCarloClaims, DISABLED_Fig411Sensitivity) {
 // noise of the difference is in those sensitivities already (measured at
 // half this test's paths); for a medium 0.3 % from the sampling one it is
 // a few tenths of a percent (the halves measure it, printed). Cost: 6
-// renders of 44 points x 2000 paths, ~4 s CPU; fewer paths raise the noise
+// renders of 43 points x 2000 paths, ~4 s CPU; fewer paths raise the noise
 // as 1 / sqrt(paths), not the tolerance's deterministic part.
 constexpr double kFig411TolMedian = 0.015, kFig411TolP90 = 0.045;
 TEST(MediumMonteCarloClaims, Fig411FitAt8mlScaledByEq48MatchesMonteCarloAt50To150ml) {
@@ -431,6 +382,80 @@ TEST(MediumMonteCarloClaims, Fig411FitAt8mlScaledByEq48MatchesMonteCarloAt50To15
                 100 * c.p90, 100 * kFig411TolP90, 100 * c.noise_median, 100 * c.mean_signed);
     EXPECT_LE(c.median, kFig411TolMedian) << v << " ml";
     EXPECT_LE(c.p90, kFig411TolP90) << v << " ml";
+  }
+}
+
+// Fig. 4.11's premise: a fit at a dilution "where single scattering is
+// dominant" gives sigma and beta that Eq. 4.8 can scale. On the Monte Carlo
+// photograph (all orders) of lowfat chocolate milk it does not: sigma comes
+// out far too low at every dilution, because forward-scattered light (g =
+// 0.93) still travels with the bulb's and the profile falls as if the medium
+// were thinner. The attenuation that carries sigma (~ sigma d) and the light
+// forward scattering adds (~ beta g d) both grow linearly with the volume,
+// so diluting does not remove the bias. The control, the same fit on the same
+// face points with one scattering event only (the Monte Carlo's first vertex
+// = the renderer's single scattering), recovers the medium: the bias is the
+// physics, not the fit. The 8 ml all-orders fit, scaled by Eq. 4.8 to
+// 50-150 ml as Fig411FitAt8ml… does with the single-scattering one, has a
+// third of the true sigma; its renders' difference from the truth is
+// printed, not asserted: the two media cannot share paths, so the per-point
+// noise (20-47 % at these paths) is of the order of the difference
+// (medians 47-59 %, 2026-11-24; docs/medium.md "Limits").
+TEST(MediumMonteCarloClaims, Fig411PremiseSingleScatteringFitIsBiasedByForwardScattering) {
+  const std::string material = "Lowfat Chocolate Milk";  // Fig. 4.11 (green channel)
+  const sim::TankMcOptions low_var{4, true, true};
+  medium::FitResult all_orders_fit;
+  for (double fit_volume : {1.0, 8.0}) {  // 1 ml: 5 % of the energy missed (docs/media.md); 8 ml: the thesis's
+    const sim::Medium truth = tank_medium(material, fit_volume, sim::ColorChannel::green);
+    const double reduced = truth.sigma_t_per_mm * (1 - truth.g * truth.sigma_s_per_mm / truth.sigma_t_per_mm);
+    for (int vertices : {1, 1 << 20}) {
+      Profile photo;
+      for (double r : kFitRho) {
+        const sim::TankMonteCarlo mc = sim::tank_monte_carlo(truth, truth.bulb->center_mm.x + r, truth.bulb->center_mm.y,
+                                                             2000, 11 + uint64_t(r), vertices, low_var);
+        photo.rho.push_back(r);
+        photo.value.push_back(mc.total);
+        photo.se.push_back(mc.total_se);
+      }
+      const medium::FitResult f = fit_mc_profile(photo, truth);
+      ASSERT_TRUE(f.error.empty()) << f.error;
+      std::printf("%.0f ml, %s: sigma %+.1f %% (sigma (1 - g beta / sigma) would be %+.1f %%)  beta %+.1f %%  g %.3f "
+                  "(true %.3f)  rms %.2f %%\n",
+                  fit_volume, vertices == 1 ? "single scattering" : "all orders",
+                  100 * (f.sigma.value / truth.sigma_t_per_mm - 1), 100 * (reduced / truth.sigma_t_per_mm - 1),
+                  100 * (f.beta.value / truth.sigma_s_per_mm - 1), f.g.value, truth.g, f.rms_percent);
+      if (vertices == 1) {
+        // The control: the sphere model against the sim's renderer (two
+        // implementations of Eq. 4.1-4.2; the claims test measures < 1 %) on 14
+        // noiseless points; sigma is weakly constrained at 1 ml (sigma D = 0.15).
+        EXPECT_LT(std::abs(f.sigma.value / truth.sigma_t_per_mm - 1), 0.05) << fit_volume;
+        EXPECT_LT(std::abs(f.beta.value / truth.sigma_s_per_mm - 1), 0.03) << fit_volume;
+        EXPECT_NEAR(f.g.value, truth.g, 0.01) << fit_volume;
+      } else {
+        EXPECT_LT(f.sigma.value, 0.5 * truth.sigma_t_per_mm) << fit_volume << " ml: sigma far too low";
+        EXPECT_LT(f.g.value, truth.g) << fit_volume;
+        if (fit_volume == kFig411FitMl) all_orders_fit = f;
+      }
+    }
+  }
+  // The same pipeline as Fig411FitAt8ml… below on this all-orders fit:
+  // scaled by Eq. 4.8 (beta clamped to sigma: the fit's albedo is > 1) and
+  // rendered at 50-150 ml against the truth, same points and paths (each
+  // medium traced as itself: weighting across a factor 3 in sigma would
+  // not converge).
+  ASSERT_TRUE(std::isfinite(all_orders_fit.sigma.value));
+  for (double v : kFig411Volumes) {
+    const sim::Medium truth = tank_medium(material, v, sim::ColorChannel::green);
+    bool clamped = false;
+    const sim::Medium fitted = scaled_fit(all_orders_fit, truth, kFig411FitMl, v, clamped);
+    const std::vector<FacePoint> pts = fig411_points(truth);
+    const uint64_t seed = 4111 + uint64_t(v);
+    const Comparison c = compare(mc_render(fitted, pts, kFig411Paths, seed, fitted),
+                                 mc_render(truth, pts, kFig411Paths, seed, truth));
+    std::printf("all-orders fit scaled to %3.0f ml%s: sigma %.5f /mm (true %.5f)  |a/b - 1| median %.1f %%, p90 "
+                "%.1f %%; noise median %.1f %%; mean a/b - 1 %+.1f %%\n",
+                v, clamped ? " (beta clamped to sigma)" : "", fitted.sigma_t_per_mm, truth.sigma_t_per_mm,
+                100 * c.median, 100 * c.p90, 100 * c.noise_median, 100 * c.mean_signed);
   }
 }
 
