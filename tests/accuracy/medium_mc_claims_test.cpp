@@ -17,6 +17,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -457,6 +459,174 @@ TEST(MediumMonteCarloClaims, Fig411PremiseSingleScatteringFitIsBiasedByForwardSc
                 v, clamped ? " (beta clamped to sigma)" : "", fitted.sigma_t_per_mm, truth.sigma_t_per_mm,
                 100 * c.median, 100 * c.p90, 100 * c.noise_median, 100 * c.mean_signed);
   }
+}
+
+// ---- Stretch: a Monte Carlo-refined fit of the all-orders photograph ----------
+
+// Nelder-Mead (standard coefficients) on f from x0 with initial steps.
+std::vector<double> nelder_mead(const std::function<double(const std::vector<double>&)>& f, std::vector<double> x0,
+                                const std::vector<double>& step, int max_evals, int& evals) {
+  const size_t n = x0.size();
+  std::vector<std::vector<double>> x(n + 1, x0);
+  std::vector<double> fx(n + 1);
+  for (size_t i = 0; i < n; ++i) x[i + 1][i] += step[i];
+  for (size_t i = 0; i <= n; ++i) fx[i] = f(x[i]);
+  evals = int(n + 1);
+  while (evals < max_evals) {
+    std::vector<size_t> o(n + 1);
+    for (size_t i = 0; i <= n; ++i) o[i] = i;
+    std::sort(o.begin(), o.end(), [&](size_t a, size_t b) { return fx[a] < fx[b]; });
+    const size_t best = o[0], worst = o[n], second = o[n - 1];
+    std::vector<double> c(n, 0.0);
+    for (size_t i = 0; i < n; ++i)
+      for (size_t k = 0; k < n; ++k) c[k] += x[o[i]][k] / double(n);
+    auto along = [&](double t) {
+      std::vector<double> y(n);
+      for (size_t k = 0; k < n; ++k) y[k] = c[k] + t * (x[worst][k] - c[k]);
+      return y;
+    };
+    const std::vector<double> r = along(-1);
+    const double fr = f(r);
+    ++evals;
+    if (fr < fx[best]) {
+      const std::vector<double> e = along(-2);
+      const double fe = f(e);
+      ++evals;
+      if (fe < fr) x[worst] = e, fx[worst] = fe;
+      else x[worst] = r, fx[worst] = fr;
+    } else if (fr < fx[second]) {
+      x[worst] = r, fx[worst] = fr;
+    } else {
+      const std::vector<double> k = along(fr < fx[worst] ? -0.5 : 0.5);
+      const double fk = f(k);
+      ++evals;
+      if (fk < std::min(fr, fx[worst])) {
+        x[worst] = k, fx[worst] = fk;
+      } else {  // shrink towards the best
+        for (size_t i = 0; i <= n; ++i) {
+          if (i == best) continue;
+          for (size_t j = 0; j < n; ++j) x[i][j] = x[best][j] + 0.5 * (x[i][j] - x[best][j]);
+          fx[i] = f(x[i]);
+          ++evals;
+        }
+      }
+    }
+  }
+  size_t best = 0;
+  for (size_t i = 1; i <= n; ++i)
+    if (fx[i] < fx[best]) best = i;
+  return x[best];
+}
+
+// Starting from the single-scattering fit of the all-orders 8 ml photograph
+// (the premise test's), adjust beta, kappa = sigma - beta and g so that Monte
+// Carlo renders (every order) match the photograph at its 14 points:
+// Nelder-Mead on the noise-weighted squared log ratio, in (ln beta, ln kappa,
+// atanh g). Every evaluation renders the 14 points with the same seeds and
+// common random numbers, traced in a fixed reference medium and weighted,
+// so the objective is smooth in the parameters (noise weights: both
+// renders' standard errors, at least 1 %). PROCAM_FIG411_REFINE_ROUNDS > 1
+// moves the reference to the result and searches again; _SEED, _PATHS and
+// _EVALS set the model's seeds, paths per point and evaluations.
+// Exploration, not a claim (run with --gtest_also_run_disabled_tests).
+// Measured 2026-11-24 (load ~8; single-scattering start: sigma -66 %, beta
+// -18 %, g 0.892):
+//   seed 500, 1000 paths, 61 evals (8 s CPU):  sigma -3.8 %  beta -3.6 %  g 0.917
+//   seed 900, 1000 paths, 60 evals:            sigma -15 %   beta -15 %   g 0.908
+//   seed 900, 4000 paths, 121 evals (35 s):    sigma +15 %   beta +14 %   g 0.937
+// and scaled to 50 / 100 / 150 ml, per-point |a/b - 1| medians 10-30 %
+// (p90 32-80 %). sigma's bias is gone to within ~15 %, but g scatters by
+// ~0.01 between seeds (the 8 ml photograph's own noise: 2000 paths) and the
+// 50-150 ml images move ~3.5 % per 0.002 of g, so the extrapolation still
+// misses the claim's tolerance. Moving the reference (3 rounds) wandered
+// off (kappa x80 at round 3, where the 8 ml image hardly constrains it).
+TEST(MediumMonteCarloClaims, DISABLED_Fig411MonteCarloRefinedFit) {
+  const std::string material = "Lowfat Chocolate Milk";
+  const sim::Medium truth = tank_medium(material, kFig411FitMl, sim::ColorChannel::green);
+  const sim::TankMcOptions low_var{4, true, true};
+  Profile photo;
+  for (double r : kFitRho) {
+    const sim::TankMonteCarlo mc = sim::tank_monte_carlo(truth, truth.bulb->center_mm.x + r, truth.bulb->center_mm.y,
+                                                         2000, 11 + uint64_t(r), 1 << 20, low_var);
+    photo.rho.push_back(r);
+    photo.value.push_back(mc.total);
+    photo.se.push_back(mc.total_se);
+  }
+  const medium::FitResult ss = fit_mc_profile(photo, truth);
+  ASSERT_TRUE(ss.error.empty()) << ss.error;
+  sim::Medium ref = truth;  // tank, bulb; parameters from the fit
+  ref.sigma_s_per_mm = ss.beta.value;
+  ref.sigma_t_per_mm = std::max(ss.sigma.value, ss.beta.value * 1.003);  // albedo <= 1 (the fit's is 2.4)
+  ref.g = ss.g.value;
+  const char* paths_env = std::getenv("PROCAM_FIG411_REFINE_PATHS");
+  const size_t paths = paths_env ? std::strtoull(paths_env, nullptr, 10) : 1000;
+  const char* evals_env = std::getenv("PROCAM_FIG411_REFINE_EVALS");
+  const int max_evals = evals_env ? std::atoi(evals_env) : 60;
+  const char* seed_env = std::getenv("PROCAM_FIG411_REFINE_SEED");
+  const uint64_t model_seed = seed_env ? std::strtoull(seed_env, nullptr, 10) : 500;
+  const char* rounds_env = std::getenv("PROCAM_FIG411_REFINE_ROUNDS");
+  const int rounds = rounds_env ? std::atoi(rounds_env) : 1;
+  auto render = [&](const sim::Medium& m, const sim::Medium& sampling) {
+    std::vector<sim::TankMonteCarlo> out;
+    sim::TankMcOptions opt{2, true, true, true, sampling.sigma_t_per_mm, sampling.g};
+    for (double r : kFitRho)
+      out.push_back(sim::tank_monte_carlo(m, m.bulb->center_mm.x + r, m.bulb->center_mm.y, paths,
+                                          model_seed + uint64_t(r), 1 << 20, opt));
+    return out;
+  };
+  auto medium_of = [&](const std::vector<double>& x) {
+    sim::Medium m = truth;
+    m.sigma_s_per_mm = std::exp(x[0]);
+    m.sigma_t_per_mm = m.sigma_s_per_mm + std::exp(x[1]);
+    m.g = std::tanh(x[2]);
+    return m;
+  };
+  std::vector<double> x = {std::log(ref.sigma_s_per_mm), std::log(ref.sigma_t_per_mm - ref.sigma_s_per_mm),
+                           std::atanh(ref.g)};
+  int total_evals = 0;
+  for (int round = 0; round < rounds; ++round) {
+    const sim::Medium sampling = medium_of(x);
+    auto objective = [&](const std::vector<double>& y) {
+      const sim::Medium m = medium_of(y);
+      if (!(m.g > -0.99 && m.g < 0.99) || !(m.sigma_t_per_mm < 1.0)) return 1e30;
+      const std::vector<sim::TankMonteCarlo> model = render(m, sampling);
+      double sum = 0;
+      for (size_t i = 0; i < model.size(); ++i) {
+        if (!(model[i].total > 0)) return 1e30;
+        // Both renders' noise (relative), at least 1 % (the model's bias).
+        const double rel_se = std::max(std::hypot(photo.se[i] / photo.value[i], model[i].total_se / model[i].total), 0.01);
+        const double d = std::log(model[i].total / photo.value[i]) / rel_se;
+        sum += d * d;
+      }
+      return sum;
+    };
+    int evals = 0;
+    x = nelder_mead(objective, x, {0.3, 1.0, 0.2}, max_evals, evals);
+    total_evals += evals;
+    const sim::Medium m = medium_of(x);
+    std::printf("round %d: sigma %+.1f %%  beta %+.1f %%  kappa %+.0f %%  g %.4f (true %.4f)  objective %.1f  (%d evals)\n",
+                round, 100 * (m.sigma_t_per_mm / truth.sigma_t_per_mm - 1),
+                100 * (m.sigma_s_per_mm / truth.sigma_s_per_mm - 1),
+                100 * ((m.sigma_t_per_mm - m.sigma_s_per_mm) / (truth.sigma_t_per_mm - truth.sigma_s_per_mm) - 1), m.g,
+                truth.g, objective(x), evals);
+  }
+  const sim::Medium refined = medium_of(x);
+  medium::FitResult f;
+  f.sigma.value = refined.sigma_t_per_mm;
+  f.beta.value = refined.sigma_s_per_mm;
+  f.g.value = refined.g;
+  for (double v : kFig411Volumes) {
+    const sim::Medium tv = tank_medium(material, v, sim::ColorChannel::green);
+    bool clamped = false;
+    const sim::Medium fitted = scaled_fit(f, tv, kFig411FitMl, v, clamped);
+    const std::vector<FacePoint> pts = fig411_points(tv);
+    const uint64_t seed = 4111 + uint64_t(v);
+    const Comparison c = compare(mc_render(fitted, pts, kFig411Paths, seed, tv), mc_render(tv, pts, kFig411Paths, seed, tv));
+    std::printf("refined fit scaled to %3.0f ml: |a/b - 1| median %.2f %%, p90 %.2f %%; noise median %.2f %%; mean "
+                "%+.2f %%\n",
+                v, 100 * c.median, 100 * c.p90, 100 * c.noise_median, 100 * c.mean_signed);
+  }
+  std::printf("%d Monte Carlo evaluations of 14 points x %zu paths\n", total_evals, paths);
 }
 
 }  // namespace
