@@ -164,7 +164,8 @@ TankMonteCarlo tank_monte_carlo(const Medium& medium, double x_mm, double y_mm, 
 //    it a 1 % change of σ or a 0.002 change of g moves the paths' late
 //    vertices across H-G's narrow forward lobe (g 0.93) towards the bulb,
 //    and the difference of two renders at 50-150 ml of chocolate milk is as
-//    noisy as either (medium_mc_claims_test, Fig. 4.11).
+//    noisy as either (medium_mc_claims_test, Fig. 4.11). A reference g
+//    outside (−1, 1) gives the zero result, as other bad input does.
 // tank_monte_carlo(…) above is {connections = 1, forced = false, exact_single = false}.
 struct TankMcOptions {
   int connections = 1;  // k: k x k stratified bulb directions per vertex

@@ -133,6 +133,10 @@ TEST(TankMonteCarlo, PureAbsorberAndBadInputGiveZeroNotNaN) {
   EXPECT_EQ(mc.single, 0.0);
   const Scene milk = tank_scene(R"("material": "milk", "volume_ml": 16)");
   EXPECT_EQ(tank_monte_carlo(*milk.medium, 0, 0, 0, 1, 10).total, 0.0);
+  // A sampling medium with |g| >= 1 (no H-G) gives zero, not NaN.
+  const TankMonteCarlo bad_g =
+      tank_monte_carlo(*milk.medium, 0, 0, 100, 1, 10, TankMcOptions{1, false, false, true, 0.01, 1.0});
+  EXPECT_EQ(bad_g.total, 0.0);
   const TankEnergy e = tank_energy_monte_carlo(*milk.medium, 4, 3, 200, 3, 2);
   EXPECT_TRUE(std::isfinite(e.relative_excess));
   EXPECT_GT(e.total, 0.0);
