@@ -110,13 +110,16 @@ double num(const nlohmann::json& j, const char* key) {
 
 double rel(double est, double truth) { return (est - truth) / truth; }
 
-bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "") {
+// `measure` on the sim tank with scene `scene` (a shipped one or one written
+// by write_scene()).
+bool measure_scene(const std::string& scene, Measured& m, const std::string& source_model = "") {
+  const std::string label = scene;
   testing::RigChoice choice;
   choice.rig_file = "sim-tank.json";
   choice.scale = 2;
   choice.scene_dirs = {scene_dir().string()};
   ScanRun r;
-  r.rig = testing::scaled_rig(write_scene(c, index), choice);
+  r.rig = testing::scaled_rig(scene, choice);
   if (!r.rig) return false;
   auto truth = r.rig->ground_truth(0);
   EXPECT_TRUE(truth.ok()) << truth.status().to_string();
@@ -131,10 +134,10 @@ bool measure(const Case& c, size_t index, Measured& m, const std::string& source
   if (!source_model.empty()) params["source_model"] = source_model;
   if (!testing::run_on_rig("medium", "measure", params, r)) return false;
   const nlohmann::json rep = testing::output_report(r);
-  EXPECT_TRUE(rep.is_object() && rep.contains("fit")) << c.material;
+  EXPECT_TRUE(rep.is_object() && rep.contains("fit")) << label;
   if (!rep.is_object() || !rep.contains("fit")) return false;
   const nlohmann::json& f = rep["fit"];
-  EXPECT_FALSE(f.contains("error")) << c.material << ": " << f.value("error", "");
+  EXPECT_FALSE(f.contains("error")) << label << ": " << f.value("error", "");
   if (f.contains("error")) return false;
   m.sigma = num(f["sigma_per_mm"], "value");
   m.beta = num(f["beta_per_mm"], "value");
@@ -142,8 +145,12 @@ bool measure(const Case& c, size_t index, Measured& m, const std::string& source
   m.g_defined = f.value("g_defined", true);
   m.rms = num(f, "rms_percent");
   m.model = f.value("model", "");
-  if (!std::isfinite(m.sigma)) ADD_FAILURE() << c.material << ": no sigma; the fit said " << f.dump();
+  if (!std::isfinite(m.sigma)) ADD_FAILURE() << label << ": no sigma; the fit said " << f.dump();
   return true;
+}
+
+bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "") {
+  return measure_scene(write_scene(c, index), m, source_model);
 }
 
 // Thesis §4.4: parameters rendered from Table 4.1 at the thesis's dilutions
@@ -207,6 +214,29 @@ TEST(MediumClaims, PointSourceModelBiasesGOnTheSimsAreaBulb) {
   EXPECT_LT(std::abs(sphere.g - sphere.true_g), 0.01);
   EXPECT_GT(std::abs(point.g - point.true_g), 0.015);
   EXPECT_GT(std::abs(rel(point.beta, point.true_beta)), 0.2);
+}
+
+// Fig. 4.11's fit step end to end: `measure` on the shipped 8 ml lowfat
+// chocolate milk scene (configs/scenes/tank-chocolate-milk-8ml.json, the
+// camera's HDR image of the renderer's single scattering). The Monte Carlo
+// comparison at 50-150 ml (medium_mc_claims_test,
+// Fig411FitAt8mlScaledByEq48…) fits the renderer's profile directly and
+// derives its tolerance from that fit's accuracy: sigma and beta within
+// 0.4 %, g within 0.0003, kappa = sigma - beta within 5 %. This checks how
+// much of that accuracy the camera pipeline keeps. Measured, not assumed:
+// the bounds asserted here are claim 1's (3 %, g 0.02) and the numbers are
+// printed for the report.
+TEST(MediumClaims, Fig411FitStepOnTheShipped8mlScene) {
+  Measured m;
+  ASSERT_TRUE(measure_scene("tank-chocolate-milk-8ml", m));
+  const double kappa = m.true_sigma - m.true_beta;
+  std::printf("tank-chocolate-milk-8ml: sigma %+.2f %%  beta %+.2f %%  kappa = sigma - beta %+.0f %%  g %.4f (%.4f)  "
+              "rms %.2f %%\n",
+              100 * rel(m.sigma, m.true_sigma), 100 * rel(m.beta, m.true_beta),
+              100 * rel(m.sigma - m.beta, kappa), m.g, m.true_g, m.rms);
+  EXPECT_LT(std::abs(rel(m.sigma, m.true_sigma)), 0.03);
+  EXPECT_LT(std::abs(rel(m.beta, m.true_beta)), 0.03);
+  EXPECT_LT(std::abs(m.g - m.true_g), 0.02);
 }
 
 }  // namespace

@@ -10,7 +10,10 @@
 //    point (tank-chocolate-milk-8ml, 60 mm off the bulb's axis), plain
 //    (arg 0) and with the variance reductions {4, forced, exact_single}
 //    (arg 1), {2, forced, exact_single} (2), exact_single alone (3), forced
-//    alone (4): the cost side of docs/media.md's standard-error gains.
+//    alone (4): the cost side of docs/media.md's standard-error gains; the
+//    Fig. 4.11 comparison's setting {2, unforced, exact_single} (5) and the
+//    same with common random numbers and a sampling medium 0.3 % off (6):
+//    the cost of per-path seeds and of the weights.
 #include <benchmark/benchmark.h>
 
 #include <fstream>
@@ -83,7 +86,13 @@ void BM_TankMonteCarlo(benchmark::State& state) {
     return;
   }
   const Medium& m = *scene->medium;
-  const TankMcOptions options[] = {{}, {4, true, true}, {2, true, true}, {1, false, true}, {1, true, false}};
+  const TankMcOptions options[] = {{},
+                                   {4, true, true},
+                                   {2, true, true},
+                                   {1, false, true},
+                                   {1, true, false},
+                                   {2, false, true},
+                                   {2, false, true, true, 0.997 * m.sigma_t_per_mm, m.g}};
   const TankMcOptions opt = options[state.range(0)];
   uint64_t seed = 1;
   for (auto _ : state) {
@@ -92,7 +101,7 @@ void BM_TankMonteCarlo(benchmark::State& state) {
   }
 }
 
-BENCHMARK(BM_TankMonteCarlo)->DenseRange(0, 4)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_TankMonteCarlo)->DenseRange(0, 6)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_TankPrepare, lowfat_milk, std::string("tank-lowfat-milk"))
     ->Arg(2)->Iterations(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_TankFrame, lowfat_milk, std::string("tank-lowfat-milk"))

@@ -66,6 +66,14 @@ double connect_bulb(const Medium& m, const Vec3& y, const Vec3& w, int k, std::m
   return b.radiance() * omega * sum / (k * k);
 }
 
+// Seed of path k for common random numbers (splitmix64 of seed and k).
+uint64_t path_seed(uint64_t seed, uint64_t k) {
+  uint64_t z = seed + 0x9E3779B97F4A7C15ull * (k + 1);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
 }  // namespace
 
 TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_t paths, uint64_t seed,
@@ -80,9 +88,15 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
   if (!m.bulb || m.whole_scene || paths == 0 || !(m.sigma_s_per_mm > 0) || max_vertices < 1) return out;
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
-  const double sigma = m.sigma_t_per_mm, albedo = m.sigma_s_per_mm / m.sigma_t_per_mm;
+  const double albedo = m.sigma_s_per_mm / m.sigma_t_per_mm;
+  // The medium the paths are drawn in (importance sampling when it is not m).
+  const bool reweight = opt.sampling_sigma_t_per_mm > 0;
+  if (reweight && !(std::abs(opt.sampling_g) < 1)) return out;
+  const double sigma = reweight ? opt.sampling_sigma_t_per_mm : m.sigma_t_per_mm;
+  const double g_draw = reweight ? opt.sampling_g : m.g;
   double s1 = 0, s1q = 0, st = 0, stq = 0, sxq = 0, sx = 0;
   for (size_t k = 0; k < paths; ++k) {
+    if (opt.common_random_numbers) rng.seed(path_seed(seed, k));
     Vec3 p{x_mm, y_mm, m.box_min_mm.z};
     Vec3 w{0, 0, 1};
     double weight = 1, first = 0, all = 0;
@@ -100,18 +114,28 @@ TankMonteCarlo tank_monte_carlo(const Medium& m, double x_mm, double y_mm, size_
         if (s >= exit) break;
       }
       p = p + w * s;
-      weight *= albedo;  // e^{−σs}·β / (σe^{−σs})
+      // e^{−σs}·β / (σe^{−σs}); drawn with σ_ref: × e^{−(σ−σ_ref)s} σ / σ_ref.
+      weight *= reweight ? albedo * m.sigma_t_per_mm / sigma * std::exp(-(m.sigma_t_per_mm - sigma) * s) : albedo;
       const double c = weight * connect_bulb(m, p, w, splits, rng);
       if (v == 1) first = c;
       all += c;
-      w = detail::sample_hg(w, m.g, rng);
+      const Vec3 w_next = detail::sample_hg(w, g_draw, rng);
+      if (reweight) {
+        const double cos_turn = std::clamp(dot(w, w_next), -1.0, 1.0);
+        weight *= hg_phase(m.g, cos_turn) / hg_phase(g_draw, cos_turn);
+      }
+      w = w_next;
+      // Common random numbers: the roulette's number is drawn at every
+      // vertex, used or not, so a path's later draws do not depend on the medium.
+      const double roulette = opt.common_random_numbers ? u01(rng) : -1.0;
+      auto draw = [&] { return roulette >= 0 ? roulette : u01(rng); };
       if (opt.forced && weight < kForcedRoulette) {
         // Forced paths never leave by themselves: roulette early, survive
         // with weight / kForcedRoulette and carry kForcedRoulette (unbiased).
-        if (u01(rng) * kForcedRoulette > weight) break;
+        if (draw() * kForcedRoulette > weight) break;
         weight = kForcedRoulette;
       } else if (weight < 1e-4) {  // Russian roulette: survive with 1/10, weight ×10 (unbiased)
-        if (u01(rng) > 0.1) break;
+        if (draw() > 0.1) break;
         weight *= 10;
       }
     }
