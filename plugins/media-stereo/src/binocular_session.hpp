@@ -7,9 +7,13 @@
 // frame 0 taken by camera 0 (settings.camera_index 0), frame 1 by camera 1.
 // Decoding: binocular_depth() (binocular.hpp) with camera 0 as the reference,
 // the light at the projector's centre, its emission clipped to the projector
-// image (LightCone), and the medium taken from the params (not fitted: in a
-// scan every pixel may see an object, while the §5.4.1 fit needs an image of
-// the medium alone; fit_medium() serves that separate calibration shot).
+// image (LightCone), and the medium taken from the params or, when the scan
+// passes the optional input `medium_image`, fitted from it (§5.4.1; in a scan
+// every pixel may see an object, so the fit needs a separate shot of the
+// medium alone: the `medium` method on this rig, camera 0 lit by the
+// projector's flood, scene removed, a black wall at `medium_wall_mm`). A fit
+// adds the scalars medium_extinction_per_mm, medium_scattering_per_mm,
+// medium_hg_g, and the report says which parameters were fitted.
 //
 // Frames: U8, U16 (any bit depth) or F32, normalised by the frame's full scale
 // (sdk::full_scale) so light_intensity and min_signal are in full-scale units
@@ -22,7 +26,9 @@
 // Outputs: depth_mm (F32, camera 0's z, NaN invalid), the standard outputs and
 // a report naming the constraint, the medium and the light used.
 // Errors: FAILED_PRECONDITION when the rig has < 2 cameras, uncalibrated
-// devices or distortion; BAD_FRAME on a frame of the wrong size.
+// devices or distortion; INVALID_ARGUMENT for bad params or a medium_image of
+// the wrong size or without usable backscatter; BAD_FRAME on a frame of the
+// wrong size.
 // Threads: a Session is thread-bound (SDK); decoding is single-threaded.
 #pragma once
 
@@ -30,18 +36,10 @@
 #include <vector>
 
 #include "procam/plugin_sdk.hpp"
+#include "stereo_session.hpp"
 #include "synthetic.hpp"
 
 namespace procam::media_stereo {
-
-// A rig camera as a PinholeCamera placed by world_from_cam (mm).
-PinholeCamera pinhole_of(const Intrinsics& k, const Rigid3& world_from_cam);
-
-// `frame` (U8, U16 or F32, 1 channel, already size-checked) as full-scale
-// fractions into `img` (resized to the frame): integer frames divided by
-// 2^bits − 1, where bits is the frame's bit_depth or, when the frame claims
-// more, the rig camera's `rig_bits` (a 12-bit frame read back from 16-bit PNG).
-void frame_to_full_scale(const procam_image& frame, uint32_t rig_bits, std::vector<float>& img);
 
 sdk::MethodDescription binocular_description();
 sdk::Error create_binocular_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out);

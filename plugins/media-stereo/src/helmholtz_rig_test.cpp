@@ -34,6 +34,7 @@
 #include "procam/engine/scan_runner.hpp"
 #include "procam/host/plugin_host.hpp"
 #include "procam/hw/rig.hpp"
+#include "host_input_util.hpp"
 #include "test_rig.hpp"
 
 namespace procam::media_stereo {
@@ -274,16 +275,8 @@ TEST(MediumThroughTheRig, FitFromOneImageOfTheMediumAloneFeedsHelmholtz) {
   ASSERT_TRUE(truth.ok()) << truth.status().to_string();
   const Intrinsics k = rig->camera_calibrations()[0].intrinsics;
   const auto tn = truth_normals("media-stereo-rig-plane-matte", *truth, k);
-  host::InputImage in;
-  in.name = "medium_image";
-  in.description = "medium_image of the medium scan";
-  in.image = procam_image{.width = med.width, .height = med.height, .channels = 1, .pixel_type = PROCAM_PIXEL_F32,
-                          .bit_depth = 32, .reserved = 0, .stride_bytes = size_t{med.width} * sizeof(float),
-                          .data = med.medium_image.data()};
-  nlohmann::json hp = params(cfg, "media");
-  hp["sigma_per_mm"] = 0.0;  // wrong on purpose: the fit must replace them
-  hp["beta_per_mm"] = 0.0;
-  hp["g"] = 0.0;
+  const host::InputImage in = test::medium_image_input(med.medium_image, med.width, med.height);
+  const nlohmann::json hp = test::with_clear_water(params(cfg, "media"));
   const ScanOut fitted = host_scan(*rig, hp, "", false, "helmholtz", {in});
   ASSERT_EQ(fitted.depth.size(), tn.size());
   EXPECT_EQ(fitted.report["medium"]["fitted"], nlohmann::json({"sigma_per_mm", "beta_per_mm", "g"}));

@@ -24,27 +24,12 @@ using sdk::ParamType;
 constexpr double kMaxLightOffsetMm = 1.0;
 
 const std::vector<ParamSpec>& helmholtz_params() {
-  static const std::vector<ParamSpec> specs = {
-      {"constraint", ParamType::string, "media", 0, 0, {"media", "clear-air"},
-       "'media' removes each image's backscatter before the reciprocity constraint (Eq. 5.32); 'clear-air' is "
-       "the medium-free Helmholtz stereo of Zickler et al. on the same frames (the baseline)"},
-      {"sigma_per_mm", ParamType::number, 0.0, 0, 10, {}, "medium extinction sigma (1/mm); 0: clear water"},
-      {"beta_per_mm", ParamType::number, 0.0, 0, 10, {}, "medium scattering coefficient beta (1/mm), <= sigma"},
-      {"g", ParamType::number, 0.0, -0.99, 0.99, {}, "Henyey-Greenstein asymmetry of the medium"},
-      {"light_intensity", ParamType::number, 1.0e6, 1e-12, 1e30, {},
-       "I0 of every light in full-scale units x mm^2: a white Lambertian surface facing a light at d mm in clear "
-       "water reads I0 / (pi d^2) of full scale (a photometric calibration of lights and cameras)"},
-      {"z_min_mm", ParamType::number, 380.0, 1, 1e5, {}, "nearest depth hypothesis (camera 0's z)"},
-      {"z_max_mm", ParamType::number, 700.0, 1, 1e5, {}, "farthest depth hypothesis"},
-      {"z_step_mm", ParamType::number, 2.0, 0.01, 1e4, {}, "hypothesis spacing (a parabola refines between)"},
-      {"window", ParamType::integer, 5, 1, 31, {}, "odd window side (px) the rank measure is summed over"},
-      {"min_signal", ParamType::number, 0.002, 0, 1, {},
-       "a pixel whose largest signal I - B is at/below this (full scale) is invalid: shadow or black surface"},
-      {"saturation", ParamType::number, 0.999, 0.01, 1e30, {}, "samples at/above this (full scale) drop out"},
-      {"medium_wall_mm", ParamType::number, 2000.0, 1, 1e6, {},
-       "input medium_image only: z (camera 0's frame) of the black wall that ends every ray in the image of the "
-       "medium alone"},
-  };
+  static const std::vector<ParamSpec> specs = stereo_params(
+      5,
+      "'media' removes each image's backscatter before the reciprocity constraint (Eq. 5.32); 'clear-air' is "
+      "the medium-free Helmholtz stereo of Zickler et al. on the same frames (the baseline)",
+      "I0 of every light in full-scale units x mm^2: a white Lambertian surface facing a light at d mm in clear "
+      "water reads I0 / (pi d^2) of full scale (a photometric calibration of lights and cameras)");
   return specs;
 }
 
@@ -52,17 +37,13 @@ const std::vector<ParamSpec>& helmholtz_params() {
 const std::vector<ParamSpec>& medium_params() {
   static const std::vector<ParamSpec> specs = {
       {"light_intensity", ParamType::number, 1.0e6, 1e-12, 1e30, {},
-       "I0 of the light in full-scale units x mm^2 (as for helmholtz)"},
+       "I0 of the light in full-scale units x mm^2 (as for helmholtz or binocular)"},
       {"medium_wall_mm", ParamType::number, 2000.0, 1, 1e6, {},
        "z (camera 0's frame) of the black wall that ends every ray (the tank's far wall, blackened)"},
       {"saturation", ParamType::number, 0.999, 0.01, 1e30, {}, "samples at/above this (full scale) drop out"},
   };
   return specs;
 }
-
-// Pixel stride of the medium fit: every 4th pixel in x and y (432 samples on
-// the 96 x 72 sim rig; the fit's cost grows with the count).
-constexpr uint32_t kFitStride = 4;
 
 struct Unit {
   size_t camera = 0;
@@ -72,40 +53,22 @@ struct Unit {
   uint32_t bits = 8;
 };
 
-// §5.4.1: σ, β, g from camera 0's image of the medium alone (full scale),
-// lit by unit 1's light (the other unit nearest in the plan order: side by
-// side, so the scattering angles vary over the image and g is observable; a
-// co-located light sees γ = π everywhere), its field the light's cone.
-MediumFit fit_from_medium_image(const std::vector<Unit>& units, const std::vector<float>& image, double i0,
-                                double wall_mm, double saturation) {
-  return fit_medium(units[0].cam, image, units[1].cam.centre(), i0, wall_mm, kFitStride, saturation, &units[1].cone);
-}
-
-nlohmann::json medium_json(const MediumParams& m) {
-  return {{"sigma_per_mm", m.sigma_per_mm}, {"beta_per_mm", m.beta_per_mm}, {"g", m.g}};
-}
-
-void add_medium_scalars(sdk::Outputs& out, const MediumParams& m, const std::string& how) {
-  out.add_scalar("medium_extinction_per_mm", "1/mm", "extinction coefficient sigma " + how, m.sigma_per_mm);
-  out.add_scalar("medium_scattering_per_mm", "1/mm", "scattering coefficient beta " + how, m.beta_per_mm);
-  out.add_scalar("medium_hg_g", "", "Henyey-Greenstein asymmetry g " + how, m.g);
+// §5.4.1's shot on a rig of units: camera 0 lit by unit 1's light (the other
+// unit nearest in the plan order: side by side, so the scattering angles vary
+// over the image and g is observable; a co-located light sees γ = π
+// everywhere), its field the light's cone.
+MediumShot unit_shot(const std::vector<Unit>& units) {
+  return {units[0].cam, units[1].cam.centre(), units[1].cone, "unit 1's light"};
 }
 
 class HelmholtzSession final : public sdk::Session {
  public:
   HelmholtzSession(std::vector<Unit> units, const sdk::Rig& rig, const sdk::Params& p,
                    const std::optional<MediumFit>& fit)
-      : params_(p.json()), units_(std::move(units)), fit_(fit) {
+      : params_(p.json()), units_(std::move(units)), fit_(fit), search_(search_from(p)) {
     in_.light_intensity = p.get_number("light_intensity");
-    in_.medium = fit ? fit->medium
-                     : MediumParams{p.get_number("sigma_per_mm"), p.get_number("beta_per_mm"), p.get_number("g")};
+    in_.medium = medium_of(p, fit);
     media_ = p.get_string("constraint") == "media";
-    search_.z_min_mm = p.get_number("z_min_mm");
-    search_.z_max_mm = p.get_number("z_max_mm");
-    search_.z_step_mm = p.get_number("z_step_mm");
-    search_.window = static_cast<int>(p.get_int("window"));
-    search_.min_signal = p.get_number("min_signal");
-    search_.saturation = p.get_number("saturation");
     proj_w_ = rig.projector_width;
     proj_h_ = rig.projector_height;
     images_.resize(2 * (units_.size() - 1));
@@ -201,7 +164,9 @@ class HelmholtzSession final : public sdk::Session {
                               : "clear-air: Zickler et al., no backscatter removal (Eq. 5.34 on raw intensities)"},
         {"model", "single scattering (Eq. 5.24-5.29), isotropic lights at the camera centres clipped to their "
                   "fields, Lambertian or reciprocal BRDF, rank-2 W at the true depth"},
-        {"medium", medium_report()},
+        {"medium", medium_report(in_.medium, fit_,
+                                 "fit_medium() on the input medium_image (thesis 5.4.1; camera 0 lit by unit 1's "
+                                 "light)")},
         {"light_intensity_fullscale_mm2", in_.light_intensity},
         {"pairs", pairs},
         {"params", params_}};
@@ -211,27 +176,12 @@ class HelmholtzSession final : public sdk::Session {
   }
 
  private:
-  nlohmann::json medium_report() const {
-    nlohmann::json m = medium_json(in_.medium);
-    if (fit_) {
-      m["fitted"] = {"sigma_per_mm", "beta_per_mm", "g"};
-      m["given"] = nlohmann::json::array();
-      m["source"] = "fit_medium() on the input medium_image (thesis 5.4.1; camera 0 lit by unit 1's light)";
-      m["fit_rms_residual_fullscale"] = fit_->rms_residual;
-    } else {
-      m["fitted"] = nlohmann::json::array();
-      m["given"] = {"sigma_per_mm", "beta_per_mm", "g"};
-      m["source"] = "params";
-    }
-    return m;
-  }
-
   nlohmann::json params_;
   std::vector<Unit> units_;  // [0] the reference unit
   std::optional<MediumFit> fit_;
+  DepthSearch search_;
   std::vector<std::vector<float>> images_;
   HelmholtzInput in_;
-  DepthSearch search_;
   bool media_ = true, planned_ = false;
   uint32_t proj_w_ = 0, proj_h_ = 0;
   HelmholtzResult result_;
@@ -287,13 +237,8 @@ sdk::Error units_from_rig(const nlohmann::json& rig_json, const sdk::Rig& rig, s
     u.light_index = static_cast<int32_t>(k + 1);
     const Rigid3 world_from_cam = cam0_from_proj * rig.cameras[u.camera].calibration.cam_from_proj.inverse();
     u.cam = pinhole_of(rig.cameras[u.camera].calibration.intrinsics, world_from_cam);
-    u.cone.light_from_world = (world_from_cam * cam_from_light).inverse();
-    u.cone.width = field.width;
-    u.cone.height = field.height;
-    u.cone.fx = field.fx;
-    u.cone.fy = field.fy;
-    u.cone.cx = field.cx;
-    u.cone.cy = field.cy;
+    u.cone = cone_of((world_from_cam * cam_from_light).inverse(), field.width, field.height, field.fx, field.fy,
+                     field.cx, field.cy);
     u.bits = rig.cameras[u.camera].bit_depth;
     found.push_back(u);
   }
@@ -313,48 +258,52 @@ sdk::Error units_from_rig(const nlohmann::json& rig_json, const sdk::Rig& rig, s
   return sdk::ok();
 }
 
-// `medium`: one frame of the medium alone (camera 0 lit by unit 1's light),
-// returned as medium_image (the input `helmholtz` fits) with its fit.
+// `medium`: one frame of the medium alone, returned as medium_image (the
+// input `helmholtz` and `binocular` fit) with its fit. On a rig of
+// camera+light units camera 0 is lit by unit 1's light and the projector
+// stays dark; on a rig without units the projector floods (binocular's light).
 class MediumSession final : public sdk::Session {
  public:
-  MediumSession(std::vector<Unit> units, const sdk::Rig& rig, const sdk::Params& p)
-      : params_(p.json()), units_(std::move(units)), i0_(p.get_number("light_intensity")),
-        wall_mm_(p.get_number("medium_wall_mm")), saturation_(p.get_number("saturation")),
-        proj_w_(rig.projector_width), proj_h_(rig.projector_height) {}
+  MediumSession(const MediumShot& shot, size_t camera, uint32_t bits, int32_t light_index, bool flood,
+                const sdk::Rig& rig, const sdk::Params& p)
+      : params_(p.json()), shot_(shot), camera_(camera), bits_(bits), light_index_(light_index), flood_(flood),
+        i0_(p.get_number("light_intensity")), wall_mm_(p.get_number("medium_wall_mm")),
+        saturation_(p.get_number("saturation")), proj_w_(rig.projector_width), proj_h_(rig.projector_height) {}
 
   sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
     if (planned_) return sdk::ok();
     planned_ = true;
     const uint32_t f = plan.add_frame("medium-alone", proj_w_, proj_h_);
-    plan.settings(f).camera_index = static_cast<int32_t>(units_[0].camera);
-    plan.settings(f).light_index = units_[1].light_index;
+    plan.settings(f).camera_index = static_cast<int32_t>(camera_);
+    if (flood_)
+      for (uint8_t& v : plan.pattern_u8(f)) v = 255;
+    else
+      plan.settings(f).light_index = light_index_;
     has_round = true;
     return sdk::ok();
   }
 
   sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
     sdk::ScopedMs t(decode_ms_);
-    const Unit& u = units_[0];
-    if (sdk::Error e = sdk::check_frame(&frame, u.cam.width, u.cam.height, 1,
-                                        "frame " + std::to_string(index) + " (camera " + std::to_string(u.camera) + ")");
+    if (sdk::Error e = sdk::check_frame(&frame, shot_.cam.width, shot_.cam.height, 1,
+                                        "frame " + std::to_string(index) + " (camera " + std::to_string(camera_) + ")");
         !e.ok())
       return e;
-    frame_to_full_scale(frame, u.bits, image_);
+    frame_to_full_scale(frame, bits_, image_);
     return sdk::ok();
   }
 
   sdk::Error end_round() override {
     sdk::ScopedMs t(decode_ms_);
-    fit_ = fit_from_medium_image(units_, image_, i0_, wall_mm_, saturation_);
+    fit_ = fit_medium_shot(shot_, image_, i0_, wall_mm_, saturation_);
     return sdk::ok();
   }
 
   sdk::Error outputs(sdk::Outputs& out) override {
-    const PinholeCamera& c = units_[0].cam;
     out.add_image("medium_image", "",
-                  "camera 0's image of the medium alone lit by unit 1's light, full scale (input medium_image of "
-                  "helmholtz)",
-                  c.width, c.height, image_);
+                  "camera 0's image of the medium alone lit by " + shot_.light_name +
+                      ", full scale (input medium_image of helmholtz or binocular on this rig)",
+                  shot_.cam.width, shot_.cam.height, image_);
     size_t valid = 0;
     for (float v : image_) valid += std::isfinite(v) && static_cast<double>(v) < saturation_ ? 1u : 0u;
     if (fit_.ok) add_medium_scalars(out, fit_.medium, "fitted from this image (thesis 5.4.1)");
@@ -363,24 +312,38 @@ class MediumSession final : public sdk::Session {
     s.pattern_count = 1;
     s.valid_pixels = valid;
     s.total_pixels = image_.size();
-    nlohmann::json m = medium_json(fit_.medium);
+    nlohmann::json m = {{"sigma_per_mm", fit_.medium.sigma_per_mm},
+                        {"beta_per_mm", fit_.medium.beta_per_mm},
+                        {"g", fit_.medium.g}};
     m["fitted"] = fit_.ok ? nlohmann::json{"sigma_per_mm", "beta_per_mm", "g"} : nlohmann::json::array();
     m["fit_ok"] = fit_.ok;
     m["fit_rms_residual_fullscale"] = fit_.rms_residual;
     s.report = {{"method", "medium"},
                 {"medium", m},
                 {"model", "pure single-scattered backscatter B = beta F(sigma, g) (Eq. 5.16), rays ending at a black "
-                          "wall at medium_wall_mm, light clipped to its field; every 4th pixel"},
-                {"camera", units_[0].camera},
-                {"light", units_[1].light_index},
+                          "wall at medium_wall_mm, light clipped to its field"},
+                {"fit_pixel_stride", medium_fit_stride(shot_.cam.width, shot_.cam.height)},
+                {"camera", camera_},
+                {"light", flood_ ? nlohmann::json("projector flood") : nlohmann::json(light_index_)},
                 {"params", params_}};
+    if (flood_)
+      s.report["identifiable"] =
+          "sigma and the backscatter B the fit predicts, not beta and g one by one: a projector beside camera 0 "
+          "lights the medium mostly at near-backward scattering angles, where beta and g trade off (sim, "
+          "projector 120 mm off, two pixel samplings: beta -34 % / +17 %, g 0.35 / 0.55 for 0.5, B within "
+          "0.3 % both). Enough for binocular; to measure "
+          "beta and g, light the medium from beside the camera (a helmholtz rig's units)";
     sdk::add_standard_outputs(out, s);
     return sdk::ok();
   }
 
  private:
   nlohmann::json params_;
-  std::vector<Unit> units_;
+  MediumShot shot_;
+  size_t camera_;
+  uint32_t bits_;
+  int32_t light_index_;
+  bool flood_;
   double i0_, wall_mm_, saturation_;
   uint32_t proj_w_, proj_h_;
   bool planned_ = false;
@@ -396,8 +359,8 @@ sdk::MethodDescription medium_description() {
   d.name = "medium";
   d.summary =
       "one image of the medium alone (thesis 5.4.1; the scene removed, a black far wall): camera 0 lit by the "
-      "light of the next camera+light unit; fits sigma, beta, g and outputs the image as helmholtz's input "
-      "medium_image";
+      "light of the next camera+light unit, or by the projector's flood on a rig without units; fits sigma, beta, "
+      "g and outputs the image as the input medium_image of helmholtz or binocular";
   d.patterns = 1;
   d.outputs = {"medium_image", "medium_extinction_per_mm", "medium_scattering_per_mm", "medium_hg_g", "decode_ms",
                "pattern_count", "valid_fraction", "report"};
@@ -410,9 +373,24 @@ sdk::Error create_medium_session(const sdk::CreateArgs& args, std::unique_ptr<sd
   if (sdk::Error e = sdk::parse_params(args.params, medium_params(), p, args.method); !e.ok()) return e;
   sdk::Rig rig;
   if (sdk::Error e = sdk::parse_rig(args.rig, rig); !e.ok()) return e;
+  const bool has_units = args.rig.is_object() && args.rig.contains("lights");
+  if (!has_units) {
+    // binocular's rig: the projector floods as the light.
+    if (rig.cameras.empty() || !rig.can_triangulate(0))
+      return sdk::failed_precondition(
+          "media-stereo 'medium' needs a calibrated camera 0 and either camera+light units (rig \"lights\", e.g. "
+          "configs/rigs/sim-helmholtz.json) or a calibrated projector as the light (e.g. "
+          "configs/rigs/sim-tank-stereo.json)");
+    if (rig.cameras[0].calibration.intrinsics.distorted())
+      return sdk::failed_precondition("media-stereo 'medium': camera 0 has lens distortion, which the fit does not "
+                                      "model; undistort its frames and pass a pinhole calibration");
+    out = std::make_unique<MediumSession>(projector_shot(rig), 0, rig.cameras[0].bit_depth, 0, true, rig, p);
+    return sdk::ok();
+  }
   std::vector<Unit> units;
   if (sdk::Error e = units_from_rig(args.rig, rig, units, 1); !e.ok()) return e;
-  out = std::make_unique<MediumSession>(std::move(units), rig, p);
+  out = std::make_unique<MediumSession>(unit_shot(units), units[0].camera, units[0].bits, units[1].light_index, false,
+                                        rig, p);
   return sdk::ok();
 }
 
@@ -422,45 +400,25 @@ sdk::MethodDescription helmholtz_description() {
   d.summary =
       "Helmholtz stereo in a scattering medium (thesis Eq. 5.32-5.34): reciprocal pairs of camera+light units "
       "(camera 0 with each other unit), backscatter removed, depth and normals from the rank-2 condition, then "
-      "integrated depth; medium from params";
+      "integrated depth; medium from params or fitted from the input medium_image";
   d.patterns_formula = "2 per reciprocal pair (camera 0 and each other camera with a light)";
   d.outputs = {"depth_mm", "depth_integrated_mm", "normal_x", "normal_y", "normal_z", "rank_ratio",
                "decode_ms", "pattern_count", "valid_fraction", "report"};
   d.params = helmholtz_params();
-  sdk::InputSpec in;
-  in.name = "medium_image";
-  in.unit = "";
-  in.required = false;
-  in.description =
-      "camera 0's image of the medium alone (output medium_image of a `medium` scan, full scale): sigma, beta and g "
-      "are then fitted from it (thesis 5.4.1) instead of taken from the params";
-  d.inputs = {in};
+  d.inputs = {medium_image_input()};
   return d;
 }
 
 sdk::Error create_helmholtz_session(const sdk::CreateArgs& args, std::unique_ptr<sdk::Session>& out) {
   sdk::Params p;
   if (sdk::Error e = sdk::parse_params(args.params, helmholtz_params(), p, args.method); !e.ok()) return e;
-  if (!(p.get_number("beta_per_mm") <= p.get_number("sigma_per_mm")))
-    return sdk::invalid_argument("parameter 'beta_per_mm' must be <= sigma_per_mm (scattering is part of extinction)");
-  if (!(p.get_number("z_max_mm") > p.get_number("z_min_mm") + 2 * p.get_number("z_step_mm")))
-    return sdk::invalid_argument("z_max_mm must exceed z_min_mm by at least two z_step_mm (three hypotheses)");
-  if (p.get_int("window") % 2 == 0) return sdk::invalid_argument("parameter 'window' must be odd");
+  if (sdk::Error e = check_stereo_params(p); !e.ok()) return e;
   sdk::Rig rig;
   if (sdk::Error e = sdk::parse_rig(args.rig, rig); !e.ok()) return e;
   std::vector<Unit> units;
   if (sdk::Error e = units_from_rig(args.rig, rig, units, 3); !e.ok()) return e;
   std::optional<MediumFit> fit;
-  if (args.inputs.has("medium_image")) {
-    std::vector<float> image;
-    if (sdk::Error e = args.inputs.image_f32("medium_image", units[0].cam.width, units[0].cam.height, image); !e.ok())
-      return e;
-    fit = fit_from_medium_image(units, image, p.get_number("light_intensity"), p.get_number("medium_wall_mm"),
-                                p.get_number("saturation"));
-    if (!fit->ok)
-      return sdk::invalid_argument("input medium_image: no usable backscatter to fit sigma, beta, g (all pixels "
-                                   "invalid, saturated or zero); take it with the scene removed and the lights on");
-  }
+  if (sdk::Error e = medium_from_input(args, p, unit_shot(units), fit); !e.ok()) return e;
   out = std::make_unique<HelmholtzSession>(std::move(units), rig, p, fit);
   return sdk::ok();
 }

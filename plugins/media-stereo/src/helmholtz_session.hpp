@@ -25,7 +25,9 @@
 // `medium` (thesis §5.4.1 "Recovering the medium parameters"): one frame,
 // camera 0 lit by unit 1's light (side by side: a co-located light sees the
 // same scattering angle everywhere, so g would not be observable), the tank
-// emptied of objects. Outputs medium_image (full scale) and the fit.
+// emptied of objects. On a rig without units (binocular's: the projector is
+// the light) the projector floods instead. Outputs medium_image (full scale)
+// and the fit; pass it to helmholtz or binocular on the same rig.
 //
 // Frames: U8/U16/F32 normalised to full scale (frame_to_full_scale); light
 // intensity (`light_intensity`, full scale · mm²) is the same for every light
