@@ -157,19 +157,22 @@ __attribute__((noinline)) size_t pass_scalar(const PackedView& best, const Packe
       const float f = stripe_v - float(k0);
       m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
     }
+    if (!m.quality && !m.cqm && !m.weight && !m.gqm) continue;
     const float w = weight_of(s, c);
     const float bp = b * c.omp;
     const float den_c = s + bp;  // Eq. 5.8
     const float cq = den_c > 0.0f ? minf(maxf(s / den_c, 0.0f), 1.0f) : 0.0f;
     if (m.weight) m.weight[i] = w;
     if (m.cqm) m.cqm[i] = cq;
-    q.enh += double(s), q.enh2 += double(s) * double(s);
-    q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
+    if (m.quality) {
+      q.enh += double(s), q.enh2 += double(s) * double(s);
+      q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
+    }
     if (c.polarised) {
       const float den_g = d + a + bp;  // Eq. 5.9
       const float g = den_g > 0.0f ? minf(maxf((d + bp) / den_g, 0.0f), 1.0f) : 0.0f;
       if (m.gqm) m.gqm[i] = g;
-      q.gqm += double(g), q.gqm_w += double(g) * double(w);
+      if (m.quality) q.gqm += double(g), q.gqm_w += double(g) * double(w);
     }
   }
   q.img += double(img), q.img2 += double(img2);
@@ -246,7 +249,9 @@ PROCAM_A2 __m256 weight8(__m256 s, const Consts& c) {  // weight_of, lane by lan
   return _mm256_blendv_ps(w, one, _mm256_cmp_ps(t, _mm256_set1_ps(40.0f), _CMP_GT_OQ));
 }
 
-template <bool kStream>
+// kQuality: compute Eq. 5.8-5.10 (the report's sums and the quality maps);
+// false only when neither is wanted (PassMaps::quality off, no quality map).
+template <bool kStream, bool kQuality>
 __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const PackedView* worst, const Consts& c,
                                                   const float* centre, const PassMaps& m, size_t i0, size_t i1,
                                                   QualitySums& q) {
@@ -338,10 +343,6 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     } else {
       d = s = rise;
     }
-    const __m256 w = weight8(s, c);
-    const __m256 bp = _mm256_mul_ps(b, omp);
-    const __m256 den_c = _mm256_add_ps(s, bp);
-    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
     store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
     store8<kStream>(m.stripe + i, _mm256_blendv_ps(nan, stripe_v, sel));
     if (m.col) {
@@ -351,9 +352,14 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
       const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
       store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
     }
+    valid += size_t(__builtin_popcount(unsigned(sel_bits)));
+    if constexpr (!kQuality) continue;
+    const __m256 w = weight8(s, c);
+    const __m256 bp = _mm256_mul_ps(b, omp);
+    const __m256 den_c = _mm256_add_ps(s, bp);
+    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
     if (m.weight) store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
     if (m.cqm) store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
-    valid += size_t(__builtin_popcount(unsigned(sel_bits)));
     const __m256 s0 = _mm256_and_ps(s, sel), w0 = _mm256_and_ps(w, sel), cq0 = _mm256_and_ps(cq, sel);
     s_enh = add8(s_enh, s0), s_enh2 = add8_prod(s_enh2, s0, s0);
     s_w = add8(s_w, w0), s_cqm = add8(s_cqm, cq0), s_cqm_w = add8_prod(s_cqm_w, cq0, w0);
@@ -372,8 +378,10 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
   _mm256_store_si256(reinterpret_cast<__m256i*>(u), s_img2);
   for (int j = 0; j < 8; ++j) img += t[j], img2 += u[j];
   q.img += double(img), q.img2 += double(img2);
-  q.enh += hsum(s_enh), q.enh2 += hsum(s_enh2), q.w += hsum(s_w), q.cqm += hsum(s_cqm), q.cqm_w += hsum(s_cqm_w);
-  q.gqm += hsum(s_gqm), q.gqm_w += hsum(s_gqm_w);
+  if (m.quality) {
+    q.enh += hsum(s_enh), q.enh2 += hsum(s_enh2), q.w += hsum(s_w), q.cqm += hsum(s_cqm), q.cqm_w += hsum(s_cqm_w);
+    q.gqm += hsum(s_gqm), q.gqm_w += hsum(s_gqm_w);
+  }
   return valid;
 }
 #undef PROCAM_A2
@@ -568,6 +576,7 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
   size_t valid = 0;
   q.n_img += n;
   const auto count = [&](size_t v) {
+    if (!m.quality) return v;
     q.n_enh += v, q.n_w += v, q.n_cqm += v, q.n_cqm_w += v;
     if (worst) q.n_gqm += v, q.n_gqm_w += v;
     return v;
@@ -588,8 +597,12 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
       same = same && (p == nullptr || mis(p) == mis(m.enhanced));
     const size_t body = (n - head) / 8 * 8;
     valid += pass_scalar(best, worst, c, s.centre, m, i0, i0 + head, q);
-    valid += same ? pass_avx2<true>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q)
-                  : pass_avx2<false>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q);
+    const bool qual = m.quality || m.cqm || m.weight || m.gqm;
+    const size_t b0 = i0 + head, b1 = i0 + head + body;
+    valid += same ? (qual ? pass_avx2<true, true>(best, worst, c, s.centre, m, b0, b1, q)
+                          : pass_avx2<true, false>(best, worst, c, s.centre, m, b0, b1, q))
+                  : (qual ? pass_avx2<false, true>(best, worst, c, s.centre, m, b0, b1, q)
+                          : pass_avx2<false, false>(best, worst, c, s.centre, m, b0, b1, q));
     valid += pass_scalar(best, worst, c, s.centre, m, i0 + head + body, i1, q);
     return count(valid);
   }

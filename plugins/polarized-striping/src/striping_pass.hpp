@@ -55,6 +55,12 @@ struct PassMaps {
   uint8_t* image_u8 = nullptr;
   float *enhanced = nullptr, *backscatter = nullptr, *stripe = nullptr;
   float *col = nullptr, *cqm = nullptr, *weight = nullptr, *gqm = nullptr;
+  // Whether to add Eq. 5.8-5.10 and the enhanced image's sums to the
+  // report's sums (QualitySums: cqm, gqm, w, cqm_w, gqm_w, enh, enh2 and
+  // their counts). Off: those sums are left alone and, when no quality map
+  // is requested either, their arithmetic is skipped; the maps, the valid
+  // count and the composite's sums (img, img2, n_img) are the same either way.
+  bool quality = true;
 };
 
 enum class PassKernel { best, scalar, avx2 };
