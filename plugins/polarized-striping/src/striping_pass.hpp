@@ -65,8 +65,13 @@ struct PassMaps {
 
 enum class PassKernel { best, scalar, avx2 };
 
-// Whether `kernel` can run on this CPU.
+// Whether `kernel` can run on this CPU (avx2: AVX2 and FMA).
 bool pass_kernel_available(PassKernel kernel);
+
+// For tests: how many integers n in [-2^17, 2^17 + 7] the AVX2 kernel's
+// multiply-add quotient n / d (it replaces the division by K - 2) gets
+// different from the division, bit for bit; 0 where the AVX2 kernel cannot run.
+size_t exact_quotients_mismatches(int32_t d);
 
 // Pixels [i0, i1): writes the maps that are not null, adds to q, returns the
 // number of valid stripes. Every written value is the same bit for bit

@@ -306,6 +306,16 @@ TEST(StripingPass, StackKeepsTheDopSampleAtTheLastFrame) {
   }
 }
 
+// The AVX2 pass divides the integer backgrounds and rises by K - 2 with a
+// multiply and an FMA correction instead of the divider: the same float,
+// bit for bit, as the division for every divisor a packed scan can have
+// (K = 3..256) and every integer it divides (|n| <= 2^17; the 16-bit sums
+// and D t1 - N stay within 65535 in magnitude).
+TEST(StripingPass, MultiplyAddQuotientsAreTheDivision) {
+  if (!pass_kernel_available(PassKernel::avx2)) GTEST_SKIP() << "no AVX2 + FMA on this CPU";
+  for (int32_t d = 1; d <= 254; ++d) EXPECT_EQ(exact_quotients_mismatches(d), 0u) << "d = " << d;
+}
+
 // The report's quality means are taken on every quality_row_stride-th row
 // (estimate.hpp); here at 1920x1200 (stride 8, as the bench's scan) on two
 // polarised scenes, against the means of the same measures over every valid
