@@ -20,8 +20,9 @@
 // mean is. The frames are made once per process (frames(), ~2 s).
 // Most of the remaining setup was the kernel zeroing and faulting in the
 // plan's fresh pattern pages (perf: memset + page faults ~60 % of the run):
-// main() keeps freed heap memory (M_TRIM_THRESHOLD) so that the next
-// iteration's plan reuses those pages. Nothing timed allocates at that size
+// main() serves every block from the heap (M_MMAP_THRESHOLD) and keeps
+// freed heap memory (M_TRIM_THRESHOLD), so that the next iteration's plan
+// reuses those pages. Nothing timed allocates at that size
 // except the depth row's intensity and triangulation buffers (note in
 // docs/polarized-striping.md).
 #include <benchmark/benchmark.h>
