@@ -114,7 +114,9 @@ namespace {
 
 nlohmann::json mean_or_null(double sum, size_t n) { return n ? nlohmann::json(sum / double(n)) : nlohmann::json(nullptr); }
 
-nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p) {
+// row_stride: the means of Eq. 5.8-5.10 and of `enhanced` are over every
+// row_stride-th row (1: every pixel; see quality_row_stride).
+nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p, uint32_t row_stride = 1) {
   return {{"cqm_mean", mean_or_null(t.cqm, t.n_cqm)},
           {"gqm_mean", has_gqm ? mean_or_null(t.gqm, t.n_gqm) : nlohmann::json(nullptr)},
           {"snr_weight_mean", mean_or_null(t.w, t.n_w)},
@@ -122,7 +124,9 @@ nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p) {
           {"gqm_w_mean", has_gqm ? mean_or_null(t.gqm_w, t.n_gqm_w) : nlohmann::json(nullptr)},
           {"image", to_json(summary_from_sums(t.img, t.img2, t.n_img))},
           {"enhanced", to_json(summary_from_sums(t.enh, t.enh2, t.n_enh))},
-          {"dop_used", p}};
+          {"dop_used", p},
+          {"means_row_stride", row_stride},
+          {"means_pixels", t.n_enh}};
 }
 
 // fn(y0, y1, sums) over row bands on `threads` workers; the bands' sums merged in row order.
@@ -190,6 +194,10 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   // storage from the map cache. The column map only where it is handed over
   // or triangulated.
   want_col = want_col || cfg.all_maps;
+  // The report's quality means (Eq. 5.8-5.10, the enhanced image's mean and
+  // contrast) over every qs-th row (quality_row_stride); the maps, the valid
+  // count and the composite's summary cover every pixel.
+  const uint32_t qs = quality_row_stride(w, h);
   for (auto* v : {&m.enhanced, &m.backscatter, &m.stripe}) sdk::take_map(*v, n);
   if (want_col) sdk::take_map(m.col, n);
   take_quality_maps(m, n, polarised, cfg.all_maps);
@@ -261,19 +269,32 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
                               : pass == StripingPass::avx2 ? PassKernel::avx2
                                                            : PassKernel::best;
     const QualitySums sums = for_bands(h, cfg.threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
-      valid += striping_pass(vb, polarised ? &vw : nullptr, ps, pm, size_t{y0} * w, size_t{y1} * w, q, kernel);
+      // Runs of rows: a sampled row with the quality sums, the rows up to
+      // the next sampled one without (every row when qs = 1: one call).
+      size_t band_valid = 0;
+      for (uint32_t y = y0; y < y1;) {
+        const bool sampled = y % qs == 0;
+        const uint32_t e = qs == 1 ? y1 : (sampled ? y + 1 : std::min(y1, (y / qs + 1) * qs));
+        PassMaps run = pm;
+        run.quality = sampled;
+        band_valid += striping_pass(vb, polarised ? &vw : nullptr, ps, run, size_t{y} * w, size_t{e} * w, q, kernel);
+        y = e;
+      }
+      valid += band_valid;
     });
     m.valid = valid;
-    m.quality = to_json(sums, polarised, m.p);
+    m.quality = to_json(sums, polarised, m.p, qs);
     return m;
   }
   // One pass per pixel: composite (Eq. 5.7), stripe decision and column,
   //   unpolarised: D^ = rise, B^ = background (A counted in it), S^ = D^;
   //   polarised:   D^ = 2 rise_b, B^/A^ by Eq. 5.6 on the backgrounds, S^ = D^ + A^;
   // then Eq. 5.8–5.10 and the report's sums.
-  const QualitySums sums = for_bands(h, cfg.threads, [&](uint32_t y0, uint32_t y1, QualitySums& q) {
+  const QualitySums sums = for_bands(h, cfg.threads, [&](uint32_t y0, uint32_t y1, QualitySums& band_q) {
     size_t band_valid = 0;
+    QualitySums unsampled;  // rows off the quality sample: only their composite sums are kept
     for (size_t i = size_t{y0} * w; i < size_t{y1} * w; ++i) {
+      QualitySums& q = (i / w) % qs == 0 ? band_q : unsampled;
       const StripePixel px = decode_stripe_pixel(best, i, ds);
       m.image[i] = best.top1(i);
       const bool ok = unclipped(i);
@@ -303,10 +324,11 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
       }
       finish_pixel(m, i, s, b, d, a, polarised, lv, q);
     }
+    band_q.img += unsampled.img, band_q.img2 += unsampled.img2, band_q.n_img += unsampled.n_img;
     valid += band_valid;
   });
   m.valid = valid;
-  m.quality = to_json(sums, polarised, m.p);
+  m.quality = to_json(sums, polarised, m.p, qs);
   return m;
 }
 

@@ -6,6 +6,7 @@
 // Units: DN (frame units). Pure functions of their inputs; O(pixels).
 #pragma once
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -33,7 +34,9 @@ struct Maps {
   nlohmann::json notes = nlohmann::json::array();
   // Image-level summaries for the report: means over valid pixels of CQM,
   // GQM (null where not estimable), W, CQM x W, GQM x W; mean and RMS
-  // contrast (std / mean) of `image` and `enhanced`; the p used.
+  // contrast (std / mean) of `image` and `enhanced`; the p used. Striping
+  // scans take the means of Eq. 5.8-5.10 and of `enhanced` on every
+  // quality_row_stride-th row (means_row_stride, means_pixels say which).
   nlohmann::json quality;
 };
 
@@ -66,6 +69,18 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
 // packed) the general double-precision pass (decode_stripe_pixel), kept as
 // the packed kernels' test reference.
 enum class StripingPass { fastest, avx2, scalar, reference };
+
+// The report's quality means of a striping scan (cqm_mean, gqm_mean,
+// snr_weight_mean, cqm_w_mean, gqm_w_mean, enhanced's mean and contrast) are
+// taken over rows 0, s, 2s, ... with s = max(1, pixels / 262144) (every row
+// below 512k pixels; 8 at 1920x1200: 150 rows, ~288k pixels), the DOP
+// sample's budget: Eq. 5.8-5.10 per pixel were ~40 % of the end pass (issue 13).
+// The report says so (quality.means_row_stride, quality.means_pixels).
+// Sampling error: see docs/polarized-striping.md ("Quality measures").
+inline uint32_t quality_row_stride(uint32_t width, uint32_t height) noexcept {
+  const size_t s = std::max<size_t>(1, size_t{width} * height / 262144);
+  return static_cast<uint32_t>(std::min<size_t>(s, std::max<uint32_t>(height, 1)));
+}
 Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const Config& cfg, const Levels& lv,
                        uint32_t proj_width, StripingPass pass = StripingPass::fastest, bool want_col = false);
 

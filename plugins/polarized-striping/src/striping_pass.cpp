@@ -157,19 +157,22 @@ __attribute__((noinline)) size_t pass_scalar(const PackedView& best, const Packe
       const float f = stripe_v - float(k0);
       m.col[i] = centre[k0] + f * (centre[k0 + 1] - centre[k0]);
     }
+    if (!m.quality && !m.cqm && !m.weight && !m.gqm) continue;
     const float w = weight_of(s, c);
     const float bp = b * c.omp;
     const float den_c = s + bp;  // Eq. 5.8
     const float cq = den_c > 0.0f ? minf(maxf(s / den_c, 0.0f), 1.0f) : 0.0f;
     if (m.weight) m.weight[i] = w;
     if (m.cqm) m.cqm[i] = cq;
-    q.enh += double(s), q.enh2 += double(s) * double(s);
-    q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
+    if (m.quality) {
+      q.enh += double(s), q.enh2 += double(s) * double(s);
+      q.w += double(w), q.cqm += double(cq), q.cqm_w += double(cq) * double(w);
+    }
     if (c.polarised) {
       const float den_g = d + a + bp;  // Eq. 5.9
       const float g = den_g > 0.0f ? minf(maxf((d + bp) / den_g, 0.0f), 1.0f) : 0.0f;
       if (m.gqm) m.gqm[i] = g;
-      q.gqm += double(g), q.gqm_w += double(g) * double(w);
+      if (m.quality) q.gqm += double(g), q.gqm_w += double(g) * double(w);
     }
   }
   q.img += double(img), q.img2 += double(img2);
@@ -182,6 +185,17 @@ __attribute__((noinline)) size_t pass_scalar(const PackedView& best, const Packe
 #define PROCAM_A2 __attribute__((target("avx2"), always_inline)) inline
 PROCAM_A2 __m256i load8(const uint16_t* p) {
   return _mm256_cvtepu16_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+// n / d, correctly rounded (the bits of _mm256_div_ps), for integer n with
+// |n| <= 2^17 and d an integer in [1, 254] (the divisors K - 2 of a packed
+// scan), inv = RN(1/d): q = RN(n inv) is within an ulp of n/d, and one FMA
+// step q + RN(n - q d) inv (n - q d exact by the FMA) rounds to n/d
+// (Markstein's theorem). The divider's throughput bound the pass; these are
+// three pipelined multiply-adds. exact_quotients_mismatches() checks every
+// (n, d) of that range against the division (striping_pass_test).
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 div_int_exact(__m256 n, __m256 d, __m256 inv) {
+  const __m256 q = _mm256_mul_ps(n, inv);
+  return _mm256_fmadd_ps(_mm256_fnmadd_ps(q, d, n), inv, q);
 }
 template <bool kStream>
 PROCAM_A2 void store8(float* p, __m256 v) {
@@ -246,8 +260,10 @@ PROCAM_A2 __m256 weight8(__m256 s, const Consts& c) {  // weight_of, lane by lan
   return _mm256_blendv_ps(w, one, _mm256_cmp_ps(t, _mm256_set1_ps(40.0f), _CMP_GT_OQ));
 }
 
-template <bool kStream>
-__attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const PackedView* worst, const Consts& c,
+// kQuality: compute Eq. 5.8-5.10 (the report's sums and the quality maps);
+// false only when neither is wanted (PassMaps::quality off, no quality map).
+template <bool kStream, bool kQuality>
+__attribute__((target("avx2,fma"))) size_t pass_avx2(const PackedView& best, const PackedView* worst, const Consts& c,
                                                   const float* centre, const PassMaps& m, size_t i0, size_t i1,
                                                   QualitySums& q) {
   const __m256i c255 = _mm256_set1_epi32(255), one_i = _mm256_set1_epi32(1), m_one = _mm256_set1_epi32(-1);
@@ -257,6 +273,7 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
   const __m256 fd_b = _mm256_set1_ps(c.fd_b), fd_w = _mm256_set1_ps(c.fd_w), zero = _mm256_setzero_ps();
   const __m256 nan = _mm256_set1_ps(kNaNf), two = _mm256_set1_ps(2.0f), omp = _mm256_set1_ps(c.omp);
   const __m256 inv_p = _mm256_set1_ps(c.inv_p);
+  const __m256 inv_db = _mm256_set1_ps(1.0f / c.fd_b), inv_dw = _mm256_set1_ps(1.0f / c.fd_w);
   __m256d s_enh = _mm256_setzero_pd(), s_enh2 = s_enh, s_w = s_enh, s_cqm = s_enh, s_cqm_w = s_enh;
   __m256d s_gqm = s_enh, s_gqm_w = s_enh;
   __m256i s_img = _mm256_setzero_si256(), s_img2 = s_img;  // per lane: <= 255 resp. 65025 per pixel, flushed per call
@@ -271,7 +288,7 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     const __m256i n = _mm256_sub_epi32(_mm256_sub_epi32(sm, t1), t2);
     const __m256i l1 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t1), n);
     const __m256i l2 = _mm256_sub_epi32(_mm256_mullo_epi32(d_b, t2), n);
-    const __m256 bg = _mm256_div_ps(_mm256_cvtepi32_ps(n), fd_b);
+    const __m256 bg = div_int_exact(_mm256_cvtepi32_ps(n), fd_b, inv_db);
     const __m256i di = _mm256_sub_epi32(i1x, i2x);
     const __m256i adj = _mm256_or_si256(_mm256_cmpeq_epi32(di, one_i), _mm256_cmpeq_epi32(di, m_one));
     const __m256i edge = _mm256_and_si256(adj, _mm256_cmpgt_epi32(l2, rise_thr));
@@ -282,7 +299,7 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     if (c.polarised) {
       const __m256i w1 = _mm256_srli_epi32(load8(worst->key1 + i), 8), w2 = _mm256_srli_epi32(load8(worst->key2 + i), 8);
       const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst->sum + i), w1), w2);
-      const __m256 bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fd_w);
+      const __m256 bw = div_int_exact(_mm256_cvtepi32_ps(nw), fd_w, inv_dw);
       ok = _mm256_and_si256(ok, _mm256_cmpgt_epi32(sat_top, w2));
       __m256 sig = zero, bsc = _mm256_add_ps(bg, bw);
       if (c.separate) {
@@ -323,7 +340,7 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
         if (p) store8<kStream>(p + i, nan);
       continue;
     }
-    const __m256 rise = _mm256_max_ps(_mm256_div_ps(_mm256_cvtepi32_ps(l1), fd_b), zero);
+    const __m256 rise = _mm256_max_ps(div_int_exact(_mm256_cvtepi32_ps(l1), fd_b, inv_db), zero);
     const __m256 fi1 = _mm256_cvtepi32_ps(i1x);
     __m256 stripe_v = fi1;
     if (_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(edge, sel_i))) != 0) {  // a valid pixel on a stripe edge
@@ -338,10 +355,6 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
     } else {
       d = s = rise;
     }
-    const __m256 w = weight8(s, c);
-    const __m256 bp = _mm256_mul_ps(b, omp);
-    const __m256 den_c = _mm256_add_ps(s, bp);
-    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
     store8<kStream>(m.enhanced + i, _mm256_blendv_ps(nan, s, sel));
     store8<kStream>(m.stripe + i, _mm256_blendv_ps(nan, stripe_v, sel));
     if (m.col) {
@@ -351,9 +364,14 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
       const __m256 col = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(stripe_v, _mm256_cvtepi32_ps(k0)), _mm256_sub_ps(c1, c0)));
       store8<kStream>(m.col + i, _mm256_blendv_ps(nan, col, sel));
     }
+    valid += size_t(__builtin_popcount(unsigned(sel_bits)));
+    if constexpr (!kQuality) continue;
+    const __m256 w = weight8(s, c);
+    const __m256 bp = _mm256_mul_ps(b, omp);
+    const __m256 den_c = _mm256_add_ps(s, bp);
+    const __m256 cq = _mm256_and_ps(clamp01(_mm256_div_ps(s, den_c)), _mm256_cmp_ps(den_c, zero, _CMP_GT_OQ));
     if (m.weight) store8<kStream>(m.weight + i, _mm256_blendv_ps(nan, w, sel));
     if (m.cqm) store8<kStream>(m.cqm + i, _mm256_blendv_ps(nan, cq, sel));
-    valid += size_t(__builtin_popcount(unsigned(sel_bits)));
     const __m256 s0 = _mm256_and_ps(s, sel), w0 = _mm256_and_ps(w, sel), cq0 = _mm256_and_ps(cq, sel);
     s_enh = add8(s_enh, s0), s_enh2 = add8_prod(s_enh2, s0, s0);
     s_w = add8(s_w, w0), s_cqm = add8(s_cqm, cq0), s_cqm_w = add8_prod(s_cqm_w, cq0, w0);
@@ -372,8 +390,10 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
   _mm256_store_si256(reinterpret_cast<__m256i*>(u), s_img2);
   for (int j = 0; j < 8; ++j) img += t[j], img2 += u[j];
   q.img += double(img), q.img2 += double(img2);
-  q.enh += hsum(s_enh), q.enh2 += hsum(s_enh2), q.w += hsum(s_w), q.cqm += hsum(s_cqm), q.cqm_w += hsum(s_cqm_w);
-  q.gqm += hsum(s_gqm), q.gqm_w += hsum(s_gqm_w);
+  if (m.quality) {
+    q.enh += hsum(s_enh), q.enh2 += hsum(s_enh2), q.w += hsum(s_w), q.cqm += hsum(s_cqm), q.cqm_w += hsum(s_cqm_w);
+    q.gqm += hsum(s_gqm), q.gqm_w += hsum(s_gqm_w);
+  }
   return valid;
 }
 #undef PROCAM_A2
@@ -381,9 +401,51 @@ __attribute__((target("avx2"))) size_t pass_avx2(const PackedView& best, const P
 
 }  // namespace
 
+namespace {
+bool cpu_has_fma() noexcept {
+#ifdef PROCAM_SDK_X86
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("fma") != 0;
+  }();
+  return has;
+#else
+  return false;
+#endif
+}
+}  // namespace
+
+#ifdef PROCAM_SDK_X86
+namespace {
+__attribute__((target("avx2,fma"))) size_t quotient_mismatches_avx2(int32_t d) {
+  size_t bad = 0;
+  const float fd = float(d);
+  const __m256 dv = _mm256_set1_ps(fd), inv = _mm256_set1_ps(1.0f / fd);
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  alignas(32) float got[8];
+  for (int32_t n = -(1 << 17); n <= (1 << 17); n += 8) {
+    _mm256_store_ps(got, div_int_exact(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(n), lanes)), dv, inv));
+    for (int32_t j = 0; j < 8; ++j) {
+      const float want = float(n + j) / fd;
+      bad += std::memcmp(&got[j], &want, sizeof(float)) != 0;
+    }
+  }
+  return bad;
+}
+}  // namespace
+#endif
+
+size_t exact_quotients_mismatches(int32_t d) {
+#ifdef PROCAM_SDK_X86
+  if (pass_kernel_available(PassKernel::avx2)) return quotient_mismatches_avx2(d);
+#endif
+  (void)d;
+  return 0;
+}
+
 bool pass_kernel_available(PassKernel kernel) {
 #ifdef PROCAM_SDK_X86
-  if (kernel == PassKernel::avx2) return sdk::cpu_has_avx2();
+  if (kernel == PassKernel::avx2) return sdk::cpu_has_avx2() && cpu_has_fma();
 #else
   if (kernel == PassKernel::avx2) return false;
 #endif
@@ -398,6 +460,7 @@ namespace {
 struct DopPart {
   std::vector<uint32_t> keys;
   std::vector<uint32_t> hist;
+  std::vector<uint32_t> picked;  // select_keys: this part's keys in the two chosen buckets
   size_t counted = 0;
 };
 
@@ -429,17 +492,31 @@ uint32_t low_of_rank(const std::vector<uint32_t>& low, size_t below, size_t k) {
 // holding ranks k and k + 1, then histograms of the low 16 bits of those
 // buckets' keys, both filled in one pass over the keys (a bucket can hold
 // most of the sample: the backgrounds of a hazy scene cluster; O(n), no sort).
-void select_keys(const std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k, uint32_t& key_k,
-                 uint32_t& key_k1, DopScratch& scratch) {
+// The scan over every key picks the two buckets' keys part by part on the
+// parts' workers (it was the serial half of the DOP step, issue 13); the
+// low-bit histograms are then filled from the picked keys only (a bucket is
+// 1/128 of an octave of r: a few per cent of a hazy scene's sample).
+void select_keys(std::vector<DopPart>& parts, const std::vector<uint64_t>& hist, size_t k, uint32_t& key_k,
+                 uint32_t& key_k1, DopScratch& scratch, uint32_t threads) {
   size_t below_a = 0, below_b = 0;
   const uint32_t hi_a = bucket_of_rank(hist, k, below_a), hi_b = bucket_of_rank(hist, k + 1, below_b);
+  sdk::parallel_rows(static_cast<uint32_t>(parts.size()), threads, [&](uint32_t p0, uint32_t p1) {
+    for (uint32_t p = p0; p < p1; ++p) {
+      DopPart& part = parts[p];
+      part.picked.clear();
+      part.picked.reserve(hist[hi_a] + (hi_b != hi_a ? hist[hi_b] : 0));
+      for (uint32_t key : part.keys) {
+        const uint32_t h = key >> 16;
+        if (h == hi_a || h == hi_b) part.picked.push_back(key);
+      }
+    }
+  });
   scratch.low.assign(65536, 0);
   if (hi_b != hi_a) scratch.low2.assign(65536, 0);
   for (const DopPart& part : parts)
-    for (uint32_t key : part.keys) {
-      const uint32_t h = key >> 16;
-      if (h == hi_a) ++scratch.low[key & 0xffffu];
-      else if (h == hi_b) ++scratch.low2[key & 0xffffu];
+    for (uint32_t key : part.picked) {
+      if ((key >> 16) == hi_a) ++scratch.low[key & 0xffffu];
+      else ++scratch.low2[key & 0xffffu];
     }
   key_k = (hi_a << 16) | low_of_rank(scratch.low, below_a, k);
   key_k1 = (hi_b << 16) | (hi_b == hi_a ? low_of_rank(scratch.low, below_a, k + 1)
@@ -545,7 +622,7 @@ double packed_dop(const PackedView& best, const PackedView& worst, size_t count,
   const auto lo = static_cast<size_t>(std::floor(pos));
   uint32_t key_lo = 0, key_hi = 0;
   if (lo + 1 < finite) {
-    select_keys(parts, hist, lo, key_lo, key_hi, scratch);
+    select_keys(parts, hist, lo, key_lo, key_hi, scratch, threads);
   } else {  // the largest key: the top non-empty bucket's largest low bits
     size_t below = 0;
     const uint32_t hi = bucket_of_rank(hist, lo, below);
@@ -568,6 +645,7 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
   size_t valid = 0;
   q.n_img += n;
   const auto count = [&](size_t v) {
+    if (!m.quality) return v;
     q.n_enh += v, q.n_w += v, q.n_cqm += v, q.n_cqm_w += v;
     if (worst) q.n_gqm += v, q.n_gqm_w += v;
     return v;
@@ -588,8 +666,12 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
       same = same && (p == nullptr || mis(p) == mis(m.enhanced));
     const size_t body = (n - head) / 8 * 8;
     valid += pass_scalar(best, worst, c, s.centre, m, i0, i0 + head, q);
-    valid += same ? pass_avx2<true>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q)
-                  : pass_avx2<false>(best, worst, c, s.centre, m, i0 + head, i0 + head + body, q);
+    const bool qual = m.quality || m.cqm || m.weight || m.gqm;
+    const size_t b0 = i0 + head, b1 = i0 + head + body;
+    valid += same ? (qual ? pass_avx2<true, true>(best, worst, c, s.centre, m, b0, b1, q)
+                          : pass_avx2<true, false>(best, worst, c, s.centre, m, b0, b1, q))
+                  : (qual ? pass_avx2<false, true>(best, worst, c, s.centre, m, b0, b1, q)
+                          : pass_avx2<false, false>(best, worst, c, s.centre, m, b0, b1, q));
     valid += pass_scalar(best, worst, c, s.centre, m, i0 + head + body, i1, q);
     return count(valid);
   }

@@ -55,12 +55,23 @@ struct PassMaps {
   uint8_t* image_u8 = nullptr;
   float *enhanced = nullptr, *backscatter = nullptr, *stripe = nullptr;
   float *col = nullptr, *cqm = nullptr, *weight = nullptr, *gqm = nullptr;
+  // Whether to add Eq. 5.8-5.10 and the enhanced image's sums to the
+  // report's sums (QualitySums: cqm, gqm, w, cqm_w, gqm_w, enh, enh2 and
+  // their counts). Off: those sums are left alone and, when no quality map
+  // is requested either, their arithmetic is skipped; the maps, the valid
+  // count and the composite's sums (img, img2, n_img) are the same either way.
+  bool quality = true;
 };
 
 enum class PassKernel { best, scalar, avx2 };
 
-// Whether `kernel` can run on this CPU.
+// Whether `kernel` can run on this CPU (avx2: AVX2 and FMA).
 bool pass_kernel_available(PassKernel kernel);
+
+// For tests: how many integers n in [-2^17, 2^17 + 7] the AVX2 kernel's
+// multiply-add quotient n / d (it replaces the division by K - 2) gets
+// different from the division, bit for bit; 0 where the AVX2 kernel cannot run.
+size_t exact_quotients_mismatches(int32_t d);
 
 // Pixels [i0, i1): writes the maps that are not null, adds to q, returns the
 // number of valid stripes. Every written value is the same bit for bit
