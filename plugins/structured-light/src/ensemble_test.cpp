@@ -276,6 +276,12 @@ TEST(Vote, Rules) {
       {100, 100, nan, 500, 255, kPartial, 100, 0.5f},                 // gray + xor02
       {100, 100, 100, 500, 255, kPartial, 100, 0.75f},                // three agree
       {100, 101, nan, 102, 255, kPartial, 101, 0.75f},                // chain: xor02 agrees with both
+      // Issue 18: two agreeing codes a column apart straddle the truth, so
+      // the value is their midpoint, not the preferred code's column.
+      {100, 101, nan, 500, 255, kPartial, 100.5f, 0.5f},              // gray + xor02: midpoint
+      {nan, 900, 101, 100, 255, kPartial, 100.5f, 0.5f},              // xor04 + minsw: midpoint
+      {300, 100, 101, 700, 255, kInterreflection, 100.5f, 0.5f},      // logical pair: midpoint
+      {100, 400, 700, 101, 255, kSubsurface, 101, 0.5f},              // Gray pair: still minsw's (thesis)
   };
   for (const Case& c : cases) {
     const float g[1] = {c.g}, x2[1] = {c.x2}, x4[1] = {c.x4}, m[1] = {c.m};

@@ -14,7 +14,7 @@
 //   - otherwise the *pick* is the first code, in the order gray, xor04, xor02,
 //     minsw, among those with the largest support, and the value is the
 //     median of the pick and every code agreeing with it when they are 3 or
-//     4, else the pick's own value; kInterreflection when the
+//     4, else (2 codes) their midpoint; kInterreflection when the
 //     only agreeing pair is {xor02, xor04}, kAllAgree when all four agree
 //     pairwise, else kPartial.
 //   Why the median: each code quantizes the column at its own stripe edges,
@@ -22,8 +22,11 @@
 //   split between them (e.g. 1115, 1116, 1116, 1115.5 at a true 1116.2): the
 //   first code's value can be a column off, their median 1115.75 is not. A
 //   median, not a mean, so that a member agreeing with the pick only at the
-//   edge of agree_px (2 columns from the others) does not pull the value;
-//   two members give no majority, so the preferred code's value stands.
+//   edge of agree_px (2 columns from the others) does not pull the value.
+//   Two members (issue 18): their midpoint, not the preferred code's value —
+//   two codes one column apart straddle the truth, and the preferred one's
+//   column was > 1 from it on 2.7 % of marble-slab's two-code pixels (all of
+//   the ensemble's gross errors there); the midpoint is <= 0.5 from either.
 // confidence = (max support + 1) / 4 for valid pixels (0.5, 0.75, 1), else 0.
 // Classification (C5): kAllAgree = direct light dominates; kInterreflection =
 // only the logical (XOR) codes agree, long-range effects; kSubsurface = only
