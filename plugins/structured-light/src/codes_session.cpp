@@ -412,20 +412,20 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     sdk::parallel_rows(h, rig_.threads, [&](uint32_t y0, uint32_t y1) {
       refine_columns(coord_.data(), w, y0, y1, SubpixelOptions{}, subpx.data());
     });
-    // Issue 18 (session 11): where the ensemble's value rests on a pair of
-    // codes (confidence 0.5: no majority), the reported column is the refined
-    // column rounded to the nearest half column (the key grid of
-    // proj_col_px), not the pair's own value. Two codes can share a bias of
-    // about a column under sub-surface light (marble: every gross error of
-    // the ensemble came from such pairs, 3 084 pixels, while the refined
-    // column there was > 1 off on 0.0001 % of pixels). refine_columns clamps
-    // to +-1 column of the voted value and keeps it where the row gives no
-    // consistent neighbours, so this moves a value by at most one column.
-    // Three- and four-code pixels keep their median.
+    // Issue 18 (session 11): where the vote is not unanimous (confidence < 1:
+    // fewer than four codes agree pairwise), the reported column is the
+    // refined column rounded to the nearest half column (the key grid of
+    // proj_col_px), not the vote's value. Codes can share a bias of about a
+    // column under sub-surface light (marble: gray and xor04 outvote min-SW;
+    // every gross error of the ensemble there, 3 084 pixels, was such a
+    // partial-class pixel, while the refined column was > 1 off on 0.0001 %
+    // of pixels). refine_columns clamps to +-1 column of the voted value and
+    // keeps it where the row gives no consistent neighbours, so this moves a
+    // value by at most one column. Unanimous pixels keep their median (the
+    // refined column was worse there near creases: val-room-corner).
+    // Runs before triangulation, so depth uses the reported column.
     if (codes_.size() > 1)
-      for (size_t i = 0; i < coord_.size(); ++i)
-        if (valid_[i] != 0 && confidence_[i] < 1.0f && std::isfinite(subpx[i]))
-          coord_[i] = 0.5f * std::nearbyint(2.0f * subpx[i]);
+      report_columns(coord_.data(), valid_.data(), confidence_.data(), subpx.data(), coord_.size());
     std::optional<sdk::DepthResult> depth;
     if (rig_.can_triangulate(0)) {
       const ScopedMs timed(decode_ms_);

@@ -92,6 +92,13 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
   }
 }
 
+void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
+                    size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (valid[i] != 0 && confidence[i] < 1.0f && std::isfinite(refined[i]))
+      coord[i] = 0.5f * std::nearbyint(2.0f * refined[i]);
+}
+
 int32_t agree_key_threshold(float agree_px) {
   return static_cast<int32_t>(std::floor(2.0f * agree_px));
 }
