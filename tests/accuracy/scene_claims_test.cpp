@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <ostream>
 #include <unistd.h>
 #include <string>
 #include <vector>
@@ -246,6 +247,56 @@ void expect_rounds_pay(const std::string& scene, bool rounds_skipped, bool auto_
 // (mirror paths; one round pays).
 TEST(SceneClaims, Issue18CornerWaxRoundSkipped) { expect_rounds_pay("corner-wax", true); }
 TEST(SceneClaims, Issue18GlossyPipeRoundPays) { expect_rounds_pay("glossy-pipe", false); }
+
+// Issue 18's acceptance on every scene of the three sets reported in
+// docs/report/issue18/README.md: the library, the first validation set
+// (val-*, development data since session 11 tuned the two-code midpoint and
+// the discard rule on it) and the second (val2-*, written after those rules
+// were frozen). Scenes are named (library) or paths (validation sets).
+// `auto_near_best` is false only where the report states the measured miss
+// of "auto within 0.02 pp of the best method" with numbers; the other
+// criteria (rounds and auto never above ensemble-nocorr, auto's patterns)
+// are asserted on every scene.
+struct Issue18Scene {
+  const char* scene;
+  bool auto_near_best;
+};
+std::ostream& operator<<(std::ostream& o, const Issue18Scene& s) { return o << s.scene; }
+
+class Issue18 : public ::testing::TestWithParam<Issue18Scene> {};
+
+TEST_P(Issue18, RoundsAndAutoPay) {
+  const Issue18Scene& s = GetParam();
+  std::string scene = s.scene;
+  if (scene.rfind("val", 0) == 0) scene = std::string(PROCAM_SOURCE_DIR) + "/configs/scenes/validation/" + scene + ".json";
+  expect_rounds_pay(scene, false, s.auto_near_best);
+}
+
+std::string issue18_name(const ::testing::TestParamInfo<Issue18Scene>& i) {
+  std::string n = i.param.scene;
+  for (char& c : n)
+    if (c == '-') c = '_';
+  return n;
+}
+
+INSTANTIATE_TEST_SUITE_P(Library, Issue18,
+                         ::testing::Values(Issue18Scene{"bowl-on-marble", true}, Issue18Scene{"deep-scene", true},
+                                           Issue18Scene{"marble-slab", true}, Issue18Scene{"metal-lamp", true},
+                                           Issue18Scene{"plane", true}, Issue18Scene{"shower-curtain", true},
+                                           Issue18Scene{"sphere", true}, Issue18Scene{"tilted-box", true},
+                                           Issue18Scene{"v-groove", true}, Issue18Scene{"wax-candle", true}),
+                         issue18_name);
+INSTANTIATE_TEST_SUITE_P(ValidationDev, Issue18,
+                         ::testing::Values(Issue18Scene{"val-mixed-depths", true}, Issue18Scene{"val-room-corner", true},
+                                           Issue18Scene{"val-steel-sphere-rod", true},
+                                           Issue18Scene{"val-wax-among-matte", true}),
+                         issue18_name);
+INSTANTIATE_TEST_SUITE_P(Validation2, Issue18,
+                         ::testing::Values(Issue18Scene{"val2-shelf-corners", true},
+                                           Issue18Scene{"val2-chrome-dish-post", true},
+                                           Issue18Scene{"val2-jade-acrylic-blocks", true},
+                                           Issue18Scene{"val2-depth-staircase", true}),
+                         issue18_name);
 
 // §2.5 / Fig. 3.4: beyond the depth of field defocus blurs the finest planes.
 // min-SW (long minimum stripe) keeps decoding, without errors, where XOR-02

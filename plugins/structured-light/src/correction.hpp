@@ -134,7 +134,7 @@ struct CorrectionProgress {
   size_t resolved_last = 0;         // pixels the last correction round resolved
   double min_progress = 0.0005;     // fraction of lit pixels
   double acceptance_last = 1.0;     // accepted / fixable of the last correction round
-  double min_acceptance = 0.25;     // stop below this acceptance rate
+  double min_acceptance = 0.7;      // below: the round is discarded and correcting stops
 };
 
 struct CorrectionDecision {

@@ -87,9 +87,9 @@ TEST(Correction, StopRuleFollowsThesisSection34) {
   // the correction, even with progress.
   CorrectionProgress unsure = stalled;
   unsure.resolved_last = 500;
-  unsure.acceptance_last = 0.2;  // < min_acceptance 0.25
+  unsure.acceptance_last = 0.62;  // < min_acceptance 0.7 (the steel ball's round)
   EXPECT_EQ(reason(unsure), "last round's acceptance rate below min_acceptance");
-  unsure.acceptance_last = 0.25;  // at the threshold: go on
+  unsure.acceptance_last = 0.7;  // at the threshold: go on
   EXPECT_TRUE(decide_correction(unsure).more);
   // The first correction round does not need earlier progress.
   CorrectionProgress first = p;

@@ -72,7 +72,8 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
       c = pairs == 1 && logical_pair ? kInterreflection : pairs == 6 ? kAllAgree : kPartial;
       // Median of the codes agreeing with the pick (sum minus the extremes;
       // values are multiples of 0.5, every step is exact) when there are 3 or
-      // 4; with 2 the pick's own value.
+      // 4; with 2 their midpoint (issue 18: the pick's own value could sit a
+      // column from the truth when the two split between neighbouring columns).
       float sum = 0.0f, lo = v[pick], hi = v[pick];
       uint32_t count = 0;
       for (uint32_t k = 0; k < kEnsembleCodes; ++k)
@@ -82,13 +83,20 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
           hi = std::max(hi, v[k]);
           ++count;
         }
-      value = count >= 3 ? (sum - lo - hi) / static_cast<float>(count - 2) : v[pick];
+      value = count >= 3 ? (sum - lo - hi) / static_cast<float>(count - 2) : 0.5f * sum;
     }
     coord[i] = value;
     valid[i] = 255;
     confidence[i] = static_cast<float>(best + 1) / 4.0f;
     cls[i] = c;
   }
+}
+
+void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
+                    size_t n) {
+  for (size_t i = 0; i < n; ++i)
+    if (valid[i] != 0 && confidence[i] < 1.0f && std::isfinite(refined[i]))
+      coord[i] = 0.5f * std::nearbyint(2.0f * refined[i]);
 }
 
 int32_t agree_key_threshold(float agree_px) {
@@ -127,13 +135,14 @@ void vote_keys_scalar(const int32_t* const key[kEnsembleCodes], const uint8_t* l
     const int32_t m0 = agree(a0, pick), m1 = agree(a1, pick), m2 = agree(a2, pick), m3 = agree(a3, pick);
     const int32_t members = m0 + m1 + m2 + m3;
     // Median of the members: sum minus the extremes when there are 3 or 4;
-    // with 2 members the pick's key.
+    // with 2 members their midpoint (sum of both, count 2).
     const int32_t big = std::numeric_limits<int32_t>::max();
     const int32_t lo = std::min(std::min(m0 ? a0 : big, m1 ? a1 : big), std::min(m2 ? a2 : big, m3 ? a3 : big));
     const int32_t hi = std::max(std::max(m0 ? a0 : -1, m1 ? a1 : -1), std::max(m2 ? a2 : -1, m3 ? a3 : -1));
     const bool trim = members >= 3;
-    const int32_t sum = sub ? a3 : trim ? m0 * a0 + m1 * a1 + m2 * a2 + m3 * a3 - lo - hi : pick;
-    const int32_t count = trim && !sub ? members - 2 : 1;
+    const int32_t msum = m0 * a0 + m1 * a1 + m2 * a2 + m3 * a3;
+    const int32_t sum = sub ? a3 : trim ? msum - lo - hi : msum;
+    const int32_t count = sub ? 1 : trim ? members - 2 : 2;
     const auto c = static_cast<uint8_t>(sub ? kSubsurface : inter ? kInterreflection : pairs == 6 ? kAllAgree : kPartial);
     const bool is_lit = lit[i] != 0;
     const bool ok = best > 0 && is_lit;
@@ -204,8 +213,8 @@ __attribute__((target("avx2"))) void vote_keys_avx2(const int32_t* const key[kEn
     const __m256i hi = _mm256_max_epi32(_mm256_max_epi32(pick8(m0, a0, neg), pick8(m1, a1, neg)),
                                         _mm256_max_epi32(pick8(m2, a2, neg), pick8(m3, a3, neg)));
     const __m256i trim = _mm256_cmpgt_epi32(count, _mm256_set1_epi32(2));
-    sum = pick8(trim, _mm256_sub_epi32(sum, _mm256_add_epi32(lo, hi)), v);  // 2 members: the pick
-    count = pick8(trim, _mm256_sub_epi32(count, _mm256_set1_epi32(2)), one);
+    sum = pick8(trim, _mm256_sub_epi32(sum, _mm256_add_epi32(lo, hi)), sum);  // 2 members: their sum
+    count = pick8(trim, _mm256_sub_epi32(count, _mm256_set1_epi32(2)), count);  // and count 2: midpoint
     sum = pick8(sub, a3, sum);
     count = pick8(sub, one, count);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
     const __m256 scale = _mm256_blendv_ps(half, quarter, _mm256_castsi256_ps(_mm256_cmpeq_epi32(count, _mm256_set1_epi32(2))));
@@ -284,8 +293,8 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
     const __m512i hi = _mm512_max_epi32(_mm512_max_epi32(_mm512_mask_mov_epi32(minus1, m0, a0), _mm512_mask_mov_epi32(minus1, m1, a1)),
                                         _mm512_max_epi32(_mm512_mask_mov_epi32(minus1, m2, a2), _mm512_mask_mov_epi32(minus1, m3, a3)));
     const __mmask16 trim = _mm512_cmpgt_epi32_mask(count, _mm512_set1_epi32(2));
-    sum = _mm512_mask_sub_epi32(v, trim, sum, _mm512_add_epi32(lo, hi));  // 2 members: the pick
-    count = _mm512_mask_sub_epi32(one, trim, count, _mm512_set1_epi32(2));
+    sum = _mm512_mask_sub_epi32(sum, trim, sum, _mm512_add_epi32(lo, hi));  // 2 members: their sum
+    count = _mm512_mask_sub_epi32(count, trim, count, _mm512_set1_epi32(2));  // and count 2: midpoint
     sum = _mm512_mask_mov_epi32(sum, sub, a3);
     count = _mm512_mask_mov_epi32(count, sub, one);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
     const __m512 mean = _mm512_mul_ps(

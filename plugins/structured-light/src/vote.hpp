@@ -14,7 +14,7 @@
 //   - otherwise the *pick* is the first code, in the order gray, xor04, xor02,
 //     minsw, among those with the largest support, and the value is the
 //     median of the pick and every code agreeing with it when they are 3 or
-//     4, else the pick's own value; kInterreflection when the
+//     4, else (2 codes) their midpoint; kInterreflection when the
 //     only agreeing pair is {xor02, xor04}, kAllAgree when all four agree
 //     pairwise, else kPartial.
 //   Why the median: each code quantizes the column at its own stripe edges,
@@ -22,8 +22,12 @@
 //   split between them (e.g. 1115, 1116, 1116, 1115.5 at a true 1116.2): the
 //   first code's value can be a column off, their median 1115.75 is not. A
 //   median, not a mean, so that a member agreeing with the pick only at the
-//   edge of agree_px (2 columns from the others) does not pull the value;
-//   two members give no majority, so the preferred code's value stands.
+//   edge of agree_px (2 columns from the others) does not pull the value.
+//   Two members (issue 18): their midpoint, not the preferred code's value —
+//   two codes a column apart straddle the truth; the midpoint is <= 0.5
+//   from either (marble-slab: 3 084 -> 2 810 gross pixels). The session
+//   then reports, where the vote is not unanimous, the row-refined column
+//   instead (codes_session.cpp outputs()); this value is its fallback.
 // confidence = (max support + 1) / 4 for valid pixels (0.5, 0.75, 1), else 0.
 // Classification (C5): kAllAgree = direct light dominates; kInterreflection =
 // only the logical (XOR) codes agree, long-range effects; kSubsurface = only
@@ -75,5 +79,14 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
 void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n,
                int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls);
 int32_t agree_key_threshold(float agree_px);  // floor(2 * agree_px), agree_px >= 0
+
+// The column the ensemble reports (issue 18, session 11; docs/structured-
+// light.md "Ensemble vote"): where the vote is not unanimous (valid and
+// confidence < 1), coord becomes the row-refined column `refined`
+// (refine_columns, subpixel.hpp: clamped to +-1 column of the vote, the
+// vote's value where the row has no consistent neighbours) rounded to the
+// nearest half column; unanimous pixels keep their median. Pixels [0, n).
+void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
+                    size_t n);
 
 }  // namespace procam::sl
