@@ -57,6 +57,9 @@ class SweepSession final : public sdk::Session {
       // The first frame fixes the format (U8 / U16 / F32); later frames must match.
       acc_ = std::make_unique<E3Accumulator>(cam.width, cam.height, static_cast<uint32_t>(config_.focus_mm.size()),
                                              frame.pixel_type, sdk::full_scale(frame), rig_.threads);
+      // multi-focal: the last setting's fold happens inside the fbar pass
+      // (fbar_depth_map), not as a pass of its own after the last frame.
+      if (method_ == Method::multi_focal && !calibrating()) acc_->defer_final_fold(true);
     }
     return acc_->add(index / kPeriodPx, index % kPeriodPx, frame);
   }
@@ -72,8 +75,15 @@ class SweepSession final : public sdk::Session {
     sdk::take_map(cue_, n);
     if (cue_of(method_) != nullptr) sdk::take_map(depth_, n);
     if (method_ == Method::multi_focal) sdk::take_map(peak_, n);
+    // multi-focal (not calibrating): the valid map comes out of the fbar
+    // pass too (255 where depth is finite), not from a second read of depth.
+    const bool fused_valid = method_ == Method::multi_focal && !calibrating();
+    if (fused_valid) sdk::take_map(valid_map_, n);
     switch (method_) {
-      case Method::multi_focal: cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_, &peak_); break;
+      case Method::multi_focal:
+        cue_valid_ = fbar_depth_map(*acc_, rule, &table_, th, cue_, &depth_, &peak_, fused_valid ? &valid_map_ : nullptr,
+                                    &valid_count_);
+        break;
       case Method::invariance: cue_valid_ = fbar_map(*acc_, rule, th, cue_); break;
       case Method::two_focal: cue_valid_ = omega_map(*acc_, 0, 1, rule, th, cue_); break;
       case Method::single_focal: cue_valid_ = modulation_map(*acc_, 0, rule, th, cue_); break;
@@ -103,8 +113,8 @@ class SweepSession final : public sdk::Session {
     // The maps move into `out` (outputs() runs once per round) and go back to
     // the SDK's map cache when the host destroys the session.
     out.set_release(sdk::give_map, sdk::give_map);
-    std::vector<uint8_t> valid_map;
-    sdk::take_map(valid_map, n);  // stale contents: every branch below writes every element
+    std::vector<uint8_t> valid_map = std::move(valid_map_);  // multi-focal: made in end_round
+    if (valid_map.size() != n) sdk::take_map(valid_map, n);  // stale contents: every branch below writes every element
     if (calibrating()) {
       // A plane that gives no table (unlit, flat, out of the sweep) is a
       // finished scan without calibration_table; the report says why.
@@ -120,7 +130,10 @@ class SweepSession final : public sdk::Session {
         report["table"] = {{"name", table_.name}, {"samples", table_.samples.size()},
                            {"x_range", {table_.x_min(), table_.x_max()}}};
     } else if (const CueKind* kind = cue_of(method_)) {
-      valid = valid_where_finite(depth_, nullptr, h, rig_.threads, valid_map);
+      if (method_ == Method::multi_focal)
+        valid = valid_count_;  // valid_map came from the fbar pass (same rule: depth finite)
+      else
+        valid = valid_where_finite(depth_, nullptr, h, rig_.threads, valid_map);
       out.add_image("depth_mm", "mm", "depth along the camera axis from the calibrated " + std::string(kind->x_name) +
                                           " table; NaN: invalid", w, h, std::move(depth_));
       report["table"] = {{"name", table_.name}, {"x_range", {table_.x_min(), table_.x_max()}}, {"made", table_.made}};
@@ -179,7 +192,8 @@ class SweepSession final : public sdk::Session {
   sdk::Error table_error_;
   std::unique_ptr<E3Accumulator> acc_;
   std::vector<float> cue_, depth_, peak_;  // peak_: max_f E(3, f)
-  size_t cue_valid_ = 0;
+  std::vector<uint8_t> valid_map_;          // multi-focal: from the fbar pass
+  size_t cue_valid_ = 0, valid_count_ = 0;
   bool planned_ = false;
   double decode_ms_ = 0;
 

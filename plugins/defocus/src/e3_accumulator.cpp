@@ -84,22 +84,16 @@ void add_rows(const procam_image& frame, Acc* d, bool negative, bool first, floa
   }
 }
 
-// E3 = 2|D_0 + ω D_1 + ω² D_2 + ω³ D_3| / 24 (Eq. 2.5 at w = 3, see header).
+// E3 of pixels [b, e) from the four buckets (e3_from_buckets).
 template <class Acc>
 void fold_rows(const Acc* d, size_t n, float* e3, size_t b, size_t e) {
-  constexpr float kInvSqrt2 = 0.70710678118654752f;
-  constexpr float kScale = 2.0f / static_cast<float>(kPeriodPx);
   const Acc* d0 = d;
   const Acc* d1 = d + n;
   const Acc* d2 = d + 2 * n;
   const Acc* d3 = d + 3 * n;
-  for (size_t i = b; i < e; ++i) {
-    const float a0 = static_cast<float>(d0[i]), a1 = static_cast<float>(d1[i]);
-    const float a2 = static_cast<float>(d2[i]), a3 = static_cast<float>(d3[i]);
-    const float re = a0 + kInvSqrt2 * (a1 - a3);
-    const float im = -a2 - kInvSqrt2 * (a1 + a3);
-    e3[i] = kScale * std::sqrt(re * re + im * im);
-  }
+  for (size_t i = b; i < e; ++i)
+    e3[i] = e3_from_buckets(static_cast<float>(d0[i]), static_cast<float>(d1[i]), static_cast<float>(d2[i]),
+                            static_cast<float>(d3[i]));
 }
 
 }  // namespace
@@ -178,8 +172,25 @@ sdk::Error E3Accumulator::add(uint32_t focus, uint32_t shift, const procam_image
     }
   });
   seen_[focus] |= 1u << shift;
-  if (seen_[focus] == (1u << kPeriodPx) - 1u) fold(focus);
+  if (seen_[focus] == (1u << kPeriodPx) - 1u) {
+    if (defer_final_fold_ && focus != 0 && pixel_type_ == PROCAM_PIXEL_U8 && complete())
+      pending_ = focus;  // folded inside fbar_depth_map's pass, or by fold_pending()
+    else
+      fold(focus);
+  }
   return sdk::ok();
+}
+
+E3Accumulator::PendingBuckets E3Accumulator::pending_buckets() const noexcept {
+  if (pending_ < 0) return {};
+  return {active_[static_cast<size_t>(pending_)]->i16.data(), static_cast<uint32_t>(pending_)};
+}
+
+void E3Accumulator::fold_pending() {
+  if (pending_ < 0) return;
+  const auto focus = static_cast<uint32_t>(pending_);
+  pending_ = -1;
+  fold(focus);
 }
 
 void E3Accumulator::fold(uint32_t focus) {

@@ -27,12 +27,22 @@
 // reached the camera's full scale - 2^bits - 1, or 1.0 for F32 frames - or
 // an F32 value was not finite).
 //
+// Deferred last fold (the multi-focal hot path, issue 12): with
+// defer_final_fold(true) and 8-bit frames, the setting whose 24th frame
+// completes the sweep (other than setting 0, whose fold also makes the mean)
+// is not folded into its E3 map: its buckets stay, pending_buckets() shows
+// them, and fbar_depth_map folds them per pixel inside its own pass (the
+// same float operations as fold(), e3_from_buckets below), which saves one
+// write and one read of a float map after the last frame. Until
+// fold_pending() runs, e3() of that setting must not be read.
+//
 // Errors: sdk::Error (bad frame type/size, index outside the sweep, a frame
 // added twice); the state is unchanged on error. Threads: thread-bound
 // (docs/threading.md); add() uses `threads` workers of the calling thread's
 // pool (sdk::parallel_rows) on disjoint row bands.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -43,6 +53,18 @@ namespace procam::defocus {
 
 inline constexpr uint32_t kPeriodPx = 24;  // pattern period = shifts per focus setting (§2.3.2)
 inline constexpr uint32_t kHarmonic = 3;   // DFT coefficient used (§2.2: "the most informative")
+
+// E3 = 2|D_0 + ω D_1 + ω² D_2 + ω³ D_3| / 24 from the four buckets (Eq. 2.5
+// at w = 3, see above): the one definition of the fold's float operations
+// (mul and add, no FMA, in this order), which the AVX2 kernel repeats lane
+// by lane so a deferred fold gives the same bits.
+inline float e3_from_buckets(float a0, float a1, float a2, float a3) noexcept {
+  constexpr float kInvSqrt2 = 0.70710678118654752f;
+  constexpr float kScale = 2.0f / static_cast<float>(kPeriodPx);
+  const float re = a0 + kInvSqrt2 * (a1 - a3);
+  const float im = -a2 - kInvSqrt2 * (a1 + a3);
+  return kScale * std::sqrt(re * re + im * im);
+}
 
 class E3Accumulator {
  public:
@@ -66,8 +88,20 @@ class E3Accumulator {
   uint32_t focus_count() const noexcept { return focus_count_; }
   // True when all 24 frames of every focus setting were added.
   bool complete() const noexcept;
+  // See "Deferred last fold" above. Set before the last frame; honoured for
+  // 8-bit frames only (other types fold as usual).
+  void defer_final_fold(bool on) noexcept { defer_final_fold_ = on; }
+  // The deferred setting's buckets: D_b of pixel i at d[b * n + i], n =
+  // width*height; d == nullptr when no fold is pending.
+  struct PendingBuckets {
+    const int16_t* d = nullptr;
+    uint32_t focus = 0;
+  };
+  PendingBuckets pending_buckets() const noexcept;
+  // Folds a pending setting into its E3 map (no-op when none is pending).
+  void fold_pending();
   // E3 of focus setting f (2|E|/24, DN), width*height; valid once its 24
-  // frames are in (zeros before).
+  // frames are in (zeros before) and, for a deferred setting, folded.
   const std::vector<float>& e3(uint32_t focus) const { return e3_[focus]; }
   // Mean of the profile (DN) over focus setting 0's frames.
   const std::vector<float>& mean() const noexcept { return mean_; }
@@ -93,6 +127,8 @@ class E3Accumulator {
   std::vector<uint32_t> seen_;       // per focus: bit t set when shift t was added
   std::vector<std::unique_ptr<Buckets>> active_;  // per focus in progress
   std::vector<std::unique_ptr<Buckets>> spare_;   // recycled bucket sets
+  bool defer_final_fold_ = false;
+  int64_t pending_ = -1;  // the deferred setting, -1: none
   void fold(uint32_t focus);
 };
 

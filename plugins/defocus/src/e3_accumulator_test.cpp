@@ -179,5 +179,42 @@ TEST(E3Accumulator, ScrambledInterleavedSettingsOnRecycledBuckets) {
   }
 }
 
+// defer_final_fold: only the setting that completes the sweep waits, and
+// never setting 0 (its fold also makes the mean); fold_pending() then gives
+// the E3 of the closed form like any other fold.
+TEST(E3Accumulator, DeferredFoldWaitsOnlyForTheSettingThatCompletesTheSweep) {
+  const uint32_t w = 5, h = 2;
+  auto profile = [](size_t i, uint32_t t) { return 100.0 + (5.0 + double(i)) * std::cos(2 * kPi * 3 * t / 24.0); };
+  for (const bool zero_last : {false, true}) {
+    E3Accumulator acc(w, h, 3, PROCAM_PIXEL_U8, 255, 1);
+    acc.defer_final_fold(true);
+    const uint32_t order[3] = {zero_last ? 1u : 0u, zero_last ? 2u : 1u, zero_last ? 0u : 2u};
+    for (uint32_t f : order) {
+      for (uint32_t t = 0; t < 24; ++t) {
+        auto frame = make_frame<uint8_t>(w, h, t, profile);
+        ASSERT_TRUE(acc.add(f, t, view_of(frame, w, h)).ok());
+        const bool last = f == order[2] && t == 23;
+        if (!last) {
+          EXPECT_EQ(acc.pending_buckets().d, nullptr) << f << " " << t;
+        }
+      }
+    }
+    ASSERT_TRUE(acc.complete());
+    if (zero_last) {
+      EXPECT_EQ(acc.pending_buckets().d, nullptr);  // setting 0 folds at once
+    } else {
+      ASSERT_NE(acc.pending_buckets().d, nullptr);
+      EXPECT_EQ(acc.pending_buckets().focus, 2u);
+      EXPECT_EQ(acc.e3(2)[0], 0.f);  // not folded yet
+      acc.fold_pending();
+      EXPECT_EQ(acc.pending_buckets().d, nullptr);
+    }
+    for (size_t i = 0; i < size_t{w} * h; ++i) {
+      for (uint32_t f = 0; f < 3; ++f) EXPECT_NEAR(acc.e3(f)[i], 5.0 + double(i), 0.6) << i;  // 8-bit rounding
+      EXPECT_NEAR(acc.mean()[i], 100.0, 0.5) << i;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace procam::defocus

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 
+#include "e3_accumulator.hpp"
 #include "fbar_kernel.hpp"
 #include "procam/sdk/simd.hpp"
 
@@ -67,6 +68,40 @@ PROCAM_AVX2 void store8(float* p, __m256 v, bool stream) {
 
 bool aligned16(const float* p) { return p == nullptr || (reinterpret_cast<uintptr_t>(p) & 15u) == 0; }
 
+// e3_from_buckets (e3_accumulator.hpp) on 8 lanes: D_b at d[b * stride],
+// the same float operations in the same order (the negation is the sign
+// flip the compiler emits for -a2).
+PROCAM_AVX2 __m256 int16x8_to_ps(const int16_t* p) {
+  return _mm256_cvtepi32_ps(_mm256_cvtepi16_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))));
+}
+PROCAM_AVX2 __m256 e3_from_buckets8(const int16_t* d, size_t stride) {
+  const __m256 a0 = int16x8_to_ps(d), a1 = int16x8_to_ps(d + stride);
+  const __m256 a2 = int16x8_to_ps(d + 2 * stride), a3 = int16x8_to_ps(d + 3 * stride);
+  const __m256 k = _mm256_set1_ps(0.70710678118654752f);
+  const __m256 re = _mm256_add_ps(a0, _mm256_mul_ps(k, _mm256_sub_ps(a1, a3)));
+  const __m256 neg_a2 = _mm256_xor_ps(a2, _mm256_set1_ps(-0.f));
+  const __m256 im = _mm256_sub_ps(neg_a2, _mm256_mul_ps(k, _mm256_add_ps(a1, a3)));
+  const __m256 mag = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(re, re), _mm256_mul_ps(im, im)));
+  return _mm256_mul_ps(_mm256_set1_ps(2.0f / static_cast<float>(kPeriodPx)), mag);
+}
+
+// E(f) of pixels x..x+7: the map, or the deferred fold from its buckets.
+PROCAM_AVX2 __m256 e_at8(const RowArgs& a, uint32_t f, uint32_t x) {
+  if (a.fold != nullptr && f == a.fold_f) return e3_from_buckets8(a.fold + x, a.fold_stride);
+  return _mm256_loadu_ps(a.e[f] + x);
+}
+
+// 8 valid bytes (255 / 0) from the 8 bits of a movemask.
+struct ByteMasks {
+  uint64_t v[256];
+  constexpr ByteMasks() : v() {
+    for (uint32_t m = 0; m < 256; ++m)
+      for (uint32_t i = 0; i < 8; ++i)
+        if ((m >> i) & 1u) v[m] |= uint64_t{0xff} << (8 * i);
+  }
+};
+constexpr ByteMasks kByteMasks;
+
 }  // namespace
 
 __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {
@@ -81,11 +116,14 @@ __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t 
   // Output rows are streamed past the cache where 16-byte aligned (x_begin is a multiple of 8).
   const bool stream = aligned16(a.fbar + x_begin) && aligned16(a.depth ? a.depth + x_begin : nullptr) &&
                       aligned16(a.peak ? a.peak + x_begin : nullptr);
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  const bool stream_valid = a.valid != nullptr && (reinterpret_cast<uintptr_t>(a.valid + x_begin) & 7u) == 0;
+  size_t valid_count = 0;
   for (; x + 8 <= x_end; x += 8) {
     // Running argmax (first maximum wins); k as float (exact small integers).
-    __m256 b = _mm256_loadu_ps(a.e[0] + x), prev = b, l = zero, r = zero, k = zero;
+    __m256 b = e_at8(a, 0, x), prev = b, l = zero, r = zero, k = zero;
     for (uint32_t f = 1; f < a.F; ++f) {
-      const __m256 e = _mm256_loadu_ps(a.e[f] + x);
+      const __m256 e = e_at8(a, f, x);
       const __m256 better = _mm256_cmp_ps(e, b, _CMP_GT_OQ);
       const __m256 was_prev = _mm256_cmp_ps(k, _mm256_set1_ps(static_cast<float>(f - 1)), _CMP_EQ_OQ);
       const __m256 right_of_best = _mm256_andnot_ps(better, was_prev);
@@ -121,9 +159,20 @@ __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t 
     store8(a.fbar + x, fbar, stream);
     count += static_cast<size_t>(__builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(ok))));
     if (a.peak != nullptr) store8(a.peak + x, b, stream);
-    if (a.table != nullptr) store8(a.depth + x, lookup8(*a.table, fbar, ok), stream);
+    const __m256 out = a.table != nullptr ? lookup8(*a.table, fbar, ok) : fbar;
+    if (a.table != nullptr) store8(a.depth + x, out, stream);
+    if (a.valid != nullptr) {
+      // Finite: |v| < inf (false for NaN and inf), as the scalar twin.
+      const auto m = static_cast<uint32_t>(_mm256_movemask_ps(_mm256_cmp_ps(_mm256_and_ps(out, abs_mask), inf, _CMP_LT_OQ)));
+      valid_count += static_cast<size_t>(__builtin_popcount(m));
+      if (stream_valid)
+        _mm_stream_si64(reinterpret_cast<long long*>(a.valid + x), static_cast<long long>(kByteMasks.v[m]));
+      else
+        std::memcpy(a.valid + x, &kByteMasks.v[m], 8);
+    }
   }
-  if (stream) _mm_sfence();  // the streamed rows are visible before the pass reports done
+  if (a.valid != nullptr) *a.valid_count += valid_count;
+  if (stream || stream_valid) _mm_sfence();  // the streamed rows are visible before the pass reports done
   return count + fbar_row_scalar(a, x, x_end);
 }
 

@@ -172,10 +172,18 @@ size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexc
   for (uint32_t x = x_begin; x < x_end; ++x) {
     // Running argmax (first maximum wins, as fbar_from_e3) with the values
     // left and right of it.
-    float b = a.e[0][x], l = 0.f, r = 0.f, prev = b;
+    auto e_at = [&](uint32_t f) {
+      if (a.fold != nullptr && f == a.fold_f) {
+        const int16_t* d = a.fold + x;
+        return e3_from_buckets(static_cast<float>(d[0]), static_cast<float>(d[a.fold_stride]),
+                               static_cast<float>(d[2 * a.fold_stride]), static_cast<float>(d[3 * a.fold_stride]));
+      }
+      return a.e[f][x];
+    };
+    float b = e_at(0), l = 0.f, r = 0.f, prev = b;
     int32_t k = 0;
     for (uint32_t f = 1; f < a.F; ++f) {
-      const float e = a.e[f][x];
+      const float e = e_at(f);
       const bool better = e > b;
       const bool right_of_best = !better && k == static_cast<int32_t>(f) - 1;
       r = right_of_best ? e : r;
@@ -203,7 +211,13 @@ size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexc
     a.fbar[x] = fbar;
     count += ok ? 1u : 0u;
     if (a.peak != nullptr) a.peak[x] = b;
-    if (a.table != nullptr) a.depth[x] = ok ? a.table->lookup(fbar) : kNaN;
+    const float out = a.table != nullptr ? (ok ? a.table->lookup(fbar) : kNaN) : fbar;
+    if (a.table != nullptr) a.depth[x] = out;
+    if (a.valid != nullptr) {
+      const bool finite = std::fabs(out) < std::numeric_limits<float>::infinity();
+      a.valid[x] = finite ? 255 : 0;
+      *a.valid_count += finite ? 1u : 0u;
+    }
   }
   return count;
 }
@@ -211,40 +225,58 @@ size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexc
 }  // namespace detail
 
 size_t fbar_depth_map(const E3Accumulator& acc, const Validity& rule, const sdk::CalibrationTable* table,
-                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm, std::vector<float>* peak) {
+                      uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm, std::vector<float>* peak,
+                      std::vector<uint8_t>* valid, size_t* valid_count) {
   const uint32_t w = acc.width(), h = acc.height(), F = acc.focus_count();
   const size_t n = size_t{w} * h;
   fbar.resize(n);
   if (depth_mm != nullptr) depth_mm->resize(n);
   if (peak != nullptr) peak->resize(n);
+  if (valid != nullptr) valid->resize(n);
   const bool want_depth = depth_mm != nullptr;
   const detail::FloatTable ftable(want_depth ? table : nullptr);
   // Tables whose breakpoints no float grid separates: the double path after the pass.
   const detail::TableIndex index(want_depth && !ftable.usable ? table : nullptr);
   const bool avx2 = sdk::cpu_has_avx2();
-  std::vector<size_t> counts(h, 0);
+  // A deferred last fold (E3Accumulator::defer_final_fold): its E is made from the buckets in the pass.
+  const E3Accumulator::PendingBuckets pending = acc.pending_buckets();
+  std::vector<size_t> counts(h, 0), valid_counts(h, 0);
   sdk::parallel_rows(h, threads, [&](uint32_t y0, uint32_t y1) {
     std::vector<const float*> e(F);
     for (uint32_t y = y0; y < y1; ++y) {
       const size_t row = size_t{y} * w;
-      for (uint32_t f = 0; f < F; ++f) e[f] = acc.e3(f).data() + row;
+      for (uint32_t f = 0; f < F; ++f)
+        e[f] = pending.d != nullptr && f == pending.focus ? nullptr : acc.e3(f).data() + row;
+      const bool fallback = want_depth && !ftable.usable;
       detail::RowArgs a{e.data(), F, acc.mean().data() + row, acc.saturation_row(y),
                         static_cast<float>(rule.black_dn), static_cast<float>(rule.min_modulation),
                         ftable.usable ? &ftable : nullptr, fbar.data() + row,
-                        want_depth ? depth_mm->data() + row : nullptr, peak != nullptr ? peak->data() + row : nullptr};
+                        want_depth ? depth_mm->data() + row : nullptr, peak != nullptr ? peak->data() + row : nullptr,
+                        valid != nullptr && !fallback ? valid->data() + row : nullptr, &valid_counts[y],
+                        pending.d != nullptr ? pending.d + row : nullptr, n, pending.focus};
       counts[y] = avx2 ? detail::fbar_row_avx2(a, 0, w) : detail::fbar_row_scalar(a, 0, w);
-      if (want_depth && !ftable.usable) {
+      if (fallback) {
         float* d = depth_mm->data() + row;
         const float* fb = fbar.data() + row;
         if (index.start.empty())
           std::fill(d, d + w, detail::kNaN);
         else
           for (uint32_t x = 0; x < w; ++x) d[x] = std::isnan(fb[x]) ? detail::kNaN : index.lookup(fb[x]);
+        if (valid != nullptr) {
+          uint8_t* v = valid->data() + row;
+          for (uint32_t x = 0; x < w; ++x) {
+            const bool finite = std::fabs(d[x]) < std::numeric_limits<float>::infinity();
+            v[x] = finite ? 255 : 0;
+            valid_counts[y] += finite ? 1u : 0u;
+          }
+        }
       }
     }
   });
-  size_t total = 0;
+  size_t total = 0, total_valid = 0;
   for (size_t c : counts) total += c;
+  for (size_t c : valid_counts) total_valid += c;
+  if (valid_count != nullptr) *valid_count = total_valid;
   return total;
 }
 

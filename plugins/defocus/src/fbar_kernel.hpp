@@ -47,7 +47,10 @@ struct FloatTable {
   float lookup(float x) const noexcept;
 };
 
-// One row: e[f] points at the row of E(f), f < F (F >= 1).
+// One row: e[f] points at the row of E(f), f < F (F >= 1), except for
+// f == fold_f when `fold` is set: that setting's E is folded here from its
+// four int16 buckets (fold[b * fold_stride + x], E3Accumulator's deferred
+// last fold) with e3_from_buckets' float operations.
 struct RowArgs {
   const float* const* e;
   uint32_t F;
@@ -58,6 +61,11 @@ struct RowArgs {
   float* fbar;          // out: fbar, NaN where invalid
   float* depth;         // out (when table): depth, NaN where fbar is NaN or outside the table
   float* peak;          // out (optional): max_f E(f)
+  uint8_t* valid;       // out (optional): 255 where depth (with table) or else fbar is finite, 0 elsewhere
+  size_t* valid_count;  // with valid: incremented by the number of 255s written
+  const int16_t* fold;  // null: every E(f) from e[f]
+  size_t fold_stride;   // elements between buckets (width*height)
+  uint32_t fold_f;
 };
 
 // Both write pixels [x_begin, x_end) and return how many got a finite fbar.

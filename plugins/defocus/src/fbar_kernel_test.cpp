@@ -95,12 +95,23 @@ struct Rows {
     }
   }
   detail::RowArgs args(std::vector<const float*>& ptr, const detail::FloatTable* t, float* fbar, float* depth,
-                       float* peak) const {
+                       float* peak, uint8_t* valid = nullptr, size_t* valid_count = nullptr) const {
     ptr.clear();
     for (const auto& m : e) ptr.push_back(m.data());
-    return {ptr.data(), F, mean.data(), sat.data(), 5.f, 0.02f, t, fbar, depth, peak};
+    return {ptr.data(), F, mean.data(), sat.data(), 5.f, 0.02f, t, fbar, depth, peak, valid, valid_count,
+            nullptr, 0, 0};
   }
 };
+
+// Random int16 buckets D_0..D_3 (|D| <= 6 x 255, as 8-bit frames give) for a
+// deferred fold of `w` pixels, stride w.
+std::vector<int16_t> random_buckets(uint32_t w) {
+  Lcg rnd;
+  std::vector<int16_t> d(4 * size_t{w});
+  for (auto& v : d) v = static_cast<int16_t>(std::lround(-1530 + 3060 * rnd()));
+  for (uint32_t x = 0; x < w; x += 7) d[x] = d[w + x] = d[2 * w + x] = d[3 * w + x] = 0;  // E = 0
+  return d;
+}
 
 TEST(FbarRow, Avx2TwinIsBitIdenticalToScalar) {
   if (!sdk::cpu_has_avx2()) GTEST_SKIP() << "no AVX2 on this CPU";
@@ -120,9 +131,58 @@ TEST(FbarRow, Avx2TwinIsBitIdenticalToScalar) {
   }
 }
 
+// The deferred fold and the valid map, row kernels: AVX2 and scalar give the
+// same bits, the fold gives e3_from_buckets' value (the peak output shows it
+// where that setting is the largest), and valid is 255 exactly where depth is
+// finite (valid_where_finite's rule) with the count of those.
+TEST(FbarRow, DeferredFoldAndValidMapAreTwinsAndMatchTheirDefinitions) {
+  for (uint32_t F : {3u, 6u}) {
+    const Rows rows(F);
+    const auto table = tables()[1];
+    const detail::FloatTable ft(&table);
+    const std::vector<int16_t> buckets = random_buckets(rows.w);
+    for (uint32_t fold_f : {0u, F - 1}) {
+      std::vector<float> f1(rows.w), d1(rows.w), p1(rows.w), f2(rows.w), d2(rows.w), p2(rows.w);
+      std::vector<uint8_t> v1(rows.w, 7), v2(rows.w, 7);
+      size_t n1 = 0, n2 = 0;
+      std::vector<const float*> ptr;
+      auto a1 = rows.args(ptr, &ft, f1.data(), d1.data(), p1.data(), v1.data(), &n1);
+      a1.fold = buckets.data(), a1.fold_stride = rows.w, a1.fold_f = fold_f;
+      const size_t c1 = detail::fbar_row_scalar(a1, 0, rows.w);
+      size_t finite = 0, fold_is_peak = 0;
+      for (uint32_t x = 0; x < rows.w; ++x) {
+        const bool ok = std::isfinite(d1[x]);
+        ASSERT_EQ(v1[x], ok ? 255 : 0) << x;
+        finite += ok;
+        float top = 0;
+        for (uint32_t f = 0; f < F; ++f)
+          top = std::max(top, f == fold_f ? e3_from_buckets(buckets[x], buckets[rows.w + x], buckets[2 * rows.w + x],
+                                                            buckets[3 * rows.w + x])
+                                          : rows.e[f][x]);
+        ASSERT_EQ(p1[x], top) << x;
+        fold_is_peak += top > rows.e[fold_f == 0 ? 1 : 0][x];
+      }
+      EXPECT_EQ(n1, finite);
+      EXPECT_GT(finite, 0u);
+      EXPECT_GT(fold_is_peak, rows.w / 4);  // the folded values take part in the argmax
+      EXPECT_GT(c1, 0u);
+      if (!sdk::cpu_has_avx2()) continue;  // the scalar half above still ran
+      auto a2 = rows.args(ptr, &ft, f2.data(), d2.data(), p2.data(), v2.data(), &n2);
+      a2.fold = buckets.data(), a2.fold_stride = rows.w, a2.fold_f = fold_f;
+      EXPECT_EQ(detail::fbar_row_avx2(a2, 0, rows.w), c1);
+      EXPECT_EQ(n1, n2);
+      EXPECT_EQ(std::memcmp(f1.data(), f2.data(), rows.w * 4), 0) << F;
+      EXPECT_EQ(std::memcmp(d1.data(), d2.data(), rows.w * 4), 0) << F;
+      EXPECT_EQ(std::memcmp(p1.data(), p2.data(), rows.w * 4), 0) << F;
+      EXPECT_EQ(v1, v2) << F;
+    }
+  }
+}
+
 // A sweep through the accumulator in `pixel_type` (8 or 16 bit): random
 // Gaussian E(f) curves on a mean, and the hard cases, quantised to DN.
-E3Accumulator make_sweep(uint32_t pixel_type, uint32_t w, uint32_t h, uint32_t F) {
+// `defer`: E3Accumulator::defer_final_fold (the multi-focal session's mode).
+E3Accumulator make_sweep(uint32_t pixel_type, uint32_t w, uint32_t h, uint32_t F, bool defer = false) {
   const double full = pixel_type == PROCAM_PIXEL_U8 ? 255 : 65535;
   const size_t n = size_t{w} * h;
   std::vector<double> mean(n);
@@ -139,6 +199,7 @@ E3Accumulator make_sweep(uint32_t pixel_type, uint32_t w, uint32_t h, uint32_t F
     if (i % 29 == 0) mean[i] = full;                    // saturated in every frame
   }
   E3Accumulator acc(w, h, F, pixel_type, full, 2);
+  acc.defer_final_fold(defer);
   std::vector<uint8_t> f8(n);
   std::vector<uint16_t> f16(n);
   for (uint32_t f = 0; f < F; ++f)
@@ -200,22 +261,66 @@ TEST(FbarDepthMap, AgreesWithThePerPixelReferenceOn8And16BitSweeps) {
   }
 }
 
+// The multi-focal session's mode: the last setting's fold deferred into the
+// fbar pass gives bit for bit the maps of the ordinary fold (fbar, depth,
+// peak, valid), and fold_pending() then gives the same E map. 16-bit frames
+// do not defer (the fused fold reads int16 buckets only).
+TEST(FbarDepthMap, DeferredLastFoldGivesTheSameBitsAsTheFold) {
+  const auto table = tables()[1];
+  const uint32_t w = 203, h = 5, F = 6;
+  const size_t n = size_t{w} * h;
+  auto plain = make_sweep(PROCAM_PIXEL_U8, w, h, F);
+  auto deferred = make_sweep(PROCAM_PIXEL_U8, w, h, F, true);
+  ASSERT_EQ(plain.pending_buckets().d, nullptr);
+  ASSERT_NE(deferred.pending_buckets().d, nullptr);
+  EXPECT_EQ(deferred.pending_buckets().focus, F - 1);
+  Validity rule;
+  std::vector<float> fb1, d1, p1, fb2, d2, p2;
+  std::vector<uint8_t> v1, v2;
+  size_t n1 = 0, n2 = 0;
+  for (uint32_t threads : {1u, 2u}) {
+    const size_t c1 = fbar_depth_map(plain, rule, &table, threads, fb1, &d1, &p1, &v1, &n1);
+    const size_t c2 = fbar_depth_map(deferred, rule, &table, threads, fb2, &d2, &p2, &v2, &n2);
+    EXPECT_EQ(c1, c2);
+    EXPECT_GT(c1, n / 5);
+    EXPECT_EQ(std::memcmp(fb1.data(), fb2.data(), n * 4), 0);
+    EXPECT_EQ(std::memcmp(d1.data(), d2.data(), n * 4), 0);
+    EXPECT_EQ(std::memcmp(p1.data(), p2.data(), n * 4), 0);
+    EXPECT_EQ(v1, v2);
+    EXPECT_EQ(n1, n2);
+    // valid is valid_where_finite of depth.
+    std::vector<uint8_t> ref;
+    EXPECT_EQ(valid_where_finite(d1, nullptr, h, 1, ref), n1);
+    EXPECT_EQ(ref, v1);
+  }
+  ASSERT_NE(deferred.pending_buckets().d, nullptr);  // the pass leaves it pending
+  deferred.fold_pending();
+  EXPECT_EQ(deferred.pending_buckets().d, nullptr);
+  for (uint32_t f = 0; f < F; ++f) EXPECT_EQ(std::memcmp(plain.e3(f).data(), deferred.e3(f).data(), n * 4), 0) << f;
+  const auto wide = make_sweep(PROCAM_PIXEL_U16, 16, 2, F, true);
+  EXPECT_EQ(wide.pending_buckets().d, nullptr);
+}
+
 TEST(FbarDepthMap, TableWithoutAFloatGridFallsBackToTheDoubleLookup) {
   const auto table = tables()[4];
   const auto acc = make_sweep(PROCAM_PIXEL_U16, 64, 2, 6);
   Validity rule;
   std::vector<float> fbar, depth;
-  fbar_depth_map(acc, rule, &table, 1, fbar, &depth);
+  std::vector<uint8_t> valid;
+  size_t valid_count = 0;
+  fbar_depth_map(acc, rule, &table, 1, fbar, &depth, nullptr, &valid, &valid_count);
   size_t checked = 0;
   for (size_t i = 0; i < fbar.size(); ++i) {
     const float ref = std::isnan(fbar[i]) ? fbar[i] : table.lookup(double(fbar[i]));
     ASSERT_EQ(std::isnan(ref), std::isnan(depth[i])) << i;
+    ASSERT_EQ(valid[i], std::isnan(ref) ? 0 : 255) << i;
     if (!std::isnan(ref)) {
       EXPECT_NEAR(depth[i], ref, 1e-4) << i;
       ++checked;
     }
   }
   EXPECT_GT(checked, 0u);
+  EXPECT_EQ(valid_count, checked);
 }
 
 }  // namespace

@@ -72,10 +72,17 @@ bool usable(const E3Accumulator& acc, uint32_t x, uint32_t y, const Validity& ru
 // per pixel in registers; AVX2 where the CPU has it, see fbar_kernel.hpp).
 // Same results as fbar_from_e3 per pixel up to the fast logarithm
 // (|error| < 2e-5 in fbar, tested) and as CalibrationTable::lookup up to
-// float rounding (same validity, |error| <~ 1e-7 x depth). Returns the
-// number of valid fbar values.
+// float rounding (same validity, |error| <~ 1e-7 x depth). When `valid` is
+// not null it gets the `valid` output map in the same pass: 255 where
+// depth_mm (when asked for; else fbar) is finite, else 0 - what
+// valid_where_finite would give from that map - and *valid_count (when not
+// null) its count of 255s. A fold that `acc` deferred
+// (E3Accumulator::defer_final_fold) is done per pixel inside the pass, with
+// the same bits as the fold itself; the accumulator keeps it pending.
+// Returns the number of valid fbar values.
 size_t fbar_depth_map(const E3Accumulator& acc, const Validity& rule, const sdk::CalibrationTable* table,
                       uint32_t threads, std::vector<float>& fbar, std::vector<float>* depth_mm,
-                      std::vector<float>* peak = nullptr);
+                      std::vector<float>* peak = nullptr, std::vector<uint8_t>* valid = nullptr,
+                      size_t* valid_count = nullptr);
 
 }  // namespace procam::defocus
