@@ -90,6 +90,7 @@ class ProfileModel {
     double cos_angle;  // cos a, a the scattering angle
     double angle;      // a (rad)
     double path_var;   // variance of the path over the cap (mm^2); 0 for a point source
+    double cap_m2;     // <sin^2 psi> / 4 over the cap (psi off its centre): the phase's curvature term; 0 for a point
   };
   // One ring of a sampled cap: kAzimuths directions sharing the path length.
   struct Ring {
