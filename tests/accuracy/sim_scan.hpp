@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,6 +40,8 @@ struct RigChoice {
   int scale = 1;                        // divide resolution and focal lengths by this
   double exposure_us = 0;               // > 0: every camera's exposure
   std::vector<std::string> scene_dirs;  // searched before configs/scenes
+  // Applied to the rig config last (e.g. a camera's noise, bit depth, seed).
+  std::function<void(nlohmann::json&)> edit;
 };
 
 // `choice.rig_file` at 1/scale resolution showing `scene`; nullptr (and a
@@ -61,6 +64,7 @@ inline std::unique_ptr<hw::Rig> scaled_rig(const std::string& scene, const RigCh
     if (s > 1) shrink(c["intrinsics"]);
     if (choice.exposure_us > 0) c["exposure_us"] = choice.exposure_us;
   }
+  if (choice.edit) choice.edit(*cfg);
   std::vector<std::string> dirs = choice.scene_dirs;
   dirs.push_back(source_path("configs/scenes"));
   auto rig = hw::create_rig(*cfg, {source_path("configs/rigs"), dirs});
