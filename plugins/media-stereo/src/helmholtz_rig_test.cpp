@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -35,6 +36,10 @@
 #include "procam/host/plugin_host.hpp"
 #include "procam/hw/rig.hpp"
 #include "host_input_util.hpp"
+#include "scatter_model.hpp"
+#include "stereo_common.hpp"
+#include "stereo_session.hpp"
+#include "synthetic.hpp"
 #include "test_rig.hpp"
 
 namespace procam::media_stereo {
@@ -226,10 +231,12 @@ TEST_P(HelmholtzThroughTheRig, NormalsAgainstTruthAndZickler) {
 INSTANTIATE_TEST_SUITE_P(Objects, HelmholtzThroughTheRig,
                          // Measured (2026-11-23, rig seed 13): media median 14.3 / 15.0 / 22.1 deg,
                          // Zickler 43.4 / 58.0 / 41.3 deg (factor 3.0 / 3.9 / 1.9). Far from the
-                         // library's 1.1-3.1 deg: the rank-minimum depth is ~80 mm off here (four
-                         // pairs that all share camera 0, 96 x 72 px; cause not isolated, see
-                         // docs/media-stereo.md), and the normals are taken at that depth. The
-                         // bounds leave ~25 % margin over the measured values.
+                         // library's 1.1-3.1 deg: the rank-minimum depth is ~80 mm off here, and
+                         // the normals are taken at that depth. Causes (issue 13, HelmholtzRigTerms
+                         // above, docs/media-stereo.md "Why"): the sim's indirect signal A (~0.7 D,
+                         // not reciprocal, not modelled by the plugin; noise-free without A: 0.90 /
+                         // 1.88 / 3.21 deg) and sensor noise (without A, with noise: 16.0 / 18.6 /
+                         // 26.2 deg). The bounds leave ~25 % margin over the measured values.
                          ::testing::Values(Claim{"media-stereo-rig-plane-matte", 18.0, 2.5},
                                            Claim{"media-stereo-rig-inclined-matte", 19.0, 3.0},
                                            Claim{"media-stereo-rig-hemisphere-matte", 27.0, 1.5}),
@@ -238,6 +245,123 @@ INSTANTIATE_TEST_SUITE_P(Objects, HelmholtzThroughTheRig,
                            std::replace(n.begin(), n.end(), '-', '_');
                            return n;
                          });
+
+// ---- issue 13: where the 14-22 deg come from -----------------------------
+// The lead measured, on the matte plane: 14.3 deg with noise, 7.76 deg and an
+// 85 mm rank-minimum depth bias without noise, 0.20 deg in clear water. The
+// test below splits each pair image into the terms the plugin models (Eq.
+// 5.24: I = D + B) with noise off. Measured (2026-11-24):
+//  - B: the sim's frame of the medium alone (black wall at 2 m) against the
+//    plugin's backscatter() for the same camera ray, light centre and field,
+//    all 8 pair images: ratio 0.991-1.008 (median 1.000). The light-k path
+//    (poses, field, irradiance scale) is right.
+//  - the surface signal (I - B) / D on the plane is 1.49-2.59 (median
+//    1.65-1.75), not 1: the sim adds its indirect signal A (forward-scattered
+//    light reaching the surface, thesis Eq. 5.12, hw/sim/src/medium_indirect.cpp)
+//    of ~0.7 D, which the plugin does not model; and it is not reciprocal,
+//    because the sim takes A along the light's leg only: camera 0 lit by unit j
+//    (the longer leg) reads 1.73-1.75, camera j lit by unit 0 1.65-1.66 (pairs
+//    2-4; pair 1 1.665 / 1.664). With A switched off in the sim (a local
+//    experiment, not committed) (I - B) / D is 1.000 (0.87-1.14 at a few
+//    edge pixels) and the noiseless scan gives 0.90 deg median, 7.4 mm depth
+//    RMS instead of 7.76 deg, 85.2 mm.
+nlohmann::json noiseless(nlohmann::json cfg) {
+  for (auto& c : cfg["cameras"]) {
+    c["shot_noise"] = false;
+    c["read_noise_e"] = 0.0;
+  }
+  return cfg;
+}
+
+// Camera `camera`'s frame lit by rig light `light` alone, full scale.
+std::vector<float> capture_lit(hw::Rig& rig, size_t camera, size_t light) {
+  EXPECT_TRUE(rig.select_light(light).ok());
+  auto f = rig.camera(camera).capture(std::chrono::milliseconds(1000));
+  EXPECT_TRUE(f.ok()) << f.status().to_string();
+  std::vector<float> out;
+  if (!f.ok()) return out;
+  const Image& im = f->image;
+  const double full = static_cast<double>((1u << im.bit_depth()) - 1u);
+  out.resize(size_t{im.width()} * im.height());
+  for (uint32_t y = 0; y < im.height(); ++y)
+    for (uint32_t x = 0; x < im.width(); ++x)
+      out[size_t{y} * im.width() + x] = static_cast<float>(static_cast<double>(im.row<uint16_t>(y)[x]) / full);
+  return out;
+}
+
+TEST(HelmholtzRigTerms, PairBackscatterMatchesThePluginAndSurfaceSignalCarriesTheSimsA) {
+  const nlohmann::json cfg = noiseless(rig_config());
+  const double i0 = light_fullscale(cfg);
+  const MediumParams med{kSigma, kBeta, kG};
+  for (const char* scene : {"media-stereo-rig-medium-only", "media-stereo-rig-plane-matte"}) {
+    auto rig = hw::create_rig(cfg, {kConfigs + "/rigs", {kConfigs + "/scenes"}});
+    ASSERT_TRUE(rig.ok()) << rig.status().to_string();
+    ASSERT_TRUE((*rig)->apply_scan_options({{"scene", scene}}).ok());
+    const auto& cal = (*rig)->camera_calibrations();
+    const auto lights = (*rig)->lights();
+    ASSERT_EQ(lights.size(), 5u);
+    // The plugin's composition (helmholtz_session.cpp units_from_rig): world = camera 0's frame.
+    std::vector<Rigid3> world_from_cam;
+    for (const auto& c : cal) world_from_cam.push_back(cal[0].cam_from_proj * c.cam_from_proj.inverse());
+    const bool medium_only = std::string(scene).find("medium-only") != std::string::npos;
+    for (size_t j = 1; j < 5; ++j)
+      for (int side = 0; side < 2; ++side) {
+        // pair-j-a: camera 0 lit by unit j's light; pair-j-b: camera j lit by unit 0's.
+        const size_t cam = side == 0 ? 0 : j, lcam = side == 0 ? j : 0;
+        ASSERT_EQ(lights[lcam].camera, lcam);
+        const std::vector<float> img = capture_lit(**rig, cam, lcam + 1);
+        ASSERT_FALSE(img.empty());
+        auto truth = (*rig)->ground_truth(cam);
+        ASSERT_TRUE(truth.ok());
+        const Intrinsics& k = cal[cam].intrinsics;
+        const PinholeCamera pc = pinhole_of(k, world_from_cam[cam]);
+        const hw::LightInfo& li = lights[lcam];
+        const Rigid3 world_from_light = world_from_cam[lcam] * li.cam_from_light;
+        const LightCone cone = cone_of(world_from_light.inverse(), li.field.width, li.field.height, li.field.fx,
+                                       li.field.fy, li.field.cx, li.field.cy);
+        const Vec3 c = pc.centre(), l = world_from_light.translation_mm;
+        std::vector<double> ratio;
+        for (uint32_t y = 4; y < k.height; y += 8)
+          for (uint32_t x = 4; x < k.width; x += 8) {
+            const size_t i = size_t{y} * k.width + x;
+            Vec3 dir = pc.ray_world(x, y);
+            const double per_depth = norm(dir);
+            dir = dir / per_depth;
+            const double z = static_cast<double>(truth->depth_mm.ptr<float>()[i]);
+            if (!medium_only && !std::isfinite(z)) continue;
+            const double t = medium_only ? (2000.0 - c.z) / dir.z : z * per_depth;  // the wall is z = 2000
+            const double b = backscatter(med, i0, c, dir, l, t, 1.0, &cone);
+            ASSERT_GT(b, 0.0);
+            if (medium_only) {
+              ratio.push_back(static_cast<double>(img[i]) / b);
+              continue;
+            }
+            // D of Eq. 5.25 for the plane (normal (0, 0, -1), albedo 0.5).
+            const Vec3 p = c + dir * t, to_light = l - p;
+            const double dl = norm(to_light);
+            const double d = i0 * 0.5 / std::numbers::pi * std::max(0.0, -to_light.z / dl) / (dl * dl) *
+                             std::exp(-kSigma * (dl + t));
+            ratio.push_back((static_cast<double>(img[i]) - b) / d);
+          }
+        ASSERT_GT(ratio.size(), 50u);
+        std::sort(ratio.begin(), ratio.end());
+        const double med_r = ratio[ratio.size() / 2];
+        std::printf("%s camera %zu lit by unit %zu's light: %s median %.3f (%.3f..%.3f)\n", scene, cam, lcam,
+                    medium_only ? "sim / plugin B" : "(I - B) / D", med_r, ratio.front(), ratio.back());
+        if (medium_only) {
+          // Measured 0.991..1.008; the plugin integrates at 1 mm steps, the sim's taps to < 1e-3.
+          EXPECT_GT(ratio.front(), 0.985);
+          EXPECT_LT(ratio.back(), 1.015);
+        } else {
+          // The sim's A: (I - B) / D = 1 + A / D with A / D ~ 0.65-0.75 (measured medians 1.65-1.75).
+          // If this fails with a median near 1, the sim no longer renders A and
+          // HelmholtzThroughTheRig should be re-measured (issue 13).
+          EXPECT_GT(med_r, 1.4);
+          EXPECT_LT(med_r, 2.0);
+        }
+      }
+  }
+}
 
 // §5.4.1 inside the scan: a `medium` scan of the medium alone (scene
 // media-stereo-rig-medium-only: the objects removed, a black wall at z 2000)
