@@ -727,20 +727,22 @@ bool dop_by_pivots(const PackedView& best, const PackedView& worst, uint32_t sam
   const double r_lo = std::floor(centre - margin), r_hi = std::ceil(centre + margin) + 1.0;
   const int32_t lo = r_lo < 0.0 ? std::numeric_limits<int32_t>::min() : sub[size_t(r_lo)];
   const int32_t hi = r_hi >= m ? std::numeric_limits<int32_t>::max() : sub[size_t(r_hi)];
-  const uint32_t bands = std::clamp<uint32_t>(threads, 1u, std::max(samples, 1u));
+  // Chunks taken dynamically, 8 per thread (a preempted worker holds up one
+  // chunk, not half the sample); the result does not depend on the split.
+  const uint32_t chunks = threads <= 1 ? 1u : std::min<uint32_t>(samples, threads * 8u);
   std::vector<PivotPart>& parts = scratch.parts;
-  parts.resize(bands);
-  for (uint32_t b = 0; b < bands; ++b) {
+  parts.resize(chunks);
+  const auto start = [&](uint32_t b) { return static_cast<uint32_t>(uint64_t{samples} * b / chunks); };
+  for (uint32_t b = 0; b < chunks; ++b) {
     PivotPart& part = parts[b];
-    const size_t size = size_t(uint64_t{samples} * (b + 1) / bands - uint64_t{samples} * b / bands);
+    const size_t size = start(b + 1) - start(b);
     if (part.in.size() < size) part.in.resize(size);  // kept from call to call: no fresh pages
     part.counted = part.finite = part.below = part.n_in = 0;
     part.top = std::numeric_limits<int32_t>::min();
   }
-  sdk::parallel_rows(samples, threads, [&](uint32_t j0, uint32_t j1) {
-    uint32_t b = 0;
-    while (b + 1 < bands && uint64_t{samples} * (b + 1) / bands <= j0) ++b;
+  procam::parallel_bands(chunks, threads, [&](uint32_t b) {
     PivotPart& part = parts[b];
+    const uint32_t j0 = start(b), j1 = start(b + 1);
     size_t j = j0;
 #ifdef PROCAM_SDK_X86
     if (stride == 1 && sdk::cpu_has_avx2()) j = pivot_keys_avx2(best, worst, j0, j1, sat, db, dw, min_sum, lo, hi, part);
