@@ -5,12 +5,11 @@
 
 #include <algorithm>
 #include <atomic>
-#include <map>
-#include <mutex>
 #include <cmath>
 
 #include "media_model.hpp"
 #include "procam/sdk/map_cache.hpp"
+#include "procam/sdk/parallel.hpp"
 #include "striping_pass.hpp"
 
 namespace procam::polarized_striping {
@@ -129,19 +128,26 @@ nlohmann::json to_json(const QualitySums& t, bool has_gqm, double p, uint32_t ro
           {"means_pixels", t.n_enh}};
 }
 
-// fn(y0, y1, sums) over row bands on `threads` workers; the bands' sums merged in row order.
+// fn(y0, y1, sums) over row chunks on `threads` workers; the chunks' sums
+// merged in row order. With more than one thread, kChunksPerThread chunks
+// per thread, taken dynamically (procam::parallel_bands): a worker that the
+// OS preempts or wakes late (another process on its core, even on a "quiet"
+// 2-core machine) holds up one chunk while the others take the rest, instead
+// of half the image (issue 13: the end of a scan). The sums' grouping
+// depends only on the chunk count, never on which thread ran which chunk:
+// the report is the same bit for bit from run to run.
+constexpr uint32_t kChunksPerThread = 8;
 template <class F>
 QualitySums for_bands(uint32_t height, uint32_t threads, F&& fn) {
-  std::map<uint32_t, QualitySums> bands;
-  std::mutex mu;
-  sdk::parallel_rows(height, threads, [&](uint32_t y0, uint32_t y1) {
-    QualitySums q;
-    fn(y0, y1, q);
-    const std::lock_guard lock(mu);
-    bands[y0] = q;
+  const uint32_t chunks = threads <= 1 ? std::min(height, 1u) : std::min(height, threads * kChunksPerThread);
+  std::vector<QualitySums> sums(chunks);
+  procam::parallel_bands(chunks, threads, [&](uint32_t c) {
+    QualitySums q;  // local: no false sharing of sums[] while the chunk runs
+    fn(static_cast<uint32_t>(uint64_t{height} * c / chunks), static_cast<uint32_t>(uint64_t{height} * (c + 1) / chunks), q);
+    sums[c] = q;
   });
   QualitySums t;
-  for (const auto& [y0, q] : bands) t.add(q);
+  for (const QualitySums& q : sums) t.add(q);
   return t;
 }
 

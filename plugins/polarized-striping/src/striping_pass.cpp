@@ -585,13 +585,219 @@ __attribute__((target("avx2"))) size_t dop_keys_avx2(const PackedView& best, con
 }
 #endif
 
+// ---- The DOP quantile by pivots (issue 13, fifth round) --------------------
+// The radix selection above histograms every key and then re-reads the keys
+// of the chosen bucket; in a hazy scene that bucket holds nearly all of them,
+// and the histogram's increments of one hot counter form a chain of
+// store-to-load dependencies. Here (Floyd and Rivest's select, 1975): the
+// keys of a strided subsample of ~kPivotSample entries, sorted, give two
+// pivots lo <= hi that bracket the wanted ranks with a margin of 5 standard
+// deviations of a subsample quantile's rank plus 8; one parallel pass then
+// computes every key in registers and keeps only counts (how many keys are
+// below lo), the largest key and the keys in [lo, hi] (a few per cent of
+// the sample). When both ranks k, k + 1 fall in that window (below <= k and
+// k + 1 < below + in), they are the (k - below)-th and next smallest of the
+// window: exact, the same keys as the radix selection. Otherwise (a
+// subsample that misjudged the distribution) the caller falls back to the
+// radix selection: the result never depends on the pivots, only the time.
+constexpr size_t kPivotSample = 2048;
+
+// An order key as a signed integer: a < b as floats (-0 < +0) iff
+// order_key(a) < order_key(b); key_from_float(v) = order_key(v) ^ 2^31.
+// Its own inverse on the bits.
+inline int32_t order_key_bits(uint32_t b) { return int32_t(b ^ (uint32_t(int32_t(b) >> 31) & 0x7fffffffu)); }
+inline float float_from_order_key(int32_t k) { return std::bit_cast<float>(uint32_t(order_key_bits(uint32_t(k)))); }
+
+// One worker's share of the pivot pass.
+struct PivotPart {
+  size_t counted = 0, finite = 0, below = 0, n_in = 0;
+  int32_t top = std::numeric_limits<int32_t>::min();  // largest key
+  std::vector<int32_t> in;                             // keys in [lo, hi]; sized to the band
+};
+
+// Entry i's ratio by dop_sample's rule: 0 not counted (clipped, or the sum
+// of the backgrounds not above min_sum), 1 counted but not finite, 2 r set.
+inline int dop_ratio(const PackedView& best, const PackedView& worst, size_t i, int32_t sat, float db, float dw,
+                     double min_sum, float& r) {
+  const int32_t b2 = best.key2[i] >> 8, w2 = worst.key2[i] >> 8;
+  if (b2 >= sat || w2 >= sat) return 0;
+  const float bb = float(int32_t(best.sum[i]) - (best.key1[i] >> 8) - b2) / db;
+  const float bw = float(int32_t(worst.sum[i]) - (worst.key1[i] >> 8) - w2) / dw;
+  const double sum = double(bw) + double(bb);
+  if (!(sum > min_sum)) return 0;
+  r = static_cast<float>((double(bw) - double(bb)) / sum);
+  return std::isfinite(r) ? 2 : 1;
+}
+
+inline void pivot_take(int32_t key, int32_t lo, int32_t hi, PivotPart& part) {
+  ++part.finite;
+  part.below += key < lo;
+  part.top = std::max(part.top, key);
+  if (key >= lo && key <= hi) part.in[part.n_in++] = key;
+}
+
+#ifdef PROCAM_SDK_X86
+// The pivot pass over contiguous entries [j0, j1) (stride 1), 8 at a time:
+// dop_keys_avx2's arithmetic (the same IEEE operations, so the same r),
+// then the keys, the counts and the window's keys without storing the rest.
+// Returns where it stopped (the rest: scalar).
+__attribute__((target("avx2"))) size_t pivot_keys_avx2(const PackedView& best, const PackedView& worst, size_t j0,
+                                                       size_t j1, int32_t sat, float db, float dw, double min_sum,
+                                                       int32_t lo, int32_t hi, PivotPart& part) {
+  const __m256i satv = _mm256_set1_epi32(sat), lov = _mm256_set1_epi32(lo), hiv = _mm256_set1_epi32(hi);
+  const __m256i expm = _mm256_set1_epi32(0x7f800000), absm = _mm256_set1_epi32(0x7fffffff);
+  const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+  const __m256i lowest = _mm256_set1_epi32(std::numeric_limits<int32_t>::min());
+  const __m256 fdb = _mm256_set1_ps(db), fdw = _mm256_set1_ps(dw);
+  const __m256d ms = _mm256_set1_pd(min_sum);
+  __m256i top = lowest;
+  size_t counted = 0, finite = 0, below = 0, n_in = part.n_in;
+  int32_t* in = part.in.data();
+  alignas(32) int32_t k8[8];
+  size_t j = j0;
+  for (; j + 8 <= j1; j += 8) {
+    const __m256i b2 = _mm256_srli_epi32(load8(best.key2 + j), 8), w2 = _mm256_srli_epi32(load8(worst.key2 + j), 8);
+    const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(satv, b2), _mm256_cmpgt_epi32(satv, w2));
+    const __m256i nb = _mm256_sub_epi32(_mm256_sub_epi32(load8(best.sum + j), _mm256_srli_epi32(load8(best.key1 + j), 8)), b2);
+    const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst.sum + j), _mm256_srli_epi32(load8(worst.key1 + j), 8)), w2);
+    const __m256 bb = _mm256_div_ps(_mm256_cvtepi32_ps(nb), fdb), bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fdw);
+    const __m256d bb_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bb)), bb_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bb, 1));
+    const __m256d bw_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bw)), bw_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bw, 1));
+    const __m256d sum_lo = _mm256_add_pd(bw_lo, bb_lo), sum_hi = _mm256_add_pd(bw_hi, bb_hi);
+    const int bits = _mm256_movemask_ps(_mm256_castsi256_ps(ok)) &
+                     (_mm256_movemask_pd(_mm256_cmp_pd(sum_lo, ms, _CMP_GT_OQ)) |
+                      (_mm256_movemask_pd(_mm256_cmp_pd(sum_hi, ms, _CMP_GT_OQ)) << 4));
+    if (bits == 0) continue;
+    counted += size_t(__builtin_popcount(unsigned(bits)));
+    const __m128 r_lo = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_lo, bb_lo), sum_lo));
+    const __m128 r_hi = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_hi, bb_hi), sum_hi));
+    const __m256i rb = _mm256_castps_si256(_mm256_set_m128(r_hi, r_lo));
+    const int nonfinite = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(rb, expm), expm)));
+    const int fbits = bits & ~nonfinite;
+    if (fbits == 0) continue;
+    finite += size_t(__builtin_popcount(unsigned(fbits)));
+    const __m256i key = _mm256_xor_si256(rb, _mm256_and_si256(_mm256_srai_epi32(rb, 31), absm));
+    const __m256i fmask = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(fbits), lane_bit), lane_bit);
+    top = _mm256_max_epi32(top, _mm256_blendv_epi8(lowest, key, fmask));
+    const int lt = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(lov, key))) & fbits;
+    below += size_t(__builtin_popcount(unsigned(lt)));
+    const int gt = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(key, hiv)));
+    const int inb = fbits & ~lt & ~gt;
+    if (inb == 0) continue;
+    // Branch-free left-pack: ~7 % of the keys fall in the window, so "any
+    // of these 8" is a coin toss for the branch predictor. Writes stay
+    // inside the band: n_in <= the entries taken before j + l.
+    _mm256_store_si256(reinterpret_cast<__m256i*>(k8), key);
+    for (int l = 0; l < 8; ++l) {
+      in[n_in] = k8[l];
+      n_in += size_t((inb >> l) & 1);
+    }
+  }
+  alignas(32) int32_t t8[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(t8), top);
+  for (int32_t t : t8) part.top = std::max(part.top, t);
+  part.counted += counted, part.finite += finite, part.below += below, part.n_in = n_in;
+  return j;
+}
+#endif
+
+struct PivotScratch {
+  std::vector<PivotPart> parts;
+  std::vector<int32_t> sub, all;
+};
+
+// The quantile by pivots (see above) into `out`; false when the pivots
+// missed the ranks or the subsample is too small to place them (then the
+// radix selection runs).
+bool dop_by_pivots(const PackedView& best, const PackedView& worst, uint32_t samples, size_t stride, int32_t sat,
+                   float db, float dw, double min_sum, double percentile, uint32_t threads, size_t min_pixels,
+                   double& out) {
+  thread_local PivotScratch scratch;
+  const size_t step = std::max<size_t>(1, samples / kPivotSample);
+  std::vector<int32_t>& sub = scratch.sub;
+  sub.clear();
+  for (size_t j = 0; j < samples; j += step) {
+    float r = 0;
+    if (dop_ratio(best, worst, j * stride, sat, db, dw, min_sum, r) == 2) sub.push_back(order_key_bits(std::bit_cast<uint32_t>(r)));
+  }
+  if (sub.size() < 256) return false;
+  std::sort(sub.begin(), sub.end());
+  const double pct = std::clamp(percentile, 0.0, 1.0), m = double(sub.size());
+  const double centre = pct * (m - 1.0), margin = 5.0 * std::sqrt(m * pct * (1.0 - pct)) + 8.0;
+  const double r_lo = std::floor(centre - margin), r_hi = std::ceil(centre + margin) + 1.0;
+  const int32_t lo = r_lo < 0.0 ? std::numeric_limits<int32_t>::min() : sub[size_t(r_lo)];
+  const int32_t hi = r_hi >= m ? std::numeric_limits<int32_t>::max() : sub[size_t(r_hi)];
+  // Chunks taken dynamically, 8 per thread (a preempted worker holds up one
+  // chunk, not half the sample); the result does not depend on the split.
+  const uint32_t chunks = threads <= 1 ? 1u : std::min<uint32_t>(samples, threads * 8u);
+  std::vector<PivotPart>& parts = scratch.parts;
+  parts.resize(chunks);
+  const auto start = [&](uint32_t b) { return static_cast<uint32_t>(uint64_t{samples} * b / chunks); };
+  for (uint32_t b = 0; b < chunks; ++b) {
+    PivotPart& part = parts[b];
+    const size_t size = start(b + 1) - start(b);
+    if (part.in.size() < size) part.in.resize(size);  // kept from call to call: no fresh pages
+    part.counted = part.finite = part.below = part.n_in = 0;
+    part.top = std::numeric_limits<int32_t>::min();
+  }
+  procam::parallel_bands(chunks, threads, [&](uint32_t b) {
+    PivotPart& part = parts[b];
+    const uint32_t j0 = start(b), j1 = start(b + 1);
+    size_t j = j0;
+#ifdef PROCAM_SDK_X86
+    if (stride == 1 && sdk::cpu_has_avx2()) j = pivot_keys_avx2(best, worst, j0, j1, sat, db, dw, min_sum, lo, hi, part);
+#endif
+    for (; j < j1; ++j) {
+      float r = 0;
+      const int got = dop_ratio(best, worst, j * stride, sat, db, dw, min_sum, r);
+      part.counted += got > 0;
+      if (got == 2) pivot_take(order_key_bits(std::bit_cast<uint32_t>(r)), lo, hi, part);
+    }
+  });
+  size_t counted = 0, finite = 0, below = 0, n_in = 0;
+  int32_t top = std::numeric_limits<int32_t>::min();
+  for (const PivotPart& part : parts)
+    counted += part.counted, finite += part.finite, below += part.below, n_in += part.n_in, top = std::max(top, part.top);
+  if (counted < min_pixels || finite == 0) {
+    out = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  // quantile(): linear interpolation between the k-th and (k+1)-th smallest.
+  const double pos = pct * double(finite - 1);
+  const auto k = static_cast<size_t>(std::floor(pos));
+  int32_t key_lo = top, key_hi = top;
+  if (k + 1 < finite) {
+    if (!(below <= k && k + 1 < below + n_in)) return false;
+    std::vector<int32_t>& all = scratch.all;
+    all.clear();
+    for (const PivotPart& part : parts) all.insert(all.end(), part.in.begin(), part.in.begin() + std::ptrdiff_t(part.n_in));
+    const auto at = all.begin() + std::ptrdiff_t(k - below);
+    std::nth_element(all.begin(), at, all.end());
+    key_lo = *at;
+    key_hi = *std::min_element(at + 1, all.end());
+  }
+  const double v_lo = double(float_from_order_key(key_lo));
+  const double v_hi = k + 1 >= finite ? v_lo : double(float_from_order_key(key_hi));
+  out = std::clamp(v_lo + (pos - double(k)) * (v_hi - v_lo), 0.0, 1.0);
+  return true;
+}
+
 }  // namespace
 
 double packed_dop(const PackedView& best, const PackedView& worst, size_t count, size_t stride, double saturation,
-                  double min_sum, double percentile, uint32_t threads, size_t min_pixels) {
+                  double min_sum, double percentile, uint32_t threads, size_t min_pixels, DopSelect select,
+                  bool* by_pivots) {
   const auto samples = static_cast<uint32_t>(std::min<size_t>(count, UINT32_MAX));  // <= 2^19 in practice
   const int32_t sat = static_cast<int32_t>(std::min(std::ceil(saturation), 1e9));
   const float db = float(int32_t(best.frames) - 2), dw = float(int32_t(worst.frames) - 2);
+  if (by_pivots) *by_pivots = false;
+  if (select == DopSelect::best) {
+    double v = 0;
+    if (dop_by_pivots(best, worst, samples, stride, sat, db, dw, min_sum, percentile, threads, min_pixels, v)) {
+      if (by_pivots) *by_pivots = true;
+      return v;
+    }
+  }
   thread_local DopScratch scratch;
   // parallel_rows' bands: min(threads, samples) of them, band b starting at samples * b / bands.
   const uint32_t bands = std::clamp<uint32_t>(threads, 1u, std::max(samples, 1u));

@@ -94,7 +94,17 @@ size_t striping_pass(const PackedView& best, const PackedView* worst, const Pass
 // no dependence on thread count or order. Threads: reentrant; runs workers
 // itself (sdk::parallel_rows); keeps its scratch (~1.3 MB) per calling
 // thread for the next call. Errors: std::bad_alloc only.
+//
+// DopSelect::best (issue 13, fifth round) first tries pivots from a strided
+// subsample of ~2048 entries (Floyd-Rivest): one parallel pass counts the
+// keys below the lower pivot and keeps only those between the pivots, and the
+// two order statistics come from that window when it holds both ranks; the
+// radix selection above runs only when it does not (then the sample is drawn
+// twice). Same value either way, bit for bit; `by_pivots` (may be null) says
+// which path answered. DopSelect::radix: the radix selection only (tests).
+enum class DopSelect { best, radix };
 double packed_dop(const PackedView& best, const PackedView& worst, size_t count, size_t stride, double saturation,
-                  double min_sum, double percentile, uint32_t threads, size_t min_pixels = 16);
+                  double min_sum, double percentile, uint32_t threads, size_t min_pixels = 16,
+                  DopSelect select = DopSelect::best, bool* by_pivots = nullptr);
 
 }  // namespace procam::polarized_striping

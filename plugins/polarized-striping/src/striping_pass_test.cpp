@@ -281,6 +281,66 @@ TEST(StripingPass, PackedDopEqualsEstimateDopOnTheSameSample) {
   }
 }
 
+// The DOP quantile by pivots (DopSelect::best) against the radix selection
+// and estimate_dop on samples shaped like real scans, stride 1 (the AVX2
+// pivot pass where the CPU has it) and 2 (scalar): a hazy scene (every ratio
+// within ~0.01: one radix bucket holds nearly all keys), haze with objects
+// (a fifth of the pixels at lower ratios), every ratio equal (the pivots
+// coincide), and a trap whose subsample entries (every 97th: 200003 / 2048)
+// alone are off the distribution, so the pivots miss the ranks and the radix
+// selection must answer (by_pivots false). Some pixels are clipped. The
+// value must be the same bit for bit on both paths, for 1-3 threads.
+TEST(StripingPass, PackedDopByPivotsOnClusteredAndAdversarialSamples) {
+  constexpr uint32_t kFrames = 64;
+  enum Shape : int { haze, haze_objects, equal, trap };
+  for (size_t stride : {size_t{1}, size_t{2}})
+    for (int c = haze; c <= trap; ++c) {
+      const size_t count = 200003, n = count * stride;
+      std::mt19937 gen(static_cast<uint32_t>(7 + c));
+      const auto rng = [&gen] { return static_cast<uint32_t>(gen()); };
+      std::vector<uint16_t> k1[2], k2[2], sum[2];
+      for (int a = 0; a < 2; ++a) k1[a].assign(n, 0), k2[a].assign(n, 0), sum[a].assign(n, 0);
+      for (size_t i = 0; i < n; ++i) {
+        uint32_t nb = 900 + rng() % 26, nw = 3875 + rng() % 26;  // sums of the K - 2 background frames
+        if (c == haze_objects && rng() % 5 == 0) nb = 2000 + rng() % 500, nw = nb + rng() % 300;
+        if (c == equal) nb = 900, nw = 3875;
+        if (c == trap && (i / stride) % 97 == 0) nb = 100, nw = 3900;
+        const uint32_t top = rng() % 100 == 0 ? 255 : 20 + rng() % 60;  // 255: clipped, not in the sample
+        for (int a = 0; a < 2; ++a) {
+          k1[a][i] = static_cast<uint16_t>((top << 8) | (rng() % 256));
+          k2[a][i] = static_cast<uint16_t>((top << 8) | (rng() % 256));
+          sum[a][i] = static_cast<uint16_t>(2 * top + (a == 0 ? nb : nw));
+        }
+      }
+      const PackedView best{k1[0].data(), k2[0].data(), sum[0].data(), kFrames};
+      const PackedView worst{k1[1].data(), k2[1].data(), sum[1].data(), kFrames};
+      std::vector<float> sb, sw;
+      for (size_t i = 0; i < n; i += stride) {
+        if ((k2[0][i] >> 8) >= 250 || (k2[1][i] >> 8) >= 250) continue;
+        sb.push_back(float(int(sum[0][i]) - 2 * (k1[0][i] >> 8)) / float(kFrames - 2));
+        sw.push_back(float(int(sum[1][i]) - 2 * (k1[1][i] >> 8)) / float(kFrames - 2));
+      }
+      for (double pct : {0.0, 0.5, 0.9, 0.99, 1.0}) {
+        const double ref = estimate_dop(sb, sw, 20.0, pct);
+        ASSERT_FALSE(std::isnan(ref));
+        const double radix = packed_dop(best, worst, count, stride, 250, 20.0, pct, 2, 16, DopSelect::radix);
+        EXPECT_EQ(radix, ref) << c << " " << pct;
+        for (uint32_t threads : {1u, 2u, 3u}) {
+          bool by_pivots = false;
+          const double got = packed_dop(best, worst, count, stride, 250, 20.0, pct, threads, 16, DopSelect::best, &by_pivots);
+          EXPECT_EQ(got, ref) << "case " << c << " stride " << stride << " percentile " << pct << " threads " << threads;
+          // The trap's subsample sits at the top of the distribution: the
+          // pivots bracket only ranks above ~99 %.
+          if (c == trap && pct > 0.0 && pct < 0.95) {
+            EXPECT_FALSE(by_pivots) << "the trap's pivots cannot hold rank " << pct;
+          } else if (c != trap) {
+            EXPECT_TRUE(by_pivots) << "case " << c << " percentile " << pct << ": pivots missed";
+          }
+        }
+      }
+    }
+}
+
 // The compact DOP sample a packed stack keeps at its expected last frame is
 // its final state at pixels j * dop_sample_stride(n) (an odd width: sample
 // pixels fall at different columns row by row; two threads: two bands), and
