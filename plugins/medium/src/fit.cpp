@@ -259,11 +259,12 @@ using Cov3 = std::array<std::array<double, 3>, 3>;
 // next to the bulb is not counted; bins without one take their neighbour's).
 // No noise model, so shot, multiplicative or read noise and the HDR merge's
 // quantisation all count as they are. x >= 0 is a common excess per-pixel
-// variance, the smallest that brings chi^2 = sum n res^2 / (tau^2 + x) down to
-// its bins - 3 degrees of freedom: 0 when that noise explains the profile's
-// residuals, more for a model error or noise correlated across pixels (on a
-// noise-free image it is the residual variance s^2 = sum n res^2 / (bins - 3),
-// the estimate used before). `noise2` returns the pixel-weighted mean tau^2.
+// variance (shaped by the weights' noise model, below), the smallest that
+// brings chi^2 = sum n res^2 / (tau^2 + x) down to its bins - 3 degrees of
+// freedom: 0 when that noise explains the profile's residuals, more for a
+// model error or noise correlated across pixels (on a noise-free image, or a
+// profile built without pixels, it is the weighted residual variance
+// s^2 = sum w res^2 / (bins - 3), the estimate used before). `noise2` returns the pixel-weighted mean tau^2.
 // Assumes independent pixel noise within a bin; a real rig's angular
 // non-uniformity inside a ring counts as noise (wider intervals).
 bool parameter_covariance(const Problem& pr, const RadialProfile& p, const FitSettings& s, Phase ph, double sigma,
@@ -352,23 +353,28 @@ bool parameter_covariance(const Problem& pr, const RadialProfile& p, const FitSe
   // (tau^2 + x) to its degrees of freedom (bins - 3); 0 when the measured
   // noise explains the residuals. (With tau^2 = 0, a noise-free image, x is
   // the residuals' own per-pixel variance s^2 = sum n res^2 / (bins - 3).)
+  // The excess is shaped like the objective's own noise model: per pixel
+  // x n_j / w_j (x for uniform weights, w = n; the stated model's relative
+  // variance for noise weights), so that with tau^2 = 0 the covariance is
+  // exactly the former s^2 (J^T W J)^-1 of a weighted least squares.
   const double dof = double(nb) - 3.0;
-  std::vector<double> nres2(nb);
-  double ss = 0;
+  std::vector<double> nres2(nb), shape(nb);
+  double wss = 0;
   for (size_t i = 0; i < nb; ++i) {
     const double res = p.bins[i].mean - scale * k[i];
     nres2[i] = double(p.bins[i].n) * res * res;
-    ss += nres2[i];
+    shape[i] = pr.weight(i) > 0 ? double(p.bins[i].n) / pr.weight(i) : 1.0;
+    wss += nres2[i] / shape[i];
   }
   const auto chi2 = [&](double x) {
     double c = 0;
     for (size_t i = 0; i < nb; ++i)
-      if (nres2[i] > 0) c += nres2[i] / (tau2[i] + x);
+      if (nres2[i] > 0) c += nres2[i] / (tau2[i] + x * shape[i]);
     return c;
   };
   excess = 0;
   if (chi2(0) > dof) {
-    double lo = 0, hi = ss / dof;  // chi2(hi) <= dof since tau^2 >= 0
+    double lo = 0, hi = wss / dof;  // chi2(hi) <= dof since tau^2 >= 0
     for (int it = 0; it < 100 && hi - lo > 1e-9 * hi; ++it) {
       const double mid = 0.5 * (lo + hi);
       (chi2(mid) > dof ? lo : hi) = mid;
@@ -377,7 +383,7 @@ bool parameter_covariance(const Problem& pr, const RadialProfile& p, const FitSe
   }
   cov = {};
   for (size_t j = 0; j < nb; ++j) {
-    const double v = (tau2[j] + excess) / double(p.bins[j].n);
+    const double v = (tau2[j] + excess * shape[j]) / double(p.bins[j].n);
     for (size_t u = 0; u < 3; ++u)
       for (size_t w = 0; w < 3; ++w) cov[u][w] += a[j][u] * a[j][w] * v;
   }
