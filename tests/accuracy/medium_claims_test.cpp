@@ -261,9 +261,9 @@ TEST(MediumClaims, Fig411FitStepOnTheShipped8mlScene) {
 // weights), where brief k14 found sigma outside them in 4 of 5 seeds. The
 // shipped 8 ml chocolate milk scene at quarter resolution (320 x 200) with
 // 9 exposures instead of 25; seeds 101-124. A scan costs ~2 s CPU whatever
-// the resolution (rig and plugin set-up), so the 24 take ~50 s: run by hand
+// the resolution (rig and plugin set-up), so the 24 take ~60 s CPU: run by hand
 // with --gtest_also_run_disabled_tests; the suite's coverage test is
-// Fit.IntervalsCoverTheTruthUnderCameraNoise (plugins/medium, ~5 s).
+// Fit.IntervalsCoverTheTruthUnderCameraNoise (plugins/medium, ~6 s CPU).
 // Stated before running: sigma and beta each inside their 95 % interval in
 // >= 20 of 24 seeds (honest intervals miss more than 4 with probability
 // 0.6 %), and the median half-width < 3.2 x the seeds' standard deviation

@@ -349,7 +349,7 @@ TEST(Fit, NoiseWeightsBeatUniformUnderMultiplicativeNoise) {
 // mask, itself noisy) as for the others. Noise per pixel: 3 % multiplicative
 // (an HDR merge near full well, fit.hpp Weights) plus a floor of 1e-3 of the
 // image's peak; on the brute-force reference image of lowfat milk, 30
-// seeds for the default fit and 15 for profiled + noise weights (~0.1 s a
+// seeds for the default fit and 15 for profiled + noise weights (~0.13 s CPU a
 // fit). Stated before running: each of sigma and beta covered in >= 25 of
 // 30 (>= 12 of 15) seeds (honest 95 % intervals miss more often with
 // probability 0.33 % (0.55 %); the intervals before this test covered ~1 in
