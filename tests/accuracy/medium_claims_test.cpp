@@ -121,11 +121,11 @@ double rel(double est, double truth) { return (est - truth) / truth; }
 // adds or overrides plugin params, `keep` receives the scan (images, truth).
 bool measure_scene(const std::string& scene, Measured& m, const std::string& source_model = "",
                    const std::function<void(nlohmann::json&)>& edit = {}, const nlohmann::json& extra = {},
-                   ScanRun* keep = nullptr) {
+                   ScanRun* keep = nullptr, int scale = 2) {
   const std::string label = scene;
   testing::RigChoice choice;
   choice.rig_file = "sim-tank.json";
-  choice.scale = 2;
+  choice.scale = scale;
   choice.scene_dirs = {scene_dir().string()};
   choice.edit = edit;
   ScanRun local;
@@ -253,6 +253,49 @@ TEST(MediumClaims, Fig411FitStepOnTheShipped8mlScene) {
   EXPECT_LT(std::abs(rel(m.sigma, m.true_sigma)), 0.03);
   EXPECT_LT(std::abs(rel(m.beta, m.true_beta)), 0.03);
   EXPECT_LT(std::abs(m.g - m.true_g), 0.02);
+}
+
+// Issue 14, Deliver 2: `measure` reports "the parameters per channel with
+// confidence intervals"; they must be honest through the camera (sensor
+// noise, 12 bit, HDR merge) with the default fit (Eq. 4.6-4.7, uniform
+// weights), where brief k14 found sigma outside them in 4 of 5 seeds. The
+// shipped 8 ml chocolate milk scene at quarter resolution (320 x 200) with
+// 9 exposures instead of 25; seeds 101-124. A scan costs ~2 s CPU whatever
+// the resolution (rig and plugin set-up), so the 24 take ~60 s CPU: run by hand
+// with --gtest_also_run_disabled_tests; the suite's coverage test is
+// Fit.IntervalsCoverTheTruthUnderCameraNoise (plugins/medium, ~6 s CPU).
+// Stated before running: sigma and beta each inside their 95 % interval in
+// >= 20 of 24 seeds (honest intervals miss more than 4 with probability
+// 0.6 %), and the median half-width < 3.2 x the seeds' standard deviation
+// of the estimate (1.96 if exact) so that coverage is not bought by width.
+TEST(MediumClaims, DISABLED_IntervalsCoverTheTruthThroughTheCamera) {
+  constexpr int kSeeds = 24, kMinCovered = 20, kScale = 4;
+  int covered[2] = {0, 0};
+  std::vector<double> err[2], half[2];
+  for (int seed = 101; seed < 101 + kSeeds; ++seed) {
+    Measured m;
+    const auto edit = [&](nlohmann::json& rig) { rig["seed"] = seed; };
+    ASSERT_TRUE(measure_scene("tank-chocolate-milk-8ml", m, "", edit, {{"exposures", 9}}, nullptr, kScale)) << seed;
+    const double est[2] = {m.sigma, m.beta}, ci[2] = {m.sigma_ci, m.beta_ci}, truth[2] = {m.true_sigma, m.true_beta};
+    for (int k = 0; k < 2; ++k) {
+      ASSERT_TRUE(std::isfinite(ci[k]) && ci[k] > 0) << "seed " << seed;
+      covered[k] += std::abs(est[k] - truth[k]) <= ci[k];
+      err[k].push_back(rel(est[k], truth[k]));
+      half[k].push_back(ci[k] / truth[k]);
+    }
+  }
+  for (int k = 0; k < 2; ++k) {
+    double mean = 0, v2 = 0;
+    for (double e : err[k]) mean += e / kSeeds;
+    for (double e : err[k]) v2 += (e - mean) * (e - mean) / (kSeeds - 1);
+    std::sort(half[k].begin(), half[k].end());
+    const size_t hm = half[k].size() / 2;
+    const double med = 0.5 * (half[k][hm - 1] + half[k][hm]), sd = std::sqrt(v2);
+    std::printf("camera, defaults: %-5s covered %d / %d  mean error %+.3f %% (SD %.3f %%)  median ci95 %.3f %% = %.2f SD\n",
+                k == 0 ? "sigma" : "beta", covered[k], kSeeds, 100 * mean, 100 * sd, 100 * med, med / sd);
+    EXPECT_GE(covered[k], kMinCovered) << (k == 0 ? "sigma" : "beta");
+    EXPECT_LT(med, 3.2 * sd) << (k == 0 ? "sigma" : "beta");
+  }
 }
 
 // Why `measure` on the 8 ml scene is biased differently in sigma and beta

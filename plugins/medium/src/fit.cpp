@@ -234,6 +234,162 @@ bool invert3(const std::array<std::array<double, 3>, 3>& a, std::array<std::arra
   return true;
 }
 
+using Cov3 = std::array<std::array<double, 3>, 3>;
+
+// The covariance of (sigma, g, s = beta I0) at the optimum (fit.hpp step 5).
+//
+// Delta method over the data, the bins' means E_j (independent, variance
+// v_j): cov = sum_j a_j a_j^T v_j, a_j = d(sigma, g, s) / dE_j, for either
+// objective:
+//  - profiled: least squares of E - s K(sigma, g) with weights w, so
+//    a_j = (J^T W J)^-1 J_j^T w_j, J_j = (s dK_j/dsigma, s dK_j/dg, K_j).
+//  - normalized (Eq. 4.6-4.7): (sigma, g) minimise
+//    sum w_i (E_i / E_m - u_i)^2, u = K / max K, where E_m = max E is itself
+//    one of the data (the brightest bin). The implicit-function theorem on
+//    the gradient (Gauss-Newton Hessian 2M, M = sum w D D^T, D_i = du_i/d(sigma, g))
+//    gives  d(sigma, g)/dE_j = M^-1 (w_j D_j - [j = m] c) / E_m,
+//    c = sum_i w_i D_i E_i / E_m: the second term is the normaliser, whose
+//    noise moves every normalised sample together (brief k14: leaving it out
+//    made the intervals miss the truth in 4 of 5 noise seeds). s is the least
+//    squares scale at (sigma, g): ds/dE_j = w_j K_j / Q + ds/d(sigma, g) .
+//    d(sigma, g)/dE_j, Q = sum w K^2.
+// The variance of a bin's mean is measured, not assumed: v_j = (tau_j^2 +
+// x) / n_j, tau_j^2 = Bin::noise_var (the pixel variance inside the bin
+// about a quadratic in rho, so the profile's own fall-off across a 1-px ring
+// next to the bulb is not counted; bins without one take their neighbour's).
+// No noise model, so shot, multiplicative or read noise and the HDR merge's
+// quantisation all count as they are. x >= 0 is a common excess per-pixel
+// variance (shaped by the weights' noise model, below), the smallest that
+// brings chi^2 = sum n res^2 / (tau^2 + x) down to its bins - 3 degrees of
+// freedom: 0 when that noise explains the profile's residuals, more for a
+// model error or noise correlated across pixels (on a noise-free image, or a
+// profile built without pixels, it is the weighted residual variance
+// s^2 = sum w res^2 / (bins - 3), the estimate used before). `noise2` returns the pixel-weighted mean tau^2.
+// Assumes independent pixel noise within a bin; a real rig's angular
+// non-uniformity inside a ring counts as noise (wider intervals).
+bool parameter_covariance(const Problem& pr, const RadialProfile& p, const FitSettings& s, Phase ph, double sigma,
+                          double g, double scale, const std::vector<double>& k, Cov3& cov, double& excess, double& noise2) {
+  const size_t nb = k.size();
+  if (nb < 4) return false;
+  const double hs = 1e-4 * sigma, hg = 1e-4 * (1.0 - std::abs(g));
+  std::vector<double> kp, km, gp, gm;
+  pr.unit_model(sigma + hs, g, ph, kp);
+  pr.unit_model(sigma - hs, g, ph, km);
+  pr.unit_model(sigma, g + hg, ph, gp);
+  pr.unit_model(sigma, g - hg, ph, gm);
+  std::vector<std::array<double, 2>> dk(nb);  // dK/dsigma, dK/dg
+  for (size_t i = 0; i < nb; ++i) dk[i] = {(kp[i] - km[i]) / (2 * hs), (gp[i] - gm[i]) / (2 * hg)};
+  std::vector<std::array<double, 3>> a(nb);
+  if (s.objective == Objective::profiled) {
+    Cov3 jtj{}, inv{};
+    for (size_t i = 0; i < nb; ++i) {
+      const std::array<double, 3> row = {scale * dk[i][0], scale * dk[i][1], k[i]};
+      for (size_t u = 0; u < 3; ++u)
+        for (size_t v = 0; v < 3; ++v) jtj[u][v] += pr.weight(i) * row[u] * row[v];
+    }
+    if (!invert3(jtj, inv)) return false;
+    for (size_t i = 0; i < nb; ++i) {
+      const std::array<double, 3> row = {scale * dk[i][0], scale * dk[i][1], k[i]};
+      for (size_t u = 0; u < 3; ++u) a[i][u] = pr.weight(i) * (inv[u][0] * row[0] + inv[u][1] * row[1] + inv[u][2] * row[2]);
+    }
+  } else {
+    const size_t km_i = size_t(std::max_element(k.begin(), k.end()) - k.begin());
+    size_t em_i = 0;  // the normaliser's bin (Problem::emax: the largest mean)
+    for (size_t i = 1; i < nb; ++i)
+      if (p.bins[i].mean > p.bins[em_i].mean) em_i = i;
+    const double emax = p.bins[em_i].mean;
+    if (!(emax > 0) || !(kp[km_i] > 0) || !(km[km_i] > 0) || !(gp[km_i] > 0) || !(gm[km_i] > 0)) return false;
+    std::vector<std::array<double, 2>> d(nb);  // du_i / d(sigma, g), u = K / K[max]
+    double m00 = 0, m01 = 0, m11 = 0;
+    std::array<double, 2> c = {0, 0};
+    for (size_t i = 0; i < nb; ++i) {
+      d[i] = {(kp[i] / kp[km_i] - km[i] / km[km_i]) / (2 * hs), (gp[i] / gp[km_i] - gm[i] / gm[km_i]) / (2 * hg)};
+      const double w = pr.weight(i);
+      m00 += w * d[i][0] * d[i][0];
+      m01 += w * d[i][0] * d[i][1];
+      m11 += w * d[i][1] * d[i][1];
+      c[0] += w * d[i][0] * p.bins[i].mean / emax;
+      c[1] += w * d[i][1] * p.bins[i].mean / emax;
+    }
+    const double det = m00 * m11 - m01 * m01;
+    if (!(det > 0) || !std::isfinite(det)) return false;
+    const double i00 = m11 / det, i01 = -m01 / det, i11 = m00 / det;
+    double q = 0, nq = 0;
+    std::array<double, 2> ek = {0, 0}, kk = {0, 0};  // sum w E dK, sum w K dK
+    for (size_t i = 0; i < nb; ++i) {
+      const double w = pr.weight(i);
+      q += w * k[i] * k[i];
+      nq += w * p.bins[i].mean * k[i];
+      for (size_t u = 0; u < 2; ++u) {
+        ek[u] += w * p.bins[i].mean * dk[i][u];
+        kk[u] += w * k[i] * dk[i][u];
+      }
+    }
+    if (!(q > 0)) return false;
+    const std::array<double, 2> ds = {ek[0] / q - 2 * nq * kk[0] / (q * q), ek[1] / q - 2 * nq * kk[1] / (q * q)};
+    for (size_t j = 0; j < nb; ++j) {
+      const double w = pr.weight(j);
+      std::array<double, 2> b = {w * d[j][0], w * d[j][1]};
+      if (j == em_i) b[0] -= c[0], b[1] -= c[1];
+      const double t0 = (i00 * b[0] + i01 * b[1]) / emax, t1 = (i01 * b[0] + i11 * b[1]) / emax;
+      a[j] = {t0, t1, w * k[j] / q + ds[0] * t0 + ds[1] * t1};
+    }
+  }
+  // Each bin's pixel variance, measured (Bin::noise_var).
+  std::vector<double> tau2(nb, kNaN);
+  bool any = false;
+  for (size_t i = 0; i < nb; ++i)
+    if (p.bins[i].noise_var >= 0) tau2[i] = p.bins[i].noise_var, any = true;
+  if (!any) tau2.assign(nb, 0.0);  // a profile without pixels (bins built by hand): the residuals decide
+  double last = kNaN;  // bins too small for their own estimate: the nearest one before (or after)
+  for (size_t i = 0; i < nb; ++i) std::isnan(tau2[i]) ? void(tau2[i] = last) : void(last = tau2[i]);
+  last = kNaN;
+  for (size_t i = nb; i-- > 0;) std::isnan(tau2[i]) ? void(tau2[i] = last) : void(last = tau2[i]);
+  double sum_n = 0;
+  noise2 = 0;
+  for (size_t i = 0; i < nb; ++i) noise2 += double(p.bins[i].n) * tau2[i], sum_n += double(p.bins[i].n);
+  noise2 /= sum_n;
+  // Excess per-pixel variance x >= 0 that brings chi^2 = sum n res^2 /
+  // (tau^2 + x) to its degrees of freedom (bins - 3); 0 when the measured
+  // noise explains the residuals. (With tau^2 = 0, a noise-free image, x is
+  // the residuals' own per-pixel variance s^2 = sum n res^2 / (bins - 3).)
+  // The excess is shaped like the objective's own noise model: per pixel
+  // x n_j / w_j (x for uniform weights, w = n; the stated model's relative
+  // variance for noise weights), so that with tau^2 = 0 the covariance is
+  // exactly the former s^2 (J^T W J)^-1 of a weighted least squares.
+  const double dof = double(nb) - 3.0;
+  std::vector<double> nres2(nb), shape(nb);
+  double wss = 0;
+  for (size_t i = 0; i < nb; ++i) {
+    const double res = p.bins[i].mean - scale * k[i];
+    nres2[i] = double(p.bins[i].n) * res * res;
+    shape[i] = pr.weight(i) > 0 ? double(p.bins[i].n) / pr.weight(i) : 1.0;
+    wss += nres2[i] / shape[i];
+  }
+  const auto chi2 = [&](double x) {
+    double c = 0;
+    for (size_t i = 0; i < nb; ++i)
+      if (nres2[i] > 0) c += nres2[i] / (tau2[i] + x * shape[i]);
+    return c;
+  };
+  excess = 0;
+  if (chi2(0) > dof) {
+    double lo = 0, hi = wss / dof;  // chi2(hi) <= dof since tau^2 >= 0
+    for (int it = 0; it < 100 && hi - lo > 1e-9 * hi; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (chi2(mid) > dof ? lo : hi) = mid;
+    }
+    excess = hi;
+  }
+  cov = {};
+  for (size_t j = 0; j < nb; ++j) {
+    const double v = (tau2[j] + excess * shape[j]) / double(p.bins[j].n);
+    for (size_t u = 0; u < 3; ++u)
+      for (size_t w = 0; w < 3; ++w) cov[u][w] += a[j][u] * a[j][w] * v;
+  }
+  return true;
+}
+
 }  // namespace
 
 RadialProfile radial_profile(const std::vector<float>& radiance, uint32_t w, uint32_t h, const FitSettings& s) {
@@ -243,6 +399,9 @@ RadialProfile radial_profile(const std::vector<float>& radiance, uint32_t w, uin
   const int64_t y1 = s.roi_y1 < 0 ? int64_t{h} - 1 : std::min<int64_t>(s.roi_y1, int64_t{h} - 1);
   struct Acc {
     double n = 0, rho = 0, rho2 = 0, sum = 0, sumsq = 0, invalid = 0;
+    // For Bin::noise_var: moments of x = rho - (the bin's first rho) up to
+    // x^4 and of d = e - shift against 1, x, x^2.
+    double x0 = kNaN, x1 = 0, x2 = 0, x3 = 0, x4 = 0, xd = 0, x2d = 0;
   };
   std::vector<Acc> acc;
   // Welford-free two-pass would cost a second sweep; values are shifted by
@@ -269,6 +428,14 @@ RadialProfile radial_profile(const std::vector<float>& radiance, uint32_t w, uin
       acc[b].rho2 += rho * rho;
       acc[b].sum += d;
       acc[b].sumsq += d * d;
+      if (std::isnan(acc[b].x0)) acc[b].x0 = rho;
+      const double xr = rho - acc[b].x0, xr2 = xr * xr;
+      acc[b].x1 += xr;
+      acc[b].x2 += xr2;
+      acc[b].x3 += xr2 * xr;
+      acc[b].x4 += xr2 * xr2;
+      acc[b].xd += xr * d;
+      acc[b].x2d += xr2 * d;
     }
   for (size_t b = 0; b < acc.size(); ++b) {
     if (acc[b].n == 0) continue;
@@ -286,6 +453,27 @@ RadialProfile radial_profile(const std::vector<float>& radiance, uint32_t w, uin
     const double md = acc[b].sum / acc[b].n;
     bin.mean = shift[b] + md;
     bin.sumsq_dev = std::max(0.0, acc[b].sumsq - acc[b].n * md * md);
+    if (bin.n >= 8) {
+      // Least squares d ~ c0 + c1 x + c2 x^2 over the bin's pixels; RSS =
+      // sum d^2 - c . (X^T d). Singular (too few distinct radii): NaN.
+      const Acc& q = acc[b];
+      const std::array<std::array<double, 3>, 3> xtx = {{{q.n, q.x1, q.x2}, {q.x1, q.x2, q.x3}, {q.x2, q.x3, q.x4}}};
+      const std::array<double, 3> xtd = {q.sum, q.xd, q.x2d};
+      std::array<std::array<double, 3>, 3> inv{};
+      const double det = xtx[0][0] * (xtx[1][1] * xtx[2][2] - xtx[1][2] * xtx[2][1]) -
+                         xtx[0][1] * (xtx[1][0] * xtx[2][2] - xtx[1][2] * xtx[2][0]) +
+                         xtx[0][2] * (xtx[1][0] * xtx[2][1] - xtx[1][1] * xtx[2][0]);
+      const double x2c = q.x2 - q.x1 * q.x1 / q.n;  // n var(x): the bin must span rho
+      if (x2c > 1e-6 * q.n && det > 1e-9 * xtx[0][0] * xtx[1][1] * xtx[2][2] && invert3(xtx, inv)) {
+        double fit_ss = 0;
+        for (size_t u = 0; u < 3; ++u)
+          for (size_t v = 0; v < 3; ++v) fit_ss += xtd[u] * inv[u][v] * xtd[v];
+        const double rss = q.sumsq - fit_ss;
+        // A quadratic through too few distinct radii fits them exactly (rss
+        // ~ 0 from rounding): only a positive rss well above rounding counts.
+        if (rss > 1e-12 * q.sumsq) bin.noise_var = rss / (q.n - 3);
+      }
+    }
     p.pixels += bin.n;
     p.within_ss += bin.sumsq_dev;
     p.bins.push_back(bin);
@@ -349,41 +537,25 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
     r.scale = pr.ls_scale(k);
     r.sigma.value = m.sigma;
     r.g.value = m.g;
-    // Jacobian of the bin residuals sqrt(w) (E - s K(sigma, g)) in (sigma, g, s),
-    // w = the bin's weight (n for uniform weights: ordinary least squares;
-    // n / var for noise weights: generalised least squares, whose covariance
-    // is s^2 (J^T W J)^-1 with the weights' common scale s^2 estimated below).
-    const double hs = 1e-4 * m.sigma, hg = 1e-4 * (1.0 - std::abs(m.g));
-    std::vector<double> kp, km, gp, gm;
-    pr.unit_model(m.sigma + hs, m.g, r.phase, kp);
-    pr.unit_model(m.sigma - hs, m.g, r.phase, km);
-    pr.unit_model(m.sigma, m.g + hg, r.phase, gp);
-    pr.unit_model(m.sigma, m.g - hg, r.phase, gm);
-    std::array<std::array<double, 3>, 3> jtj{}, cov{};
-    double ss = 0;
-    for (size_t i = 0; i < k.size(); ++i) {
-      const double n = pr.weight(i);
-      const std::array<double, 3> row = {r.scale * (kp[i] - km[i]) / (2 * hs), r.scale * (gp[i] - gm[i]) / (2 * hg), k[i]};
-      for (size_t a = 0; a < 3; ++a)
-        for (size_t b = 0; b < 3; ++b) jtj[a][b] += n * row[a] * row[b];
-      const double res = p.bins[i].mean - r.scale * k[i];
-      ss += n * res * res;
-    }
-    // Per-pixel noise variance from the bin residuals: E[n (mean - f)^2] =
-    // sigma^2 for a correct model, so s^2 = sum n res^2 / (bins - 3). (The
-    // within-bin spread is no estimate: near the bulb it is dominated by the
-    // model's own variation across a 1-px ring.)
-    const double s2 = ss / std::max(1.0, double(k.size()) - 3.0);
+    // 95 % intervals: the delta-method (sandwich) covariance of (sigma, g,
+    // beta I0) over the bins' means, each with its measured variance
+    // (parameter_covariance above).
+    Cov3 cov{};
+    double excess = 0, noise2 = 0;
     double se_scale = kNaN;
-    if (invert3(jtj, cov)) {
-      r.sigma.ci95 = 1.96 * std::sqrt(std::max(0.0, s2 * cov[0][0]));
-      r.g.ci95 = 1.96 * std::sqrt(std::max(0.0, s2 * cov[1][1]));
-      se_scale = std::sqrt(std::max(0.0, s2 * cov[2][2]));
+    if (parameter_covariance(pr, p, s, r.phase, m.sigma, m.g, r.scale, k, cov, excess, noise2)) {
+      r.sigma.ci95 = 1.96 * std::sqrt(std::max(0.0, cov[0][0]));
+      r.g.ci95 = 1.96 * std::sqrt(std::max(0.0, cov[1][1]));
+      se_scale = std::sqrt(std::max(0.0, cov[2][2]));
       r.beta.ci95 = 1.96 * se_scale / r.source_intensity;
       // kappa = sigma - beta: var = var sigma + var beta - 2 cov.
-      const double vk = s2 * (cov[0][0] + cov[2][2] / (r.source_intensity * r.source_intensity) -
-                              2.0 * cov[0][2] / r.source_intensity);
+      const double vk = cov[0][0] + cov[2][2] / (r.source_intensity * r.source_intensity) -
+                        2.0 * cov[0][2] / r.source_intensity;
       r.kappa.ci95 = 1.96 * std::sqrt(std::max(0.0, vk));
+      if (excess > noise2)
+        r.notes.emplace_back("the profile's residuals exceed the pixel noise measured inside the radial bins (RMS " +
+                             fmt(std::sqrt(noise2)) + " DN/us; a model error or structured noise of " +
+                             fmt(std::sqrt(excess)) + " DN/us per pixel): the intervals count it as noise");
     } else {
       r.notes.emplace_back("the Jacobian is singular at the optimum: no confidence intervals");
     }

@@ -37,10 +37,16 @@
 //    attenuation of the bulb's direct image against its pure-water radiance
 //    (Eq. 4.3 with radiance: E_bulb = W exp(-sigma l), l the path from the
 //    bulb's front surface to the front face).
-// 5. 95 % confidence intervals from the Jacobian of the bin residuals at the
-//    optimum (covariance s^2 (J^T J)^-1, s^2 = sum n res^2 / (bins - 3), the
-//    per-pixel noise variance the bin residuals imply): assumes independent
-//    pixel noise of one variance and a correct model.
+// 5. 95 % confidence intervals by the delta method over the bins' means:
+//    cov(sigma, g, beta I0) = sum_j a_j a_j^T var(mean_j), a_j the
+//    derivative of the estimate with respect to bin j's mean (for the
+//    normalized objective by the implicit-function theorem, including the
+//    brightest bin's role as Eq. 4.6's normaliser: its noise shifts every
+//    normalised sample together), var(mean_j) the pixel variance measured
+//    inside bin j (less the model's own slope across it) over its n. If the
+//    profile's residuals exceed that noise (chi^2 per degree of freedom > 1),
+//    the variances are scaled up by it. Assumes independent pixel noise and
+//    an exact I0; see parameter_covariance() in fit.cpp.
 //
 // Units: radiance in DN/us, rho in px and mm, sigma/beta/kappa in 1/mm.
 // Threads: pure functions; call from any thread. Errors: FitResult::error
@@ -96,6 +102,12 @@ struct Bin {
   double rho_px = 0, rho_mm = 0;  // mean over the bin's pixels
   double rho_sd_px = 0;           // standard deviation of rho over the bin's pixels
   double mean = 0, sumsq_dev = 0; // radiance mean and sum of squared deviations from it
+  // Pixel noise variance inside the bin: the radiance's residual variance
+  // about a least-squares quadratic in rho over the bin's pixels (RSS / (n - 3)),
+  // so the profile's own fall-off across the bin (~3 % of K over a 1-px ring
+  // next to the bulb) is not counted as noise; NaN when the bin has < 8
+  // pixels (step 5 then takes a neighbour's).
+  double noise_var = kNaN;
   uint64_t n = 0;
 };
 

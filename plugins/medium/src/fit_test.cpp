@@ -5,9 +5,11 @@
 // from 20 random starts (§4.3.2), g -> 1 (§4.3.3), and beta = 0 (M5).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <vector>
 
 #include "fit.hpp"
 #include "reference.hpp"
@@ -337,6 +339,77 @@ TEST(Fit, NoiseWeightsBeatUniformUnderMultiplicativeNoise) {
                 name, 100 * err[0][0], 100 * err[0][1], 100 * err[1][0], 100 * err[1][1]);
     EXPECT_LT(err[1][0], 0.5 * err[0][0]) << name;  // at least halved (measured: 5-10x)
     EXPECT_LT(err[1][1], 0.5 * err[0][1]) << name;
+  }
+}
+
+// Issue 14, Deliver 2 (`measure`: "the parameters per channel with
+// confidence intervals"): the reported 95 % intervals must cover the truth
+// at the stated rate under camera-like noise, for the default objective
+// (Eq. 4.6-4.7: E / max E, max E the mean of the small ring next to the
+// mask, itself noisy) as for the others. Noise per pixel: 3 % multiplicative
+// (an HDR merge near full well, fit.hpp Weights) plus a floor of 1e-3 of the
+// image's peak; on the brute-force reference image of lowfat milk, 30
+// seeds for the default fit and 15 for profiled + noise weights (~0.13 s CPU a
+// fit). Stated before running: each of sigma and beta covered in >= 25 of
+// 30 (>= 12 of 15) seeds (honest 95 % intervals miss more often with
+// probability 0.33 % (0.55 %); the intervals before this test covered ~1 in
+// 5 on the camera, brief k14), and the intervals
+// are not wide for nothing: the median half-width lies within 1.2 ... 3.2
+// times the seeds' own standard deviation of the estimate (1.96 if exact).
+TEST(Fit, IntervalsCoverTheTruthUnderCameraNoise) {
+  const ref::Scene sc;
+  const std::vector<double> clean = ref::image(kMilk, sc);
+  double peak = 0;
+  for (size_t i = 0; i < clean.size(); ++i)
+    if (std::hypot(double(i % sc.width) - sc.bulb_x, double(i / sc.width) - sc.bulb_y) >= 8) peak = std::max(peak, clean[i]);
+  struct Variant {
+    const char* name;
+    Objective obj;
+    Weights wts;
+    int seeds, min_covered;
+  };
+  for (const Variant& v : {Variant{"normalized, uniform (default)", Objective::normalized, Weights::uniform, 30, 25},
+                           Variant{"profiled, noise weights", Objective::profiled, Weights::noise, 15, 12}}) {
+    const int kSeeds = v.seeds, kMinCovered = v.min_covered;
+    SCOPED_TRACE(v.name);
+    FitSettings s = settings_for(sc);
+    s.objective = v.obj;
+    s.weights = v.wts;
+    int covered[2] = {0, 0};
+    std::vector<double> est[2], half[2];
+    for (int seed = 1; seed <= kSeeds; ++seed) {
+      std::vector<double> e = clean;
+      std::mt19937 rng(static_cast<uint32_t>(1400 + seed));
+      std::normal_distribution<double> n01(0.0, 1.0);
+      for (double& x : e) x = x * (1.0 + 0.03 * n01(rng)) + 1e-3 * peak * n01(rng);
+      const std::vector<float> f = to_float(e);
+      const FitResult r = fit_profile(radial_profile(f, sc.width, sc.height, s), s, f, sc.width, sc.height);
+      ASSERT_TRUE(r.error.empty()) << r.error;
+      ASSERT_EQ(r.model, "henyey_greenstein") << "seed " << seed;
+      const Estimate* q[2] = {&r.sigma, &r.beta};
+      const double truth[2] = {kMilk.sigma, kMilk.beta};
+      for (int k = 0; k < 2; ++k) {
+        ASSERT_TRUE(std::isfinite(q[k]->ci95) && q[k]->ci95 > 0) << "seed " << seed;
+        covered[k] += std::abs(q[k]->value - truth[k]) <= q[k]->ci95;
+        est[k].push_back(q[k]->value);
+        half[k].push_back(q[k]->ci95);
+      }
+    }
+    for (int k = 0; k < 2; ++k) {
+      double m = 0, v2 = 0;
+      for (double x : est[k]) m += x / kSeeds;
+      for (double x : est[k]) v2 += (x - m) * (x - m) / (kSeeds - 1);
+      const double sd = std::sqrt(v2), truth = k == 0 ? kMilk.sigma : kMilk.beta;
+      std::sort(half[k].begin(), half[k].end());
+      const size_t hm = half[k].size() / 2;
+      const double med = half[k].size() % 2 == 1 ? half[k][hm] : 0.5 * (half[k][hm - 1] + half[k][hm]);
+      std::printf("%-30s %-5s covered %d / %d  mean error %+.3f %% (SD %.3f %%)  median ci95 %.3f %% = %.2f SD\n", v.name,
+                  k == 0 ? "sigma" : "beta", covered[k], kSeeds, 100 * (m / truth - 1), 100 * sd / truth,
+                  100 * med / truth, med / sd);
+      EXPECT_GE(covered[k], kMinCovered) << (k == 0 ? "sigma" : "beta");
+      EXPECT_GT(med, 1.2 * sd) << (k == 0 ? "sigma" : "beta");
+      EXPECT_LT(med, 3.2 * sd) << (k == 0 ? "sigma" : "beta");
+    }
   }
 }
 
