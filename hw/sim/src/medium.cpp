@@ -377,7 +377,7 @@ Status prepare_medium(const Scene& scene, const ProjectorModel& projector, const
     taps->chunks.insert(taps->chunks.end(), r.begin(), r.end());
     std::vector<MediumChunk>().swap(r);
   }
-  prepare_indirect(m, world_from_proj, v, *taps);
+  prepare_indirect(m, projector, world_from_proj, v, *taps, threads);
   prepare_multiple(scene, projector, world_from_cam, world_from_proj, v, *taps, threads);
   v.medium = std::move(taps);
   return Status::Ok();

@@ -12,8 +12,10 @@
 //    direct component's), e the SHARP emitted pattern (blur level 0, box
 //    pixels; projector defocus is not applied to B), Y skipped where the
 //    projector ray to it is occluded or outside the projector image.
-//  - Indirect signal A (Eq. 5.12), approximated: forward_scatter() and
-//    MediumIndirectComponent (medium_indirect.cpp).
+//  - Indirect signal A (Eq. 5.12), approximated: forward single scattering
+//    on both legs (light in, and surface light out to the camera), so A is
+//    reciprocal: forward_scatter() and MediumIndirectComponent
+//    (medium_indirect.cpp).
 //  - Polarization: per-pixel Stokes-weighted sums and the Mueller matrix of
 //    Medium::DopModel; surface light is depolarized (renderer.cpp).
 //
@@ -91,11 +93,15 @@ struct MediumTaps {
   // one value per pixel stands in for the whole ray: exact for flood light,
   // and otherwise off by at most the spread of m12, m33 along the ray.
   std::vector<float> m12, m33;
-  // Indirect signal A (medium_indirect.cpp): per pixel the gain
-  // direct_albedo/π · F_A(ℓ_L)/exp(−σℓ_L) on the blurred surface irradiance,
-  // and the blur's σ in camera pixels (one per view). Empty: no A.
-  std::vector<float> indirect_gain;
-  double indirect_sigma_px = 0;
+  // Indirect signal A (medium_indirect.cpp, forward scattering on both legs):
+  // per pixel the in-leg gain direct_albedo/π · R(ℓ_L) (R = F_A/exp(−σℓ),
+  // forward_scatter()), direct_albedo/π alone (indirect_reflect: surface
+  // radiance per irradiance), the camera leg's R(ℓ_C), and the normalisers
+  // Ê/(G ∗ Ê) of the two normalised blurs (indirect_norm: in-leg,
+  // indirect_cam_norm: out-leg); each blur's σ in camera pixels (one per view
+  // and leg). Empty: no A.
+  std::vector<float> indirect_gain, indirect_reflect, indirect_cam_ratio, indirect_norm, indirect_cam_norm;
+  double indirect_sigma_px = 0, indirect_cam_sigma_px = 0;
   // Multiple scattering (Medium::MultipleScattering::diffuse; medium_multiple.cpp,
   // docs/media.md "Multiple scattering"): B_ms(i) = ms_gain[i] · (G ∗ S)(i),
   // S the frame's single-scattered intensity per pixel (the chunk sums, no
@@ -130,9 +136,10 @@ struct ForwardScatter {
 };
 ForwardScatter forward_scatter(const Medium& medium, double length_mm);
 
-// Fills taps.indirect_* for a prepared view (medium_indirect.cpp).
-void prepare_indirect(const Medium& medium, const Rigid3& world_from_proj, const PreparedView& view,
-                      MediumTaps& taps);
+// Fills taps.indirect_* for a prepared view (medium_indirect.cpp); the
+// projector (or light) gives the flood irradiance without cast shadows.
+void prepare_indirect(const Medium& medium, const ProjectorModel& projector, const Rigid3& world_from_proj,
+                      const PreparedView& view, MediumTaps& taps, int threads);
 
 // Fills taps.ms_* for a prepared view whose medium asks for multiple
 // scattering (medium_multiple.cpp): the ratio from backscatter_monte_carlo_orders
@@ -216,10 +223,12 @@ void gaussian_blur3(std::vector<float>& data, std::vector<float>& tmp, uint32_t 
                     int threads);
 }  // namespace detail
 
-// The indirect signal A (Eq. 5.12), approximated: the surface irradiance
-// blurred by the forward-scatter spread (a Gaussian of taps.indirect_sigma_px
-// camera pixels, three box passes) times the per-pixel gain. Surface light:
-// attenuated on the camera leg and depolarized like D.
+// The indirect signal A (Eq. 5.12), approximated on both legs
+// (medium_indirect.cpp): the surface irradiance blurred by the in-leg
+// forward-scatter spread (a normalised Gaussian of taps.indirect_sigma_px
+// camera pixels, three box passes) times the in-leg gain, plus the surface
+// radiance (direct and in-leg A) blurred by the camera leg's spread times
+// R(ℓ_C). Surface light: attenuated on the camera leg and depolarized like D.
 class MediumIndirectComponent final : public TransportComponent {
 public:
   explicit MediumIndirectComponent(std::shared_ptr<const MediumTaps> taps) : taps_(std::move(taps)) {}
@@ -230,7 +239,8 @@ public:
 
 private:
   std::shared_ptr<const MediumTaps> taps_;
-  std::vector<float> blurred_, tmp_;  // this frame's blurred irradiance (begin_frame)
+  // This frame's blurred irradiance and blurred surface radiance (begin_frame).
+  std::vector<float> blurred_, blurred_cam_, tmp_;
 };
 
 // The backscatter B as a volume transport component.

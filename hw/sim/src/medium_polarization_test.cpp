@@ -178,7 +178,10 @@ TEST(MediumRig, PolariserAndAnalyserTakeEffectAndTruthIsWritten) {
   const double open = mean_dn(kNaN), a0 = mean_dn(0), a90 = mean_dn(90);
   // Backscatter keeps the projector's polarization: one analyser angle blocks
   // most of it, the other passes most; surface light (D and A) is halved by both.
-  EXPECT_GT(std::max(a0, a90), 1.5 * std::min(a0, a90)) << a0 << " " << a90;
+  // Measured a0/a90 = 1.32 since A is forward scattering on both legs (the
+  // surface light D + A grew from ~3 D to ~9 D here); it was > 1.5 with A on
+  // the projector's leg only. Bound lowered from 1.5 to 1.25 for that reason.
+  EXPECT_GT(std::max(a0, a90), 1.25 * std::min(a0, a90)) << a0 << " " << a90;
   EXPECT_NEAR(a0 + a90, open, 0.01 * open);
   EXPECT_LT(a90, a0) << "near-backward scattering keeps the polarization direction: the crossed analyser is best";
   ASSERT_TRUE(r.projector().set_polarizer_deg(45).ok());

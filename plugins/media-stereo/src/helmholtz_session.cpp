@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "helmholtz_session.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -24,12 +25,18 @@ using sdk::ParamType;
 constexpr double kMaxLightOffsetMm = 1.0;
 
 const std::vector<ParamSpec>& helmholtz_params() {
-  static const std::vector<ParamSpec> specs = stereo_params(
-      5,
-      "'media' removes each image's backscatter before the reciprocity constraint (Eq. 5.32); 'clear-air' is "
-      "the medium-free Helmholtz stereo of Zickler et al. on the same frames (the baseline)",
-      "I0 of every light in full-scale units x mm^2: a white Lambertian surface facing a light at d mm in clear "
-      "water reads I0 / (pi d^2) of full scale (a photometric calibration of lights and cameras)");
+  static const std::vector<ParamSpec> specs = [] {
+    std::vector<ParamSpec> s = stereo_params(
+        5,
+        "'media' removes each image's backscatter before the reciprocity constraint (Eq. 5.32); 'clear-air' is "
+        "the medium-free Helmholtz stereo of Zickler et al. on the same frames (the baseline)",
+        "I0 of every light in full-scale units x mm^2: a white Lambertian surface facing a light at d mm in clear "
+        "water reads I0 / (pi d^2) of full scale (a photometric calibration of lights and cameras)");
+    s.push_back({"frames_per_pair", ParamType::integer, 1, 1, 64, {},
+                 "frames captured and averaged per pair image (sensor noise falls as 1/sqrt(n); a sample saturated "
+                 "in any of them stays saturated)"});
+    return s;
+  }();
   return specs;
 }
 
@@ -71,7 +78,10 @@ class HelmholtzSession final : public sdk::Session {
     media_ = p.get_string("constraint") == "media";
     proj_w_ = rig.projector_width;
     proj_h_ = rig.projector_height;
+    repeats_ = static_cast<uint32_t>(p.get_int("frames_per_pair"));
     images_.resize(2 * (units_.size() - 1));
+    peak_.resize(images_.size());
+    seen_.assign(images_.size(), 0);
   }
 
   sdk::Error next_plan(sdk::Plan& plan, bool& has_round) override {
@@ -79,31 +89,62 @@ class HelmholtzSession final : public sdk::Session {
     planned_ = true;
     // Pair j: frame 2(j-1) camera 0 lit by unit j's light, frame 2(j-1)+1
     // camera j lit by unit 0's light. The projector stays dark.
-    for (size_t j = 1; j < units_.size(); ++j) {
-      const uint32_t a = plan.add_frame("pair-" + std::to_string(j) + "-a", proj_w_, proj_h_);
-      plan.settings(a).camera_index = static_cast<int32_t>(units_[0].camera);
-      plan.settings(a).light_index = units_[j].light_index;
-      const uint32_t b = plan.add_frame("pair-" + std::to_string(j) + "-b", proj_w_, proj_h_);
-      plan.settings(b).camera_index = static_cast<int32_t>(units_[j].camera);
-      plan.settings(b).light_index = units_[0].light_index;
-    }
+    // With frames_per_pair n > 1 each of them n times in a row (frame
+    // index (2(j-1) + side)·n + k, named pair-j-a-k), averaged in add_frame.
+    for (size_t j = 1; j < units_.size(); ++j)
+      for (int side = 0; side < 2; ++side)
+        for (uint32_t k = 0; k < repeats_; ++k) {
+          const std::string name = "pair-" + std::to_string(j) + (side == 0 ? "-a" : "-b") +
+                                   (repeats_ > 1 ? "-" + std::to_string(k) : "");
+          const uint32_t f = plan.add_frame(name, proj_w_, proj_h_);
+          plan.settings(f).camera_index = static_cast<int32_t>(units_[side == 0 ? 0 : j].camera);
+          plan.settings(f).light_index = units_[side == 0 ? j : 0].light_index;
+        }
     has_round = true;
     return sdk::ok();
   }
 
   sdk::Error add_frame(uint32_t index, const procam_image& frame) override {
     sdk::ScopedMs t(decode_ms_);
-    const Unit& u = index % 2 == 0 ? units_[0] : units_[index / 2 + 1];
+    const uint32_t slot = index / repeats_;  // 2(j-1) + side
+    if (slot >= images_.size()) return sdk::invalid_argument("frame " + std::to_string(index) + " is not in the plan");
+    const Unit& u = slot % 2 == 0 ? units_[0] : units_[slot / 2 + 1];
     if (sdk::Error e = sdk::check_frame(&frame, u.cam.width, u.cam.height, 1,
                                         "frame " + std::to_string(index) + " (camera " + std::to_string(u.camera) + ")");
         !e.ok())
       return e;
-    frame_to_full_scale(frame, u.bits, images_[index]);
+    if (repeats_ == 1) {
+      frame_to_full_scale(frame, u.bits, images_[slot]);
+      return sdk::ok();
+    }
+    // Running sum and per-sample peak; the n-th frame of the slot turns them
+    // into the mean, saturated wherever one of the frames was.
+    frame_to_full_scale(frame, u.bits, one_);
+    std::vector<float>& sum = images_[slot];
+    std::vector<float>& peak = peak_[slot];
+    if (seen_[slot] == 0) {
+      sum = one_;
+      peak = one_;
+    } else {
+      for (size_t i = 0; i < sum.size(); ++i) {
+        sum[i] += one_[i];
+        peak[i] = std::max(peak[i], one_[i]);
+      }
+    }
+    if (++seen_[slot] == repeats_) {
+      const float inv = 1.0f / static_cast<float>(repeats_), sat = static_cast<float>(search_.saturation);
+      for (size_t i = 0; i < sum.size(); ++i) sum[i] = peak[i] >= sat ? peak[i] : sum[i] * inv;
+      std::vector<float>().swap(peak);
+    }
     return sdk::ok();
   }
 
   sdk::Error end_round() override {
     sdk::ScopedMs t(decode_ms_);
+    for (size_t k = 0; repeats_ > 1 && k < seen_.size(); ++k)
+      if (seen_[k] != repeats_)
+        return sdk::failed_precondition("pair image " + std::to_string(k) + " got " + std::to_string(seen_[k]) +
+                                        " of its " + std::to_string(repeats_) + " frames (frames_per_pair)");
     in_.reference = units_[0].cam;
     in_.pairs.clear();
     for (size_t j = 1; j < units_.size(); ++j) {
@@ -148,7 +189,7 @@ class HelmholtzSession final : public sdk::Session {
                   c.height, result_.rank_ratio);
     sdk::StandardOutputs s;
     s.decode_ms = decode_ms_;
-    s.pattern_count = static_cast<uint32_t>(images_.size());
+    s.pattern_count = static_cast<uint32_t>(images_.size() * repeats_);
     s.valid_pixels = valid_;
     s.total_pixels = result_.depth_mm.size();
     nlohmann::json pairs = nlohmann::json::array();
@@ -181,6 +222,11 @@ class HelmholtzSession final : public sdk::Session {
   std::optional<MediumFit> fit_;
   DepthSearch search_;
   std::vector<std::vector<float>> images_;
+  // frames_per_pair > 1: per slot the peak sample and the frames seen so far; one_ scratch.
+  std::vector<std::vector<float>> peak_;
+  std::vector<uint32_t> seen_;
+  std::vector<float> one_;
+  uint32_t repeats_ = 1;
   HelmholtzInput in_;
   bool media_ = true, planned_ = false;
   uint32_t proj_w_ = 0, proj_h_ = 0;
@@ -401,7 +447,7 @@ sdk::MethodDescription helmholtz_description() {
       "Helmholtz stereo in a scattering medium (thesis Eq. 5.32-5.34): reciprocal pairs of camera+light units "
       "(camera 0 with each other unit), backscatter removed, depth and normals from the rank-2 condition, then "
       "integrated depth; medium from params or fitted from the input medium_image";
-  d.patterns_formula = "2 per reciprocal pair (camera 0 and each other camera with a light)";
+  d.patterns_formula = "2 x frames_per_pair per reciprocal pair (camera 0 and each other camera with a light)";
   d.outputs = {"depth_mm", "depth_integrated_mm", "normal_x", "normal_y", "normal_z", "rank_ratio",
                "decode_ms", "pattern_count", "valid_fraction", "report"};
   d.params = helmholtz_params();
