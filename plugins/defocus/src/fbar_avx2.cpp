@@ -39,7 +39,8 @@ PROCAM_AVX2 __m256 fast_ln8(__m256 x) {
   return _mm256_add_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(e), _mm256_set1_ps(0.69314718f)), _mm256_mul_ps(t, p));
 }
 
-// FloatTable::lookup on 8 lanes where `valid`, NaN elsewhere.
+// FloatTable::lookup on 8 lanes where `valid`, NaN elsewhere (the same float
+// operations as the scalar lookup).
 PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
   const __m256 in = _mm256_and_ps(valid, _mm256_and_ps(_mm256_cmp_ps(x, _mm256_set1_ps(t.lo), _CMP_GE_OQ),
                                                        _mm256_cmp_ps(x, _mm256_set1_ps(t.hi), _CMP_LE_OQ)));
@@ -48,8 +49,18 @@ PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
   const __m256 thr = _mm256_i32gather_ps(t.thr.data(), b, 4);
   // Line 2b, or 2b + 1 past the bin's breakpoint (true lanes are -1).
   const __m256i i = _mm256_sub_epi32(_mm256_add_epi32(b, b), _mm256_castps_si256(_mm256_cmp_ps(x, thr, _CMP_GE_OQ)));
-  const __m256 y0 = _mm256_i32gather_ps(t.line_y.data(), i, 4);
-  const __m256 slope = _mm256_i32gather_ps(t.line_slope.data(), i, 4);
+  // Both values of line i as one 64-bit element (FloatTable::lines): lanes
+  // 0-3 and 4-7 in two 4-lane gathers, then de-interleaved into y0 and slope
+  // in lane order (shufps picks per 128-bit half, permute4x64 restores the
+  // order of the 64-bit pieces). The same floats as the scalar lookup.
+  const auto* pairs = reinterpret_cast<const long long*>(t.lines.data());
+  const __m256 lo = _mm256_castsi256_ps(_mm256_i32gather_epi64(pairs, _mm256_castsi256_si128(i), 8));
+  const __m256 hi = _mm256_castsi256_ps(_mm256_i32gather_epi64(pairs, _mm256_extracti128_si256(i, 1), 8));
+  // [y0 y1 y4 y5 | y2 y3 y6 y7] -> [y0 .. y7], likewise the slopes.
+  const __m256 y0 = _mm256_castpd_ps(
+      _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0))), 0xd8));
+  const __m256 slope = _mm256_castpd_ps(
+      _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1))), 0xd8));
   const __m256 xb = _mm256_add_ps(_mm256_set1_ps(t.x0), _mm256_mul_ps(_mm256_cvtepi32_ps(b), _mm256_set1_ps(t.dx)));
   const __m256 y = _mm256_add_ps(y0, _mm256_mul_ps(_mm256_sub_ps(x, xb), slope));
   return select8(in, y, _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN()));
