@@ -168,9 +168,11 @@ __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t 
     const __m256 clamped = _mm256_min_ps(_mm256_max_ps(off, _mm256_set1_ps(-0.5f)), half);
     const __m256 fbar = select8(ok, _mm256_add_ps(k, clamped), nan);
     store8(a.fbar + x, fbar, stream);
-    count += static_cast<size_t>(__builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(ok))));
+    const auto ok_bits = static_cast<unsigned>(_mm256_movemask_ps(ok));
+    count += static_cast<size_t>(__builtin_popcount(ok_bits));
     if (a.peak != nullptr) store8(a.peak + x, b, stream);
-    const __m256 out = a.table != nullptr ? lookup8(*a.table, fbar, ok) : fbar;
+    // No valid lane (background, shadow, black): no lookup, its result would be all NaN.
+    const __m256 out = a.table == nullptr ? fbar : (ok_bits != 0u ? lookup8(*a.table, fbar, ok) : nan);
     if (a.table != nullptr) store8(a.depth + x, out, stream);
     if (a.valid != nullptr) {
       // Finite: |v| < inf (false for NaN and inf), as the scalar twin.
