@@ -10,7 +10,8 @@
 // maximum wins) with the values left and right of it, then Eq. 2.9 from the
 // three, the validity tests of focus_measures.hpp, the saturation bit, and
 // depth = table(fbar). One read of the F E-maps, the mean and the bits; no
-// intermediate arrays.
+// intermediate maps (the AVX2 kernel keeps 256 pixels of fbar in a stack
+// buffer between its f-bar loop and its lookup loop, see fbar_avx2.cpp).
 //
 // Threads: the functions are reentrant; a FloatTable is read-only once built.
 #pragma once
@@ -41,8 +42,7 @@ struct FloatTable {
   // Per bin 2 lines, line i = 2 bin + side as the pair lines[2i] = y at the
   // bin's left edge xb = x0 + bin * dx, lines[2i + 1] = slope:
   // y = lines[2i] + (x - xb) * lines[2i + 1]. Pairs, not two arrays, so the
-  // AVX2 kernel fetches both with one 64-bit gather element per pixel (an
-  // 8-lane float gather per array was ~2x slower on the EPYC VM).
+  // AVX2 kernel fetches both with one 64-bit gather element per pixel.
   std::vector<float> lines;
   static constexpr int32_t kMaxBins = 1 << 16;
   explicit FloatTable(const sdk::CalibrationTable* table);
