@@ -12,8 +12,10 @@
 #include "calibration.hpp"
 #include "defocus_session.hpp"
 #include "e3_accumulator.hpp"
+#include "fbar_kernel.hpp"
 #include "focus_measures.hpp"
 #include "sweep_plan.hpp"
+#include "procam/sdk/simd.hpp"
 
 namespace procam::defocus {
 namespace {
@@ -78,6 +80,40 @@ void BM_MultiFocalAfterLastFrame(benchmark::State& state) {
     benchmark::DoNotOptimize(fbar_depth_map(acc, rule, lookup ? &table : nullptr, threads, fbar, lookup ? &depth : nullptr));
 }
 BENCHMARK(BM_MultiFocalAfterLastFrame)->Args({2, 1})->Args({1, 1})->Args({2, 0})->Unit(benchmark::kMillisecond)->Repetitions(5)->UseRealTime();
+
+// The fused row kernel on one 1920-pixel row whose E rows stay in cache
+// (~50 KB): its arithmetic and the table lookup without the memory traffic
+// of a whole image, so the lookup's cost shows as the difference between
+// lookup:1 and lookup:0, and a shared machine's memory contention matters
+// less. Per row; the AVX2 kernel where the CPU has it.
+void BM_FbarRowInCache(benchmark::State& state) {
+  const bool lookup = state.range(0) != 0;
+  std::vector<std::vector<float>> e(kF, std::vector<float>(kW));
+  std::vector<float> mean(kW), fbar(kW), depth(kW), peak(kW);
+  std::vector<uint8_t> sat(kW / 8, 0), valid(kW);
+  for (uint32_t x = 0; x < kW; ++x) {  // the bench image's tilted plane: the peak moves from 0.5 to 4.5
+    const double centre = 0.5 + 4.0 * x / kW;
+    mean[x] = 110;
+    for (uint32_t f = 0; f < kF; ++f)
+      e[f][x] = static_cast<float>(60 * std::exp(-0.5 * (f - centre) * (f - centre)) + (x % 3));
+  }
+  sdk::CalibrationTable table;
+  for (int k = 0; k <= 50; ++k) table.samples.emplace_back(0.1 * k, 600 + 10.0 * k);
+  const detail::FloatTable ft(&table);
+  std::vector<const float*> ptr;
+  for (const auto& m : e) ptr.push_back(m.data());
+  size_t valid_count = 0;
+  const detail::RowArgs a{ptr.data(), kF, mean.data(), sat.data(), 5.f, 0.02f, lookup ? &ft : nullptr,
+                          fbar.data(), lookup ? depth.data() : nullptr, peak.data(), valid.data(), &valid_count,
+                          nullptr, 0, 0};
+  const bool avx2 = sdk::cpu_has_avx2();
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(avx2 ? detail::fbar_row_avx2(a, 0, kW) : detail::fbar_row_scalar(a, 0, kW));
+    benchmark::ClobberMemory();
+  }
+  state.counters["valid"] = static_cast<double>(valid_count) / static_cast<double>(state.iterations() * kW);
+}
+BENCHMARK(BM_FbarRowInCache)->ArgName("lookup")->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond)->Repetitions(5);
 
 // What a scan waits for after the last frame, through the session: the last
 // frame's add (with the fold of the last focus setting), end_round (fbar +

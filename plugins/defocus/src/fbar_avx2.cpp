@@ -3,6 +3,7 @@
 // float operations in the same order (no FMA), so bit-identical results.
 // Compiled with __attribute__((target("avx2"))) and called only where
 // sdk::cpu_has_avx2() (sdk/simd.hpp): no -march flags.
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -39,7 +40,8 @@ PROCAM_AVX2 __m256 fast_ln8(__m256 x) {
   return _mm256_add_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(e), _mm256_set1_ps(0.69314718f)), _mm256_mul_ps(t, p));
 }
 
-// FloatTable::lookup on 8 lanes where `valid`, NaN elsewhere.
+// FloatTable::lookup on 8 lanes where `valid`, NaN elsewhere (the same float
+// operations as the scalar lookup).
 PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
   const __m256 in = _mm256_and_ps(valid, _mm256_and_ps(_mm256_cmp_ps(x, _mm256_set1_ps(t.lo), _CMP_GE_OQ),
                                                        _mm256_cmp_ps(x, _mm256_set1_ps(t.hi), _CMP_LE_OQ)));
@@ -48,8 +50,18 @@ PROCAM_AVX2 __m256 lookup8(const FloatTable& t, __m256 x, __m256 valid) {
   const __m256 thr = _mm256_i32gather_ps(t.thr.data(), b, 4);
   // Line 2b, or 2b + 1 past the bin's breakpoint (true lanes are -1).
   const __m256i i = _mm256_sub_epi32(_mm256_add_epi32(b, b), _mm256_castps_si256(_mm256_cmp_ps(x, thr, _CMP_GE_OQ)));
-  const __m256 y0 = _mm256_i32gather_ps(t.line_y.data(), i, 4);
-  const __m256 slope = _mm256_i32gather_ps(t.line_slope.data(), i, 4);
+  // Both values of line i as one 64-bit element (FloatTable::lines): lanes
+  // 0-3 and 4-7 in two 4-lane gathers, then de-interleaved into y0 and slope
+  // in lane order (shufps picks per 128-bit half, permute4x64 restores the
+  // order of the 64-bit pieces). The same floats as the scalar lookup.
+  const auto* pairs = reinterpret_cast<const long long*>(t.lines.data());
+  const __m256 lo = _mm256_castsi256_ps(_mm256_i32gather_epi64(pairs, _mm256_castsi256_si128(i), 8));
+  const __m256 hi = _mm256_castsi256_ps(_mm256_i32gather_epi64(pairs, _mm256_extracti128_si256(i, 1), 8));
+  // [y0 y1 y4 y5 | y2 y3 y6 y7] -> [y0 .. y7], likewise the slopes.
+  const __m256 y0 = _mm256_castpd_ps(
+      _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0))), 0xd8));
+  const __m256 slope = _mm256_castpd_ps(
+      _mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1))), 0xd8));
   const __m256 xb = _mm256_add_ps(_mm256_set1_ps(t.x0), _mm256_mul_ps(_mm256_cvtepi32_ps(b), _mm256_set1_ps(t.dx)));
   const __m256 y = _mm256_add_ps(y0, _mm256_mul_ps(_mm256_sub_ps(x, xb), slope));
   return select8(in, y, _mm256_set1_ps(std::numeric_limits<float>::quiet_NaN()));
@@ -119,56 +131,78 @@ __attribute__((target("avx2"))) size_t fbar_row_avx2(const RowArgs& a, uint32_t 
   const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
   const bool stream_valid = a.valid != nullptr && (reinterpret_cast<uintptr_t>(a.valid + x_begin) & 7u) == 0;
   size_t valid_count = 0;
-  for (; x + 8 <= x_end; x += 8) {
-    // Running argmax (first maximum wins); k as float (exact small integers).
-    __m256 b = e_at8(a, 0, x), prev = b, l = zero, r = zero, k = zero;
-    for (uint32_t f = 1; f < a.F; ++f) {
-      const __m256 e = e_at8(a, f, x);
-      const __m256 better = _mm256_cmp_ps(e, b, _CMP_GT_OQ);
-      const __m256 was_prev = _mm256_cmp_ps(k, _mm256_set1_ps(static_cast<float>(f - 1)), _CMP_EQ_OQ);
-      const __m256 right_of_best = _mm256_andnot_ps(better, was_prev);
-      r = select8(right_of_best, e, r);
-      l = select8(better, prev, l);
-      b = select8(better, e, b);
-      k = select8(better, _mm256_set1_ps(static_cast<float>(f)), k);
-      prev = e;
+  // Two loops per chunk of up to kChunk pixels: f-bar first (into fb, in L1),
+  // then the table lookup and the valid bytes. The lookup's dependent gathers
+  // (thresholds, then lines) have a long latency; in a loop of their own
+  // several groups are in flight at once, behind the f-bar arithmetic only
+  // one or two were. Same operations per pixel, so the same bits.
+  constexpr uint32_t kChunk = 256;
+  alignas(32) float fb[kChunk];
+  uint8_t ok_of[kChunk / 8];
+  while (x + 8 <= x_end) {
+    const uint32_t chunk_begin = x;
+    const uint32_t groups = std::min<uint32_t>(kChunk / 8, (x_end - x) / 8);
+    for (uint32_t g = 0; g < groups; ++g, x += 8) {
+      // Running argmax (first maximum wins); k as float (exact small integers).
+      __m256 b = e_at8(a, 0, x), prev = b, l = zero, r = zero, k = zero;
+      for (uint32_t f = 1; f < a.F; ++f) {
+        const __m256 e = e_at8(a, f, x);
+        const __m256 better = _mm256_cmp_ps(e, b, _CMP_GT_OQ);
+        const __m256 was_prev = _mm256_cmp_ps(k, _mm256_set1_ps(static_cast<float>(f - 1)), _CMP_EQ_OQ);
+        const __m256 right_of_best = _mm256_andnot_ps(better, was_prev);
+        r = select8(right_of_best, e, r);
+        l = select8(better, prev, l);
+        b = select8(better, e, b);
+        k = select8(better, _mm256_set1_ps(static_cast<float>(f)), k);
+        prev = e;
+      }
+      // Eq. 2.9 as in fbar_row_scalar.
+      const __m256 mean = _mm256_loadu_ps(a.mean + x);
+      const __m256 floor = _mm256_mul_ps(vmin, mean);
+      const __m256 inner = _mm256_and_ps(_mm256_cmp_ps(k, zero, _CMP_GT_OQ), _mm256_cmp_ps(k, vlast, _CMP_LT_OQ));
+      __m256 strong = _mm256_and_ps(_mm256_cmp_ps(l, floor, _CMP_GE_OQ), _mm256_cmp_ps(r, floor, _CMP_GE_OQ));
+      strong = _mm256_and_ps(strong, _mm256_cmp_ps(b, floor, _CMP_GE_OQ));
+      strong = _mm256_and_ps(strong, _mm256_and_ps(_mm256_cmp_ps(l, zero, _CMP_GT_OQ), _mm256_cmp_ps(r, zero, _CMP_GT_OQ)));
+      const __m256 lit = _mm256_cmp_ps(mean, vblack, _CMP_GE_OQ);
+      const __m256 bb = select8(_mm256_cmp_ps(b, zero, _CMP_GT_OQ), b, one);
+      const __m256 lm = fast_ln8(select8(strong, _mm256_div_ps(l, bb), one));
+      const __m256 lp = fast_ln8(select8(strong, _mm256_div_ps(r, bb), one));
+      const __m256 curv = _mm256_add_ps(lm, lp);
+      const __m256 curved = _mm256_cmp_ps(curv, _mm256_set1_ps(-1e-9f), _CMP_LT_OQ);
+      const __m256 off = _mm256_div_ps(_mm256_mul_ps(half, _mm256_sub_ps(lm, lp)), select8(curved, curv, _mm256_set1_ps(-1.f)));
+      const __m256 in_range = _mm256_cmp_ps(_mm256_and_ps(off, abs_mask), _mm256_set1_ps(0.5f + 1e-4f), _CMP_LE_OQ);
+      // Saturation: bit x % 8 of byte x / 8, x a multiple of 8 here.
+      const __m256i sat_byte = _mm256_set1_epi32(a.sat[x / 8]);
+      const __m256 unsaturated = _mm256_castsi256_ps(
+          _mm256_cmpeq_epi32(_mm256_and_si256(sat_byte, bit_of_lane), _mm256_setzero_si256()));
+      const __m256 ok = _mm256_and_ps(_mm256_and_ps(_mm256_and_ps(inner, strong), _mm256_and_ps(lit, curved)),
+                                      _mm256_and_ps(in_range, unsaturated));
+      const __m256 clamped = _mm256_min_ps(_mm256_max_ps(off, _mm256_set1_ps(-0.5f)), half);
+      const __m256 fbar = select8(ok, _mm256_add_ps(k, clamped), nan);
+      store8(a.fbar + x, fbar, stream);
+      const auto ok_bits = static_cast<unsigned>(_mm256_movemask_ps(ok));
+      count += static_cast<size_t>(__builtin_popcount(ok_bits));
+      if (a.peak != nullptr) store8(a.peak + x, b, stream);
+      _mm256_store_ps(fb + 8 * g, fbar);
+      ok_of[g] = static_cast<uint8_t>(ok_bits);
     }
-    // Eq. 2.9 as in fbar_row_scalar.
-    const __m256 mean = _mm256_loadu_ps(a.mean + x);
-    const __m256 floor = _mm256_mul_ps(vmin, mean);
-    const __m256 inner = _mm256_and_ps(_mm256_cmp_ps(k, zero, _CMP_GT_OQ), _mm256_cmp_ps(k, vlast, _CMP_LT_OQ));
-    __m256 strong = _mm256_and_ps(_mm256_cmp_ps(l, floor, _CMP_GE_OQ), _mm256_cmp_ps(r, floor, _CMP_GE_OQ));
-    strong = _mm256_and_ps(strong, _mm256_cmp_ps(b, floor, _CMP_GE_OQ));
-    strong = _mm256_and_ps(strong, _mm256_and_ps(_mm256_cmp_ps(l, zero, _CMP_GT_OQ), _mm256_cmp_ps(r, zero, _CMP_GT_OQ)));
-    const __m256 lit = _mm256_cmp_ps(mean, vblack, _CMP_GE_OQ);
-    const __m256 bb = select8(_mm256_cmp_ps(b, zero, _CMP_GT_OQ), b, one);
-    const __m256 lm = fast_ln8(select8(strong, _mm256_div_ps(l, bb), one));
-    const __m256 lp = fast_ln8(select8(strong, _mm256_div_ps(r, bb), one));
-    const __m256 curv = _mm256_add_ps(lm, lp);
-    const __m256 curved = _mm256_cmp_ps(curv, _mm256_set1_ps(-1e-9f), _CMP_LT_OQ);
-    const __m256 off = _mm256_div_ps(_mm256_mul_ps(half, _mm256_sub_ps(lm, lp)), select8(curved, curv, _mm256_set1_ps(-1.f)));
-    const __m256 in_range = _mm256_cmp_ps(_mm256_and_ps(off, abs_mask), _mm256_set1_ps(0.5f + 1e-4f), _CMP_LE_OQ);
-    // Saturation: bit x % 8 of byte x / 8, x a multiple of 8 here.
-    const __m256i sat_byte = _mm256_set1_epi32(a.sat[x / 8]);
-    const __m256 unsaturated = _mm256_castsi256_ps(
-        _mm256_cmpeq_epi32(_mm256_and_si256(sat_byte, bit_of_lane), _mm256_setzero_si256()));
-    const __m256 ok = _mm256_and_ps(_mm256_and_ps(_mm256_and_ps(inner, strong), _mm256_and_ps(lit, curved)),
-                                    _mm256_and_ps(in_range, unsaturated));
-    const __m256 clamped = _mm256_min_ps(_mm256_max_ps(off, _mm256_set1_ps(-0.5f)), half);
-    const __m256 fbar = select8(ok, _mm256_add_ps(k, clamped), nan);
-    store8(a.fbar + x, fbar, stream);
-    count += static_cast<size_t>(__builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(ok))));
-    if (a.peak != nullptr) store8(a.peak + x, b, stream);
-    const __m256 out = a.table != nullptr ? lookup8(*a.table, fbar, ok) : fbar;
-    if (a.table != nullptr) store8(a.depth + x, out, stream);
-    if (a.valid != nullptr) {
-      // Finite: |v| < inf (false for NaN and inf), as the scalar twin.
-      const auto m = static_cast<uint32_t>(_mm256_movemask_ps(_mm256_cmp_ps(_mm256_and_ps(out, abs_mask), inf, _CMP_LT_OQ)));
-      valid_count += static_cast<size_t>(__builtin_popcount(m));
-      if (stream_valid)
-        _mm_stream_si64(reinterpret_cast<long long*>(a.valid + x), static_cast<long long>(kByteMasks.v[m]));
-      else
-        std::memcpy(a.valid + x, &kByteMasks.v[m], 8);
+    x = chunk_begin;
+    for (uint32_t g = 0; g < groups; ++g, x += 8) {
+      const __m256 fbar = _mm256_load_ps(fb + 8 * g);
+      // ok exactly where fbar is not NaN (an ok fbar is k + a clamped offset: finite).
+      const __m256 ok = _mm256_cmp_ps(fbar, fbar, _CMP_ORD_Q);
+      // No valid lane (background, shadow, black): no lookup, its result would be all NaN.
+      const __m256 out = a.table == nullptr ? fbar : (ok_of[g] != 0u ? lookup8(*a.table, fbar, ok) : nan);
+      if (a.table != nullptr) store8(a.depth + x, out, stream);
+      if (a.valid != nullptr) {
+        // Finite: |v| < inf (false for NaN and inf), as the scalar twin.
+        const auto m = static_cast<uint32_t>(_mm256_movemask_ps(_mm256_cmp_ps(_mm256_and_ps(out, abs_mask), inf, _CMP_LT_OQ)));
+        valid_count += static_cast<size_t>(__builtin_popcount(m));
+        if (stream_valid)
+          _mm_stream_si64(reinterpret_cast<long long*>(a.valid + x), static_cast<long long>(kByteMasks.v[m]));
+        else
+          std::memcpy(a.valid + x, &kByteMasks.v[m], 8);
+      }
     }
   }
   if (a.valid != nullptr) *a.valid_count += valid_count;

@@ -129,8 +129,7 @@ FloatTable::FloatTable(const sdk::CalibrationTable* table) {
     // evaluated in double at the float xb the kernels compute).
     const auto nb = size_t(last_bin) + 1;
     thr.resize(nb);
-    line_y.resize(2 * nb);
-    line_slope.resize(2 * nb);
+    lines.resize(4 * nb);
     size_t k = 0;
     for (size_t b = 0; b < nb; ++b) {
       while (k < breakpoint_bin.size() && breakpoint_bin[k] < int32_t(b)) ++k;
@@ -141,8 +140,9 @@ FloatTable::FloatTable(const sdk::CalibrationTable* table) {
         const auto& p = s[seg];
         const auto& q = s[seg + 1];
         const double slope = (q.second - p.second) / (q.first - p.first);
-        line_y[2 * b + side] = static_cast<float>(p.second + (double(xb) - p.first) * slope);
-        line_slope[2 * b + side] = static_cast<float>(slope);
+        const size_t i = 2 * b + side;
+        lines[2 * i] = static_cast<float>(p.second + (double(xb) - p.first) * slope);
+        lines[2 * i + 1] = static_cast<float>(slope);
       }
     }
     usable = true;
@@ -163,7 +163,7 @@ float FloatTable::lookup(float x) const noexcept {
   const int32_t b = bin(x);
   const size_t i = 2 * size_t(b) + (x >= thr[size_t(b)] ? 1u : 0u);
   const float xb = x0 + static_cast<float>(b) * dx;
-  return line_y[i] + (x - xb) * line_slope[i];
+  return lines[2 * i] + (x - xb) * lines[2 * i + 1];
 }
 
 size_t fbar_row_scalar(const RowArgs& a, uint32_t x_begin, uint32_t x_end) noexcept {

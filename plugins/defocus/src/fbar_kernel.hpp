@@ -10,7 +10,8 @@
 // maximum wins) with the values left and right of it, then Eq. 2.9 from the
 // three, the validity tests of focus_measures.hpp, the saturation bit, and
 // depth = table(fbar). One read of the F E-maps, the mean and the bits; no
-// intermediate arrays.
+// intermediate maps (the AVX2 kernel keeps 256 pixels of fbar in a stack
+// buffer between its f-bar loop and its lookup loop, see fbar_avx2.cpp).
 //
 // Threads: the functions are reentrant; a FloatTable is read-only once built.
 #pragma once
@@ -25,7 +26,8 @@ namespace procam::defocus::detail {
 
 // CalibrationTable::lookup in float, vectorisable: a uniform grid over x whose
 // bins hold at most one breakpoint each, so x picks one of its bin's two
-// lines with one compare (three gathers per 8 pixels in the AVX2 kernel).
+// lines with one compare (per 8 pixels in the AVX2 kernel: one 8-lane gather
+// of thresholds and two 4-lane gathers of (y, slope) pairs).
 // Thresholds are rounded so the float compares decide exactly as the double
 // ones of CalibrationTable::lookup (x_f >= lo  <=>  double(x_f) >= x_min, and
 // likewise at every breakpoint): validity and segment always agree with the
@@ -37,8 +39,11 @@ struct FloatTable {
   float x0 = 0, inv_dx = 0, dx = 0;
   int32_t last_bin = 0;   // bin(hi)
   std::vector<float> thr;         // per bin: x >= thr takes the second line
-  std::vector<float> line_y, line_slope;  // per bin 2 lines: y = line_y + (x - xb) * line_slope,
-                                          // xb = x0 + bin * dx (the bin's left edge)
+  // Per bin 2 lines, line i = 2 bin + side as the pair lines[2i] = y at the
+  // bin's left edge xb = x0 + bin * dx, lines[2i + 1] = slope:
+  // y = lines[2i] + (x - xb) * lines[2i + 1]. Pairs, not two arrays, so the
+  // AVX2 kernel fetches both with one 64-bit gather element per pixel.
+  std::vector<float> lines;
   static constexpr int32_t kMaxBins = 1 << 16;
   explicit FloatTable(const sdk::CalibrationTable* table);
   // The bin of x: the same float operations in both kernels.
