@@ -289,7 +289,7 @@ TEST_P(MethodAbi, MisuseCodesPlansAndLifetimes) {
   for (const std::string& file : suite::sim_rig_files()) {
     rig = suite::sim_rig("plane", file);
     ASSERT_TRUE(rig);
-    rig_json = engine::plugin_rig_json(*rig, 2).dump();
+    rig_json = suite::plugin_rig_json_for(*rig, file).dump();
     if (file == suite::sim_rig_files().front()) {
       EXPECT_EQ(vt.session_create("no-such-method", "{}", rig_json.c_str(), &s, &err), PROCAM_ERR_INVALID_ARGUMENT);
       EXPECT_NE(err.message[0], '\0');

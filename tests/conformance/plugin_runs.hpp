@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "procam/engine/calibration_tables.hpp"
 #include "procam/engine/rig_json.hpp"
 #include "procam/engine/scan_runner.hpp"
 #include "procam/host/plugin_host.hpp"
@@ -56,9 +57,13 @@ inline std::string case_name(const std::string& plugin, const std::string& metho
 // one-camera rig (configs/rigs/sim.json) first; a method that refuses it with
 // failed_precondition (it needs more than one camera and a projector) runs on
 // the first of the others it accepts: two cameras (binocular stereo) and
-// camera+light units (lights co-located with five cameras, plugin ABI 3).
+// camera+light units (lights co-located with five cameras, plugin ABI 3), and
+// the co-located rig of thesis ch. 2, the one that ships the calibration
+// tables the defocus methods and separation's one-focal-depth need (made on
+// that rig: a method refuses a rig without its table).
 inline const std::vector<std::string>& sim_rig_files() {
-  static const std::vector<std::string> files = {"sim.json", "sim-tank-stereo.json", "sim-helmholtz.json"};
+  static const std::vector<std::string> files = {"sim.json", "sim-tank-stereo.json", "sim-helmholtz.json",
+                                                 "sim-colocated.json"};
   return files;
 }
 
@@ -73,6 +78,20 @@ inline std::unique_ptr<hw::Rig> sim_rig(const std::string& scene, const std::str
   if (!rig.ok()) return nullptr;
   EXPECT_TRUE((*rig)->apply_scan_options({{"scene", scene}}).ok());
   return std::move(*rig);
+}
+
+// The plugin's rig description for the shipped rig configs/rigs/<file>, with
+// the calibration tables that config names loaded into it, as procamd and
+// `procam decode` do (docs/calibration.md).
+inline nlohmann::json plugin_rig_json_for(hw::Rig& rig, const std::string& file) {
+  nlohmann::json j = engine::plugin_rig_json(rig, 2);
+  auto cfg = engine::read_json_file(source("configs/rigs/" + file));
+  EXPECT_TRUE(cfg.ok()) << cfg.status().message();
+  if (!cfg.ok()) return j;
+  auto tables = engine::load_calibration_tables(*cfg, source("configs/rigs"), file);
+  EXPECT_TRUE(tables.ok()) << tables.status().message();
+  if (tables.ok() && tables->is_object() && !tables->empty()) j["calibration_tables"] = *tables;
+  return j;
 }
 
 // The inputs a method declares as required (describe() "inputs", ABI 2),
@@ -138,7 +157,7 @@ inline bool run_on_sim(const std::string& plugin, const std::string& method, con
     run.rig = sim_rig(scene, file);
     if (!run.rig) return false;
     run.rig_file = file;
-    run.rig_json = engine::plugin_rig_json(*run.rig, 2);
+    run.rig_json = plugin_rig_json_for(*run.rig, file);
     std::vector<std::vector<float>> storage;
     const std::vector<host::InputImage> inputs = required_inputs(describe, *run.rig, storage);
     auto session = host.create_session(plugin, method, params, run.rig_json.dump(), inputs);
