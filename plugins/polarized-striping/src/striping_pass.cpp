@@ -544,6 +544,34 @@ inline void dop_sample(const PackedView& best, const PackedView& worst, size_t i
 }
 
 #ifdef PROCAM_SDK_X86
+// The DOP ratios r of entries [j, j + 8) (dop_sample's arithmetic: float
+// background quotients, then the double sum, difference and quotient rounded
+// to float) into `r`; returns the lanes that count (backgrounds unclipped and
+// their sum above min_sum). Shared by dop_keys_avx2 and pivot_keys_avx2 so
+// both passes make the same keys.
+__attribute__((target("avx2"), always_inline)) inline int dop_ratios8(const PackedView& best, const PackedView& worst,
+                                                                     size_t j, __m256i satv, __m256 fdb, __m256 fdw,
+                                                                     __m256d ms, __m256& r) {
+  const __m256i b2 = _mm256_srli_epi32(load8(best.key2 + j), 8), w2 = _mm256_srli_epi32(load8(worst.key2 + j), 8);
+  const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(satv, b2), _mm256_cmpgt_epi32(satv, w2));
+  const __m256i nb = _mm256_sub_epi32(_mm256_sub_epi32(load8(best.sum + j), _mm256_srli_epi32(load8(best.key1 + j), 8)), b2);
+  const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst.sum + j), _mm256_srli_epi32(load8(worst.key1 + j), 8)), w2);
+  const __m256 bb = _mm256_div_ps(_mm256_cvtepi32_ps(nb), fdb), bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fdw);
+  const __m256d bb_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bb)), bb_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bb, 1));
+  const __m256d bw_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bw)), bw_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bw, 1));
+  const __m256d sum_lo = _mm256_add_pd(bw_lo, bb_lo), sum_hi = _mm256_add_pd(bw_hi, bb_hi);
+  const int bits = _mm256_movemask_ps(_mm256_castsi256_ps(ok)) &
+                   (_mm256_movemask_pd(_mm256_cmp_pd(sum_lo, ms, _CMP_GT_OQ)) |
+                    (_mm256_movemask_pd(_mm256_cmp_pd(sum_hi, ms, _CMP_GT_OQ)) << 4));
+  if (bits == 0) return 0;
+  const __m128 r_lo = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_lo, bb_lo), sum_lo));
+  const __m128 r_hi = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_hi, bb_hi), sum_hi));
+  r = _mm256_set_m128(r_hi, r_lo);
+  return bits;
+}
+#endif
+
+#ifdef PROCAM_SDK_X86
 // dop_sample for the contiguous entries [j0, j1) (stride 1: a stack's
 // compact DOP sample), 8 at a time: the same IEEE operations in the same
 // order (float quotients, then double sum, difference and quotient rounded
@@ -557,21 +585,10 @@ __attribute__((target("avx2"))) size_t dop_keys_avx2(const PackedView& best, con
   size_t j = j0;
   alignas(32) float r8[8];
   for (; j + 8 <= j1; j += 8) {
-    const __m256i b2 = _mm256_srli_epi32(load8(best.key2 + j), 8), w2 = _mm256_srli_epi32(load8(worst.key2 + j), 8);
-    const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(satv, b2), _mm256_cmpgt_epi32(satv, w2));
-    const __m256i nb = _mm256_sub_epi32(_mm256_sub_epi32(load8(best.sum + j), _mm256_srli_epi32(load8(best.key1 + j), 8)), b2);
-    const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst.sum + j), _mm256_srli_epi32(load8(worst.key1 + j), 8)), w2);
-    const __m256 bb = _mm256_div_ps(_mm256_cvtepi32_ps(nb), fdb), bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fdw);
-    const __m256d bb_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bb)), bb_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bb, 1));
-    const __m256d bw_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bw)), bw_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bw, 1));
-    const __m256d sum_lo = _mm256_add_pd(bw_lo, bb_lo), sum_hi = _mm256_add_pd(bw_hi, bb_hi);
-    const int bits = _mm256_movemask_ps(_mm256_castsi256_ps(ok)) &
-                     (_mm256_movemask_pd(_mm256_cmp_pd(sum_lo, ms, _CMP_GT_OQ)) |
-                      (_mm256_movemask_pd(_mm256_cmp_pd(sum_hi, ms, _CMP_GT_OQ)) << 4));
+    __m256 r;
+    const int bits = dop_ratios8(best, worst, j, satv, fdb, fdw, ms, r);
     if (bits == 0) continue;
-    const __m128 r_lo = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_lo, bb_lo), sum_lo));
-    const __m128 r_hi = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_hi, bb_hi), sum_hi));
-    _mm256_store_ps(r8, _mm256_set_m128(r_hi, r_lo));
+    _mm256_store_ps(r8, r);
     for (int l = 0; l < 8; ++l) {
       if (!((bits >> l) & 1)) continue;
       ++part.counted;
@@ -656,22 +673,11 @@ __attribute__((target("avx2"))) size_t pivot_keys_avx2(const PackedView& best, c
   alignas(32) int32_t k8[8];
   size_t j = j0;
   for (; j + 8 <= j1; j += 8) {
-    const __m256i b2 = _mm256_srli_epi32(load8(best.key2 + j), 8), w2 = _mm256_srli_epi32(load8(worst.key2 + j), 8);
-    const __m256i ok = _mm256_and_si256(_mm256_cmpgt_epi32(satv, b2), _mm256_cmpgt_epi32(satv, w2));
-    const __m256i nb = _mm256_sub_epi32(_mm256_sub_epi32(load8(best.sum + j), _mm256_srli_epi32(load8(best.key1 + j), 8)), b2);
-    const __m256i nw = _mm256_sub_epi32(_mm256_sub_epi32(load8(worst.sum + j), _mm256_srli_epi32(load8(worst.key1 + j), 8)), w2);
-    const __m256 bb = _mm256_div_ps(_mm256_cvtepi32_ps(nb), fdb), bw = _mm256_div_ps(_mm256_cvtepi32_ps(nw), fdw);
-    const __m256d bb_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bb)), bb_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bb, 1));
-    const __m256d bw_lo = _mm256_cvtps_pd(_mm256_castps256_ps128(bw)), bw_hi = _mm256_cvtps_pd(_mm256_extractf128_ps(bw, 1));
-    const __m256d sum_lo = _mm256_add_pd(bw_lo, bb_lo), sum_hi = _mm256_add_pd(bw_hi, bb_hi);
-    const int bits = _mm256_movemask_ps(_mm256_castsi256_ps(ok)) &
-                     (_mm256_movemask_pd(_mm256_cmp_pd(sum_lo, ms, _CMP_GT_OQ)) |
-                      (_mm256_movemask_pd(_mm256_cmp_pd(sum_hi, ms, _CMP_GT_OQ)) << 4));
+    __m256 r;
+    const int bits = dop_ratios8(best, worst, j, satv, fdb, fdw, ms, r);
     if (bits == 0) continue;
     counted += size_t(__builtin_popcount(unsigned(bits)));
-    const __m128 r_lo = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_lo, bb_lo), sum_lo));
-    const __m128 r_hi = _mm256_cvtpd_ps(_mm256_div_pd(_mm256_sub_pd(bw_hi, bb_hi), sum_hi));
-    const __m256i rb = _mm256_castps_si256(_mm256_set_m128(r_hi, r_lo));
+    const __m256i rb = _mm256_castps_si256(r);
     const int nonfinite = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(rb, expm), expm)));
     const int fbits = bits & ~nonfinite;
     if (fbits == 0) continue;
