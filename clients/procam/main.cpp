@@ -59,9 +59,10 @@ const std::vector<Command> kCommands = {
      "bench --out DIR [--scene NAME|FILE]... [--method M]... [--rig RIG.json] [--threads N] [--only-listed 1]\n"
      "      [--param METHOD.key=value]... [--keep DIR]   (keep: write every run's outputs + outputs.json)\n"
      "                                offline: every method on every sim scene; speed-vs-error table + plot"},
-    {"sim", cmd_sim, {"scene", "pattern", "out", "rig", "list", "frames"},
-     "sim --scene S --pattern white|black|gray:BIT[:inv]|checker:SIZE:DX:DY|FILE --out DIR [--rig RIG.json] [--frames N]\n"
-     "                                offline: render a sim scene with ground truth and direct/global split;\n"
+    {"sim", cmd_sim, {"scene", "pattern", "out", "rig", "list", "frames", "components"},
+     "sim --scene S --pattern white|black|gray:BIT[:inv]|checker:SIZE:DX:DY|FILE --out DIR [--rig RIG.json] [--frames N] [--components 1]\n"
+     "                                offline: render a sim scene with ground truth and direct/global split\n"
+     "                                (--components 1: one image per transport path);\n"
      "                                sim --list scenes; sim --scene S --pattern gray-errors (per-bit errors)"},
     {"calibrate", cmd_calibrate, {"endpoint", "timeout", "scene", "reference", "out", "force", "param", "label"},
      "calibrate PLUGIN/METHOD --out FILE [--scene S] [--reference structured-light/gray] [--param k=v]...\n"

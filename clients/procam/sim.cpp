@@ -11,7 +11,9 @@
 // shifted by DX, DY pixels; lit where ((x+DX)/SIZE + (y+DY)/SIZE) is even), or
 // an image file. Outputs (docs/sim.md "CLI"): image.png (the captured frame),
 // radiance.exr, direct.exr, global.exr (ru), ratio.exr (global/direct under
-// white), depth_mm.exr, proj_col.exr, proj_row.exr, lit.png, info.json.
+// white), depth_mm.exr, proj_col.exr, proj_row.exr, lit.png, info.json;
+// `--components 1` also component-<name>.exr per transport component (ru, no
+// ambient: Renderer::render_component), e.g. the glossy-view and mirror paths.
 // `--frames N` (scenes with a "legendre_medium", docs/legendre.md): also
 // frame_000.png .. frame_N-1.png, the captured frame with the dynamic medium
 // at t = k * frame_period_s (a PNG sequence of the medium's motion), and the
@@ -220,6 +222,14 @@ int cmd_sim(const Args& a) {
            {"ratio.exr", std::move(parts->global_direct_ratio_white)}}) {
     Status ws = write_image(out + "/" + name, img, attrs);
     if (!ws.ok()) return report(ws);
+  }
+  if (a.get("components", "0") == "1") {  // one image per transport path (ground truth of single paths)
+    std::vector<float> part(size_t{w} * h);
+    for (const auto& c : r.components()) {
+      Status cs = r.render_component(*prepared, part.data(), c->name());
+      if (cs.ok()) cs = write_image(out + "/component-" + c->name() + ".exr", f32_image(part, w, h), attrs);
+      if (!cs.ok()) return report(cs);
+    }
   }
   if (a.has("frames")) {  // the dynamic medium over time (docs/legendre.md)
     const int frames = std::atoi(a.get("frames").c_str());

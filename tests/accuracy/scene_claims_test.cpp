@@ -248,18 +248,24 @@ void expect_rounds_pay(const std::string& scene, bool rounds_skipped, bool auto_
 TEST(SceneClaims, Issue18CornerWaxRoundSkipped) { expect_rounds_pay("corner-wax", true); }
 TEST(SceneClaims, Issue18GlossyPipeRoundPays) { expect_rounds_pay("glossy-pipe", false); }
 
-// Issue 18's acceptance on every scene of the three sets reported in
+// Issue 18's acceptance on every scene of the four sets reported in
 // docs/report/issue18/README.md: the library, the first validation set
 // (val-*, development data since session 11 tuned the two-code midpoint and
-// the discard rule on it) and the second (val2-*, written after those rules
-// were frozen). Scenes are named (library) or paths (validation sets).
-// `auto_near_best` is false only where the report states the measured miss
-// of "auto within 0.02 pp of the best method" with numbers; the other
-// criteria (rounds and auto never above ensemble-nocorr, auto's patterns)
-// are asserted on every scene.
+// the discard rule on it), the second (val2-*, development data since
+// session 13 found the probe's over-forecast on its chrome dish) and the
+// third (val3-*, written after the session-13 rules were frozen). Scenes are
+// named (library) or paths (validation sets). `auto_near_best` is false only
+// where the report states the measured miss of "auto within 0.02 pp of the
+// best method" with numbers; the other criteria (rounds and auto never above
+// ensemble-nocorr, auto's patterns) are asserted on every scene.
+// `rounds_skipped`: the probe must skip the round (ensemble <= 47 patterns):
+// on the chrome dish its pixels are too dark under the mask for the round to
+// decode (docs/structured-light.md, session 13; before, a round of 42
+// patterns was projected and discarded at acceptance 0.08).
 struct Issue18Scene {
   const char* scene;
   bool auto_near_best;
+  bool rounds_skipped = false;
 };
 std::ostream& operator<<(std::ostream& o, const Issue18Scene& s) { return o << s.scene; }
 
@@ -269,7 +275,7 @@ TEST_P(Issue18, RoundsAndAutoPay) {
   const Issue18Scene& s = GetParam();
   std::string scene = s.scene;
   if (scene.rfind("val", 0) == 0) scene = std::string(PROCAM_SOURCE_DIR) + "/configs/scenes/validation/" + scene + ".json";
-  expect_rounds_pay(scene, false, s.auto_near_best);
+  expect_rounds_pay(scene, s.rounds_skipped, s.auto_near_best);
 }
 
 std::string issue18_name(const ::testing::TestParamInfo<Issue18Scene>& i) {
@@ -293,9 +299,16 @@ INSTANTIATE_TEST_SUITE_P(ValidationDev, Issue18,
                          issue18_name);
 INSTANTIATE_TEST_SUITE_P(Validation2, Issue18,
                          ::testing::Values(Issue18Scene{"val2-shelf-corners", true},
-                                           Issue18Scene{"val2-chrome-dish-post", true},
+                                           Issue18Scene{"val2-chrome-dish-post", true, true},
                                            Issue18Scene{"val2-jade-acrylic-blocks", true},
                                            Issue18Scene{"val2-depth-staircase", true}),
+                         issue18_name);
+INSTANTIATE_TEST_SUITE_P(Validation3, Issue18,
+                         ::testing::Values(Issue18Scene{"val3-niche-corners", true},
+                                           // measured miss (README): auto 2.886 % vs xor02 2.326 %
+                                           Issue18Scene{"val3-copper-nickel-cylinders", false},
+                                           Issue18Scene{"val3-alabaster-silicone", true},
+                                           Issue18Scene{"val3-near-ramp-far", true}),
                          issue18_name);
 
 // §2.5 / Fig. 3.4: beyond the depth of field defocus blurs the finest planes.

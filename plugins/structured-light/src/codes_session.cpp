@@ -262,12 +262,13 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         if (c.empty()) return sdk::state_error("correction probe: a frame did not arrive");
       const std::vector<float> masked = probe_[0].intensity(), plane = probe_[1].intensity(),
                                inverse = probe_[2].intensity();
-      forecast_ = forecast_round(rig_, mask_, coord_, cls_, lit_, masked, intensity_, plane, inverse, static_cast<float>(cfg_.probe_margin),
-                                 cfg_.code_maps ? &forecast_map_ : nullptr);
+      forecast_ = forecast_round(rig_, mask_, coord_, cls_, lit_, masked, intensity_, plane, inverse,
+                                 static_cast<float>(cfg_.probe_margin), static_cast<float>(cfg_.min_contrast),
+                                 cfg_.black, cfg_.code_maps ? &forecast_map_ : nullptr);
       nlohmann::json& st = steps_.back();
       st["probe"] = {{"flagged", forecast_.flagged}, {"own_light_off", forecast_.own_light_off},
                      {"unchanged", forecast_.unchanged}, {"fine_stripes_lost", forecast_.blurred},
-                     {"fixable", forecast_.fixable}};
+                     {"too_dark_under_mask", forecast_.too_dark}, {"fixable", forecast_.fixable}};
       stats.kind = "probe";
       stats.errors = errors_before_round();
       stats.lit = rounds_.back().lit;
@@ -483,7 +484,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     if (!forecast_map_.empty())
       out.add_image("correction_forecast", "",
                     "the last correction probe's verdict per pixel (code_maps): 0 not flagged, 1 own "
-                    "light switched off, 2 light unchanged, 3 fine stripes still lost, 4 fixable",
+                    "light switched off, 2 light unchanged, 3 fine stripes still lost, 4 fixable, "
+                    "5 too dark under the mask (masked white below min_contrast: the round cannot decode it)",
                     w, h, std::move(forecast_map_));
     if (cfg_.code_maps)
       for (size_t k = 0; k < stage_maps_.size(); ++k)

@@ -119,7 +119,7 @@ RoundForecast forecast_round(const sdk::Rig& rig, const std::vector<uint8_t>& ma
                              const std::vector<float>& round1_white,
                              const std::vector<float>& masked_plane,
                              const std::vector<float>& masked_inverse, float min_margin,
-                             std::vector<uint8_t>* per_pixel) {
+                             float min_contrast, bool black_frame, std::vector<uint8_t>* per_pixel) {
   RoundForecast f;
   if (per_pixel != nullptr) per_pixel->assign(cls.size(), 0);
   for (size_t i = 0; i < cls.size(); ++i) {
@@ -132,12 +132,15 @@ RoundForecast forecast_round(const sdk::Rig& rig, const std::vector<uint8_t>& ma
     if (!mask.empty()) col = row_column_estimate(coord, rig.cameras.at(0).width, i, 6);
     if (!(m >= kCorrectionMinLight * w) || !(m > 0.0f)) k = 1;  // NaN or black: off
     else if (!std::isnan(col) && !clear_of_mask(rig, mask, i, col)) k = 1;
+    else if (!(m - (black_frame ? std::max(0.0f, masked_plane[i] + masked_inverse[i] - m) : 0.0f) >= min_contrast))
+      k = 5;  // the masked round's decoder leaves it unlit (decode.hpp rule 1)
     else if (m > (1.0f - kCorrectionMinDrop) * w) k = 2;
     else if (!(std::fabs(masked_plane[i] - masked_inverse[i]) >= min_margin * m)) k = 3;
     f.own_light_off += k == 1;
     f.unchanged += k == 2;
     f.blurred += k == 3;
     f.fixable += k == 4;
+    f.too_dark += k == 5;
     if (per_pixel != nullptr) (*per_pixel)[i] = k;
   }
   return f;

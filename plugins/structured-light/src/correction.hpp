@@ -98,8 +98,22 @@ size_t label_conflicts_keys(const int32_t* const key[kEnsembleCodes], int32_t ag
 // what every code needs to agree (Eq. 3.5, global light split evenly).
 // merge_correction() then accepts only all-four-agree answers, so the
 // forecast is an upper bound on what the round resolves.
+//
+// Too dark under the mask (issue 18, session 13): the masked round decodes
+// a pixel only where its contrast C = Wm - B reaches min_contrast (decode.hpp
+// rule 1, the same decoder and threshold as every round; B = 0 without a
+// black frame, as the decoder assumes, else the probe's own B = L + L̄ - Wm,
+// pattern + inverse = white + black). A pixel below it gets no answer from
+// the round, whatever the other tests say: verdict "too dark", tested right
+// after "own light off". Where this mattered: the chrome dish of
+// val2-chrome-dish-post (diffuse albedo 0.03, lit mostly by its mirror path)
+// has round-1 whites of ~10 DN; the mask halves them to ~5 DN, under the
+// 7.65 DN of min_contrast 0.03, while noise and the mirror's own stripes pass
+// the ratio and stripe tests (2 910 of the 3 532 pixels the probe called
+// fixable; the round answered none of them).
 struct RoundForecast {
   size_t flagged = 0, own_light_off = 0, unchanged = 0, blurred = 0, fixable = 0;
+  size_t too_dark = 0;  // Wm - B < min_contrast: the masked round cannot decode it
   size_t lit = 0;
   double predicted_gain() const {  // fixable / lit pixels
     return lit > 0 ? static_cast<double>(fixable) / static_cast<double>(lit) : 0.0;
@@ -112,10 +126,15 @@ RoundForecast forecast_round(const sdk::Rig& rig, const std::vector<uint8_t>& ma
                              const std::vector<float>& round1_white,
                              const std::vector<float>& masked_plane,
                              const std::vector<float>& masked_inverse, float min_margin,
+                             float min_contrast, bool black_frame,
                              std::vector<uint8_t>* per_pixel = nullptr);
+// min_contrast: the decoder's (fraction of full scale, like the frames);
+// black_frame: the round projects a black frame (then B is estimated as above).
 // per_pixel (optional, resized to cls.size()): 0 not flagged, then 1 own light
-// off, 2 unchanged, 3 fine stripes lost, 4 fixable. An empty mask skips the
-// column test (no rig geometry needed: unit tests of the light rules).
+// off, 2 unchanged, 3 fine stripes lost, 4 fixable, 5 too dark under the mask.
+// Tests in order 1, 5, 2, 3; the first that holds decides. An empty mask
+// skips the column test (no rig geometry needed: unit tests of the light
+// rules).
 
 // Column estimate of camera pixel i for the forecast: linear interpolation
 // between the nearest valid pixels (coord not NaN) left and right of it in its

@@ -337,7 +337,7 @@ TEST(Correction, ForecastCountsFixablePixelsByTheProbeRules) {
   const sdk::Rig rig = rectified_rig();
   const std::vector<uint8_t> no_mask;
   const std::vector<float> no_coord;
-  const RoundForecast f = forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f);
+  const RoundForecast f = forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f, 0.03f, false);
   EXPECT_EQ(f.lit, 7u);
   EXPECT_EQ(f.flagged, 6u);
   EXPECT_EQ(f.own_light_off, 1u);
@@ -347,10 +347,10 @@ TEST(Correction, ForecastCountsFixablePixelsByTheProbeRules) {
   EXPECT_DOUBLE_EQ(f.predicted_gain(), 3.0 / 7.0);
   EXPECT_EQ(f.flagged, f.own_light_off + f.unchanged + f.blurred + f.fixable);
   // A black masked white (0 / 0) is "own light off", never NaN-fixable.
-  const RoundForecast z = forecast_round(rig, no_mask, no_coord, {kError}, {255}, {0.0f}, {0.0f}, {0.0f}, {0.0f}, 0.5f);
+  const RoundForecast z = forecast_round(rig, no_mask, no_coord, {kError}, {255}, {0.0f}, {0.0f}, {0.0f}, {0.0f}, 0.5f, 0.03f, false);
   // An "on" stripe whose inverse is as bright (ambient or blur): not fixable,
   // although |2L - Wm| alone would pass.
-  const RoundForecast amb = forecast_round(rig, no_mask, no_coord, {kError}, {255}, {0.6f}, {1.0f}, {0.5f}, {0.45f}, 0.5f);
+  const RoundForecast amb = forecast_round(rig, no_mask, no_coord, {kError}, {255}, {0.6f}, {1.0f}, {0.5f}, {0.45f}, 0.5f, 0.03f, false);
   EXPECT_EQ(amb.blurred, 1u);
   EXPECT_EQ(z.fixable + z.unchanged + z.blurred + z.own_light_off, 1u);
   EXPECT_EQ(z.fixable, 0u);
@@ -367,7 +367,7 @@ TEST(Correction, ForecastCountsFixablePixelsByTheProbeRules) {
   coord[near_mask - 1] = 28.0f;  // neighbours: columns 28 and 30 -> estimate 29, within 2 of 30..34
   coord[near_mask + 1] = 30.0f;
   coord[far_from_mask - 2] = 55.0f;  // estimate 55 (one side only): far from the mask
-  const RoundForecast g = forecast_round(rig, mask, coord, cls2, lit2, half, ones, on, off, 0.5f);
+  const RoundForecast g = forecast_round(rig, mask, coord, cls2, lit2, half, ones, on, off, 0.5f, 0.03f, false);
   EXPECT_EQ(g.flagged, 2u);
   EXPECT_EQ(g.own_light_off, 1u);
   EXPECT_EQ(g.fixable, 1u);
@@ -378,6 +378,53 @@ TEST(Correction, ForecastCountsFixablePixelsByTheProbeRules) {
   EXPECT_FALSE(fixable_pixel(0.95f, 1.0f));
   EXPECT_FALSE(fixable_pixel(0.2f, 1.0f));
   EXPECT_FALSE(fixable_pixel(kNaN, 1.0f));
+}
+
+// Too dark under the mask (correction.hpp): the masked round decodes a pixel
+// only where Wm - B >= min_contrast (decode.hpp rule 1). Four flagged pixels
+// that pass the light-ratio and stripe tests (Wm = 0.6 W1, |L - L̄| = 0.8 Wm),
+// at round-1 whites of 10, 12.8, 13 and 100 DN of 255 (as on the chrome dish,
+// ~10 DN, and a matte part): with min_contrast 0.03 (7.65 DN) the masked
+// whites 6, 7.68, 7.8 and 60 DN give too dark, fixable (just above), fixable,
+// fixable. With a black frame B = L + L̄ - Wm is
+// subtracted first: a 1 DN black makes the 7.68 and 7.8 DN pixels too dark.
+TEST(Correction, ForecastCountsPixelsTooDarkForTheMaskedRound) {
+  const float dn = 1.0f / 255.0f;
+  const std::vector<uint8_t> cls(4, kError), lit(4, 255);
+  std::vector<float> w1, wm, plane, inverse;
+  for (float white_dn : {10.0f, 12.8f, 13.0f, 100.0f}) {
+    w1.push_back(white_dn * dn);
+    wm.push_back(0.6f * white_dn * dn);
+    plane.push_back(0.9f * wm.back());
+    inverse.push_back(0.1f * wm.back());
+  }
+  const sdk::Rig rig = rectified_rig();
+  const std::vector<uint8_t> no_mask;
+  const std::vector<float> no_coord;
+  std::vector<uint8_t> verdict;
+  const RoundForecast f =
+      forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f, 0.03f, false, &verdict);
+  EXPECT_EQ(f.too_dark, 1u);
+  EXPECT_EQ(f.fixable, 3u);
+  EXPECT_EQ(f.flagged, f.own_light_off + f.unchanged + f.blurred + f.fixable + f.too_dark);
+  EXPECT_EQ(verdict, (std::vector<uint8_t>{5, 4, 4, 4}));
+  // Black frame: the probe's B = L + L̄ - Wm (here 1 DN on every pixel).
+  for (size_t i = 0; i < 4; ++i) {
+    plane[i] += 0.5f * dn;
+    inverse[i] += 0.5f * dn;
+  }
+  const RoundForecast b =
+      forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f, 0.03f, true, &verdict);
+  EXPECT_EQ(verdict, (std::vector<uint8_t>{5, 5, 5, 4}));
+  EXPECT_EQ(b.too_dark, 3u);
+  // Without a black frame the same frames keep B = 0, as the decoder does.
+  const RoundForecast nb =
+      forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f, 0.03f, false);
+  EXPECT_EQ(nb.too_dark, 1u);
+  // min_contrast 0 (the thesis decoder): nothing is too dark.
+  const RoundForecast z = forecast_round(rig, no_mask, no_coord, cls, lit, wm, w1, plane, inverse, 0.5f, 0.0f, false);
+  EXPECT_EQ(z.too_dark, 0u);
+  EXPECT_EQ(z.fixable, 4u);
 }
 
 }  // namespace
