@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -609,6 +610,32 @@ bool WorkerProxy::may_freeze() const {
   return options_.freeze_outputs && options_.sandbox && pid_ > 0 && !broken_ && (sandbox_flags_ & needed) == needed;
 }
 
+namespace {
+// True when every thread of `pid` is stopped ('T') or done exiting (a zombie
+// leader, or gone from /proc/PID/task). A thread that was already exiting
+// when SIGSTOP came is not part of the group stop, and the kernel still
+// writes its clear_child_tid word and robust-futex list (exit_mm) -- memory
+// a plugin may have pointed into the arena. Those writes are done once the
+// thread is released or a zombie.
+bool threads_settled(pid_t pid) {
+  const std::string dir = "/proc/" + std::to_string(pid) + "/task";
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::FILE* f = std::fopen((it->path() / "stat").c_str(), "re");
+    if (f == nullptr) continue;  // released meanwhile
+    char buf[512];
+    const size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+    std::fclose(f);
+    buf[n] = '\0';
+    const char* paren = std::strrchr(buf, ')');
+    if (paren == nullptr || paren[1] != ' ') return false;
+    const char state = paren[2];
+    if (state != 'T' && state != 'Z' && state != 'X') return false;
+  }
+  return !ec;
+}
+}  // namespace
+
 bool WorkerProxy::freeze() {
   if (frozen_) return true;
   if (!may_freeze()) return false;
@@ -627,11 +654,10 @@ bool WorkerProxy::freeze() {
       break;  // ECHILD: SIGCHLD ignored, the kernel reaped it: no report to trust
     }
     if (info.si_pid == pid_) {
+      if (info.si_code == CLD_EXITED || info.si_code == CLD_KILLED || info.si_code == CLD_DUMPED) return true;
       // CLD_TRAPPED (a debugger attached) and anything else: not ours to trust.
-      if (info.si_code == CLD_STOPPED || info.si_code == CLD_EXITED || info.si_code == CLD_KILLED ||
-          info.si_code == CLD_DUMPED)
-        return true;
-      break;
+      if (info.si_code != CLD_STOPPED) break;
+      if (threads_settled(pid_)) return true;
     }
     if (Clock::now() > give_up) {
       PROCAM_LOG(plugins, warn) << "plugin '" << plugin_ << "': its worker did not stop within 1 s after its "
