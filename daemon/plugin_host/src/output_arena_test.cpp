@@ -290,10 +290,14 @@ TEST(OutputArenaTest, AFrozenWorkerIsNotHandedAnotherScan) {
     scan(*b);
     EXPECT_EQ(proc_state(first_pid), 'T');  // still frozen: a's outputs are still held
   }
-  // Both went idle, resumed (state 'S', waiting for the next create).
+  // Both were resumed and went idle (b first, then a): the next session
+  // takes the most recently used, a's, which serves it after its freeze.
+  EXPECT_NE(proc_state(first_pid), 'T');
   auto c = host.create_session("faults", "ok", "{}", "{}");
   ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c->worker_pid(), first_pid);
   scan(*c);
+  EXPECT_EQ(proc_state(first_pid), 'T');
   fs::remove_all(scratch);
 }
 
