@@ -350,6 +350,7 @@ TEST(OutputArenaTest, AFrozenWorkerEndsWhenKilledAndWhenTheDaemonDies) {
   // orphaned-process-group SIGHUP + SIGCONT does not come (it would end the
   // worker under systemd or a shell that exits); only the worker's
   // parent-death signal ends it. And this process can reap it and see how.
+  const std::string old_style = GTEST_FLAG_GET(death_test_style);
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   ASSERT_EQ(::prctl(PR_SET_CHILD_SUBREAPER, 1), 0);
   EXPECT_EXIT(
@@ -372,6 +373,7 @@ TEST(OutputArenaTest, AFrozenWorkerEndsWhenKilledAndWhenTheDaemonDies) {
     if (reaped == 0) std::this_thread::sleep_for(10ms);
   }
   ::prctl(PR_SET_CHILD_SUBREAPER, 0);
+  GTEST_FLAG_SET(death_test_style, old_style);
   EXPECT_EQ(reaped, pid) << "the frozen worker of a dead daemon is still there (state " << proc_state(pid) << ")";
   if (reaped == pid) {
     EXPECT_TRUE(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL) << "status " << st;
