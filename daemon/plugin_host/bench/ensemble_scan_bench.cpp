@@ -5,7 +5,10 @@
 // + white) on 1920x1200 8-bit camera frames, rig "threads": 2, decoded
 // through the host's Session, in-process (/0), isolated in a fresh worker per
 // scan (/1) and isolated in a warm worker reused from the scan before (/2,
-// IsolationOptions::max_idle_workers 1: README.md "Worker reuse").
+// IsolationOptions::max_idle_workers 1: README.md "Worker reuse"; the worker
+// is frozen after its outputs reply and the outputs read in place), and the
+// same with the daemon copying the outputs out of the arena instead (/3,
+// IsolationOptions::freeze_outputs false: the design before freezing).
 //  - BM_EnsembleScan/<backend>: all 41 add_frame calls (the plugin decodes
 //    as frames arrive), end_round, the closing next_plan and outputs() - the
 //    whole decode a scan pays after the session exists. Goal: isolated within
@@ -51,13 +54,15 @@ std::string rig_json() {
       .dump();
 }
 
-PluginHost& host_with(Isolation mode, uint32_t max_idle_workers = 0) {
-  return bench::host_with(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so", mode, max_idle_workers);
+PluginHost& host_with(Isolation mode, uint32_t max_idle_workers = 0, bool freeze_outputs = true) {
+  return bench::host_with(std::string(PROCAM_PLUGIN_DIR) + "/procam-structured-light.so", mode, max_idle_workers,
+                          freeze_outputs);
 }
 
 // A session with its plan fetched (frames expected next), or an error.
-Result<Session> planned_session(Isolation mode, uint32_t max_idle_workers, uint32_t* frames) {
-  auto s = host_with(mode, max_idle_workers).create_session("structured-light", "ensemble", "{}", rig_json());
+Result<Session> planned_session(Isolation mode, uint32_t max_idle_workers, bool freeze_outputs, uint32_t* frames) {
+  auto s = host_with(mode, max_idle_workers, freeze_outputs)
+               .create_session("structured-light", "ensemble", "{}", rig_json());
   if (!s) return s.status();
   auto plan = s->next_plan();
   if (!plan) return plan.status();
@@ -141,13 +146,14 @@ bool finish(Session& s, benchmark::State& state, Phases& ph) {
 
 void run(benchmark::State& state, bool after_last_only) {
   const auto mode = state.range(0) == 0 ? Isolation::in_process : Isolation::process;
-  const uint32_t max_idle = state.range(0) == 2 ? 1 : 0;
+  const uint32_t max_idle = state.range(0) >= 2 ? 1 : 0;
+  const bool freeze = state.range(0) != 3;
   const auto& px = frames();
   Phases ph;
   for (auto _ : state) {
     state.PauseTiming();
     uint32_t n = 0;
-    auto s = planned_session(mode, max_idle, &n);
+    auto s = planned_session(mode, max_idle, freeze, &n);
     if (!s || n != px.size()) {
       state.SkipWithError(s ? "the plan's frame count changed" : s.status().to_string().c_str());
       break;
@@ -188,15 +194,16 @@ void run(benchmark::State& state, bool after_last_only) {
   state.counters["process_cpu_ms"] = per_iter(ph.process_cpu);
   state.counters["output_MB"] = ph.output_bytes / 1e6;
   state.SetLabel(std::string(mode == Isolation::in_process ? "in_process"
-                             : max_idle > 0             ? "isolated, warm worker reused"
-                                                        : "isolated, fresh worker") + ", " +
+                             : max_idle == 0            ? "isolated, fresh worker"
+                             : freeze                   ? "isolated, warm worker reused"
+                                                        : "isolated, warm worker reused, outputs copied") + ", " +
                  std::to_string(px.size()) + " frames");
 }
 
 void BM_EnsembleScan(benchmark::State& state) { run(state, false); }
 void BM_EnsembleAfterLastFrame(benchmark::State& state) { run(state, true); }
-BENCHMARK(BM_EnsembleScan)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_EnsembleScan)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

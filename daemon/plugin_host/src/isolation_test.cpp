@@ -247,7 +247,7 @@ TEST_F(IsolationTest, WorkerOfAnotherProtocolVersionIsRefusedClearly) {
   ::rmdir(dir);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), Code::plugin_error) << s.status().to_string();
-  EXPECT_TRUE(contains(s.status().message(), "protocol version 99, expected 3")) << s.status().message();
+  EXPECT_TRUE(contains(s.status().message(), "protocol version 99, expected 4")) << s.status().message();
   EXPECT_TRUE(contains(s.status().message(), "from another build")) << s.status().message();
   EXPECT_TRUE(no_children());
 }

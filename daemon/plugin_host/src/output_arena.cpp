@@ -102,12 +102,29 @@ Status OutputSnapshot::adopt(int fd) {
   return {};
 }
 
+namespace {
+Status check_used(const Mapping& arena, uint64_t used) {
+  if (arena.size() == 0) return Error(Code::corrupt_data, "outputs announced before any output arena was sent");
+  if (used == 0 || used > arena.size())
+    return Error(Code::corrupt_data, "outputs of " + std::to_string(used) + " bytes in an arena of " +
+                                         std::to_string(arena.size()));
+  return {};
+}
+}  // namespace
+
+Status OutputSnapshot::view(uint64_t used) {
+  used_ = 0;
+  data_ = nullptr;
+  PROCAM_TRY(check_used(arena_, used));
+  data_ = arena_.data();
+  used_ = used;
+  return {};
+}
+
 Status OutputSnapshot::take(uint64_t used) {
   used_ = 0;
-  if (arena_.size() == 0) return Error(Code::corrupt_data, "outputs announced before any output arena was sent");
-  if (used == 0 || used > arena_.size())
-    return Error(Code::corrupt_data, "outputs of " + std::to_string(used) + " bytes in an arena of " +
-                                         std::to_string(arena_.size()));
+  data_ = nullptr;
+  PROCAM_TRY(check_used(arena_, used));
   if (copy_.size() < used) {
     give_spare(std::move(copy_));
     copy_ = take_spare(used);
@@ -120,6 +137,7 @@ Status OutputSnapshot::take(uint64_t used) {
   }
   // The one read of shared memory: everything after works on the copy.
   std::memcpy(copy_.mutable_data(), arena_.data(), used);
+  data_ = copy_.data();
   used_ = used;
   return {};
 }

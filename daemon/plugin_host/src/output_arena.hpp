@@ -16,6 +16,12 @@
 // this replaces) are gone; what remains is two memcpys (worker: maps ->
 // arena; daemon: arena -> copy).
 //
+// When the worker can be frozen (WorkerProxy::freeze: stopped with SIGSTOP,
+// its sandbox keeping anything else from writing the arena or resuming it;
+// README.md "Speed") the daemon decodes and hands out views into the arena
+// itself (view()) until it resumes the worker at the session's end: then the
+// copy above is not taken, and what is left is the worker's memcpy.
+//
 // Ownership: OutputArena belongs to the worker (one per process, kept across
 // sessions); OutputSnapshot to one WorkerProxy (kept across the sessions of a
 // reused worker). The views into OutputSnapshot::data() are valid until the
@@ -68,13 +74,18 @@ public:
   // Copies bytes [0, used) of the arena into the private buffer (grown as
   // needed); corrupt_data if no arena was adopted or `used` is beyond it.
   Status take(uint64_t used);
-  const uint8_t* data() const { return copy_.data(); }
+  // Bytes [0, used) of the arena itself, no copy: only while the worker
+  // cannot run (the daemon froze it, WorkerProxy::freeze), until it is
+  // resumed. Same checks as take().
+  Status view(uint64_t used);
+  const uint8_t* data() const { return data_; }
   uint64_t size() const { return used_; }
   bool has_arena() const { return arena_.size() > 0; }
 
 private:
   Mapping arena_;  // read-only, shared with the worker
   Mapping copy_;   // private, anonymous, grow-only
+  const uint8_t* data_ = nullptr;  // copy_ after take(), arena_ after view()
   uint64_t used_ = 0;
 };
 

@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: MIT
 // The output arena (output_arena.hpp): outputs written into one reused
 // shared-memory arena per worker and copied by the daemon before it decodes
-// them. A worker that scribbles on the arena after its reply cannot change
-// what the daemon returned; the daemon refuses arenas it could lose pages
+// them, or, when the worker is frozen, read in place. A worker that
+// scribbles on the arena after its reply cannot change what the daemon
+// returned; the daemon refuses arenas it could lose pages
 // of (not sealed against shrinking), sparse arenas, and sizes beyond them.
 #include <gtest/gtest.h>
 #include <fcntl.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -13,6 +16,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <csignal>
 #include <string>
 #include <thread>
 #include <vector>
@@ -107,13 +114,50 @@ TEST(OutputArenaTest, RefusesWhatItCouldLosePagesOfOrIsSparse) {
   EXPECT_FALSE(snap.take(0).ok());
 }
 
+// The state letter of /proc/<pid>/stat ('T' stopped, 'Z' zombie), or 0 if
+// the process is gone.
+char proc_state(int pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t paren = text.rfind(')');
+  return paren == std::string::npos || paren + 2 >= text.size() ? 0 : text[paren + 2];
+}
+
+// The scribbler's marker in any worker scratch folder under `scratch`, or "".
+fs::path find_marker(const fs::path& scratch) {
+  std::error_code ec;
+  for (const auto& d : fs::directory_iterator(scratch, ec))
+    for (const char* name : {"scribbled", "no-arena"})
+      if (fs::exists(d.path() / name, ec)) return d.path() / name;
+  return {};
+}
+
+fs::path wait_for_marker(const fs::path& scratch) {
+  fs::path marker;
+  for (int i = 0; i < 500 && marker.empty(); ++i) {
+    marker = find_marker(scratch);
+    if (marker.empty()) std::this_thread::sleep_for(10ms);
+  }
+  return marker;
+}
+
+enum class Arena { frozen, copied, none };
+
 // A plugin thread overwrites the worker's output arena, starting 100 ms
-// after get_outputs, for about a second: the outputs the daemon returned are
-// the plugin's reply (the fixture's closed-form values), before and after.
-// With reuse on the worker keeps a writable arena (the daemon's copy
-// protects the client); with reuse off the outputs travel in a sealed blob
-// and no writable outputs mapping is left in the worker at all.
-void scribble_scan(uint32_t max_idle_workers) {
+// after get_outputs, for about a second (it marks every pass in its scratch
+// folder): the outputs the daemon returned are the plugin's reply (the
+// fixture's closed-form values), before and after.
+//  - frozen (reuse on, the default): the daemon stops the worker after the
+//    reply and hands out views into the arena; the scribbler cannot run while
+//    the session lives (no mark for 400 ms, the worker's state is 'T'), and
+//    runs once the session is gone: the client's own copy of the outputs,
+//    made while it held them, still shows the reply.
+//  - copied (reuse on, freeze_outputs off): the worker keeps running and
+//    scribbles while the client holds the outputs; the daemon's copy
+//    protects them.
+//  - none (reuse off): the outputs travel in a sealed blob and no writable
+//    outputs mapping is left in the worker at all.
+void scribble_scan(Arena mode) {
   const fs::path scratch = fs::temp_directory_path() / ("procam-arena-test-" + std::to_string(::getpid()));
   fs::remove_all(scratch);
   fs::create_directories(scratch);
@@ -121,8 +165,10 @@ void scribble_scan(uint32_t max_idle_workers) {
   ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
   IsolationOptions iso;
   iso.scratch_parent = scratch.string();
-  iso.max_idle_workers = max_idle_workers;
+  iso.max_idle_workers = mode == Arena::none ? 0 : 1;
+  iso.freeze_outputs = mode == Arena::frozen;
   host.set_isolation(iso);
+  std::vector<float> client_copy;  // what a client saved (a result file) while it held the outputs
   {
     auto s = host.create_session("faults", "scribble", "{}", "{}");
     ASSERT_TRUE(s.ok()) << s.status().to_string();
@@ -156,32 +202,189 @@ void scribble_scan(uint32_t max_idle_workers) {
       EXPECT_EQ(std::string((*outs)[3].json), "{\"frames\": 3}") << when;
     };
     check("at once");
-    // Wait until the plugin has overwritten the arena at least once (it
-    // says so in its scratch folder), so this test cannot pass vacuously.
-    fs::path marker;
-    const char* expect = max_idle_workers > 0 ? "scribbled" : "no-arena";
-    for (int i = 0; i < 500 && marker.empty(); ++i) {
-      for (const auto& d : fs::directory_iterator(scratch))
-        for (const char* name : {"scribbled", "no-arena"})
-          if (fs::exists(d.path() / name)) marker = d.path() / name;
-      if (marker.empty()) std::this_thread::sleep_for(10ms);
+    if (mode == Arena::frozen) {
+      // Stopped, and the scribbler (due 100 ms after the reply) cannot run.
+      EXPECT_EQ(proc_state(s->worker_pid()), 'T') << "the worker is not stopped while its outputs are held";
+      std::this_thread::sleep_for(400ms);
+      EXPECT_TRUE(find_marker(scratch).empty()) << "the plugin ran while the client held its outputs";
+      EXPECT_EQ(proc_state(s->worker_pid()), 'T');
+      check("400 ms later");
+    } else {
+      // Wait until the plugin has overwritten the arena at least once (it
+      // says so in its scratch folder), so this test cannot pass vacuously.
+      const fs::path marker = wait_for_marker(scratch);
+      ASSERT_FALSE(marker.empty()) << "the plugin's scribbler did not run within 5 s";
+      EXPECT_EQ(marker.filename().string(), mode == Arena::copied ? "scribbled" : "no-arena");
+      std::this_thread::sleep_for(100ms);  // and it keeps scribbling meanwhile
+      check("after the plugin overwrote its arena");
     }
-    ASSERT_FALSE(marker.empty()) << "the plugin's scribbler did not run within 5 s";
-    EXPECT_EQ(marker.filename().string(), expect);
-    std::this_thread::sleep_for(100ms);  // and it keeps scribbling meanwhile
-    check("after the plugin overwrote its arena");
-    // A second outputs() call returns the same copy, not a new read.
+    // A second outputs() call returns the same views, not a new read.
     auto again = s->outputs();
     ASSERT_TRUE(again.ok());
     EXPECT_EQ((*again)[1].image.data, (*outs)[1].image.data);
     check("after a second outputs() call");
+    // stop() after the outputs needs nothing from a frozen worker.
+    EXPECT_TRUE(s->stop().ok());
+    const auto* px = static_cast<const float*>((*outs)[1].image.data);
+    client_copy.assign(px, px + 4);
+    client_copy.insert(client_copy.end(), (*outs)[2].points, (*outs)[2].points + 8);
   }
+  if (mode == Arena::frozen) {
+    // The session is gone: the worker was resumed (and kept for reuse), and
+    // now the plugin does scribble over its arena -- after the fact.
+    const fs::path marker = wait_for_marker(scratch);
+    ASSERT_FALSE(marker.empty()) << "the plugin's scribbler did not run after the session ended";
+    EXPECT_EQ(marker.filename().string(), "scribbled");
+  }
+  ASSERT_EQ(client_copy.size(), 12u);
+  EXPECT_EQ(client_copy[0], 1.0f);
+  EXPECT_EQ(client_copy[1], 2.0f);
+  EXPECT_EQ(client_copy[2], 3.0f);
+  EXPECT_TRUE(std::isnan(client_copy[3]));
+  for (size_t i = 0; i < 8; ++i) EXPECT_EQ(client_copy[4 + i], static_cast<float>(i));
   fs::remove_all(scratch);
 }
 
-TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) { scribble_scan(1); }
+TEST(OutputArenaTest, ScribblingOnTheArenaAfterTheReplyChangesNothingReturned) { scribble_scan(Arena::frozen); }
 
-TEST(OutputArenaTest, WithoutReuseNoWritableOutputsMappingIsLeftInTheWorker) { scribble_scan(0); }
+TEST(OutputArenaTest, ScribblingWhileTheDaemonCopiesChangesNothingReturned) { scribble_scan(Arena::copied); }
+
+TEST(OutputArenaTest, WithoutReuseNoWritableOutputsMappingIsLeftInTheWorker) { scribble_scan(Arena::none); }
+
+// A frozen worker belongs to its session: another session of the same
+// plugin gets another worker while the first holds its outputs; the frozen
+// one is resumed and reused afterwards.
+TEST(OutputArenaTest, AFrozenWorkerIsNotHandedAnotherScan) {
+  const fs::path scratch = fs::temp_directory_path() / ("procam-arena-test2-" + std::to_string(::getpid()));
+  fs::remove_all(scratch);
+  fs::create_directories(scratch);
+  PluginHost host;
+  ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
+  IsolationOptions iso;
+  iso.scratch_parent = scratch.string();
+  iso.max_idle_workers = 2;
+  host.set_isolation(iso);
+  Image frame(4, 3, PixelType::u8);
+  for (size_t i = 0; i < 12; ++i) frame.ptr<uint8_t>()[i] = 7;
+  auto scan = [&](Session& s) {
+    auto plan = s.next_plan();
+    ASSERT_TRUE(plan.ok() && plan->has_value());
+    for (uint32_t i = 0; i < 3; ++i) ASSERT_TRUE(s.add_frame(i, frame.view()).ok());
+    ASSERT_TRUE(s.end_round().ok());
+    auto done = s.next_plan();
+    ASSERT_TRUE(done.ok() && !done->has_value());
+    auto outs = s.outputs();
+    ASSERT_TRUE(outs.ok()) << outs.status().to_string();
+    EXPECT_DOUBLE_EQ((*outs)[0].scalar, 3 * 12 * 7.0);
+  };
+  int first_pid = -1;
+  {
+    auto a = host.create_session("faults", "ok", "{}", "{}");
+    ASSERT_TRUE(a.ok());
+    scan(*a);
+    first_pid = a->worker_pid();
+    ASSERT_EQ(proc_state(first_pid), 'T');
+    auto b = host.create_session("faults", "ok", "{}", "{}");
+    ASSERT_TRUE(b.ok());
+    EXPECT_NE(b->worker_pid(), first_pid);
+    scan(*b);
+    EXPECT_EQ(proc_state(first_pid), 'T');  // still frozen: a's outputs are still held
+  }
+  // Both were resumed and went idle (b first, then a): the next session
+  // takes the most recently used, a's, which serves it after its freeze.
+  EXPECT_NE(proc_state(first_pid), 'T');
+  auto c = host.create_session("faults", "ok", "{}", "{}");
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c->worker_pid(), first_pid);
+  scan(*c);
+  EXPECT_EQ(proc_state(first_pid), 'T');
+  fs::remove_all(scratch);
+}
+
+// A frozen worker still ends: killed when its session cannot be reused (its
+// PluginHost is gone), and killed by its parent-death signal when the daemon
+// dies without cleaning up (a stopped process reads no EOF).
+TEST(OutputArenaTest, AFrozenWorkerEndsWhenKilledAndWhenTheDaemonDies) {
+  // The death test's child re-runs this test in a new process: it takes the
+  // parent's folder from the environment.
+  const char* inherited = std::getenv("PROCAM_TEST_ARENA_DIR");
+  const fs::path scratch = inherited != nullptr ? fs::path(inherited)
+                                                : fs::temp_directory_path() /
+                                                      ("procam-arena-test3-" + std::to_string(::getpid()));
+  ::setenv("PROCAM_TEST_ARENA_DIR", scratch.c_str(), 1);
+  const fs::path pid_file = scratch / "worker.pid";
+  auto frozen_session = [&](PluginHost& host) -> Result<Session> {
+    IsolationOptions iso;
+    iso.scratch_parent = scratch.string();
+    iso.max_idle_workers = 1;
+    host.set_isolation(iso);
+    auto s = host.create_session("faults", "ok", "{}", "{}");
+    if (!s) return s.status();
+    Image frame(4, 3, PixelType::u8);
+    if (!s->next_plan().ok()) return Error(Code::internal, "next_plan");
+    for (uint32_t i = 0; i < 3; ++i)
+      if (!s->add_frame(i, frame.view()).ok()) return Error(Code::internal, "add_frame");
+    if (!s->end_round().ok() || !s->next_plan().ok() || !s->outputs().ok()) return Error(Code::internal, "scan");
+    return std::move(*s);
+  };
+  fs::remove_all(scratch);
+  fs::create_directories(scratch);
+  {
+    auto host = std::make_unique<PluginHost>();
+    ASSERT_TRUE(host->load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
+    int pid = -1;
+    {
+      auto s = frozen_session(*host);
+      ASSERT_TRUE(s.ok()) << s.status().to_string();
+      pid = s->worker_pid();
+      ASSERT_EQ(proc_state(pid), 'T');
+      host.reset();  // the session outlives its host: its worker is killed, not kept
+    }
+    EXPECT_EQ(proc_state(pid), 0) << "a frozen worker survived the end of its session";
+  }
+  // The daemon dies (SIGKILL) while its worker is frozen: a child process
+  // (a fresh re-run of this test binary, gtest's threadsafe death test)
+  // plays the daemon and writes its worker's pid first. This process is
+  // made a subreaper, so the orphaned worker becomes its child: a parent in
+  // the same session, as under a container's init, so the kernel's
+  // orphaned-process-group SIGHUP + SIGCONT does not come (it would end the
+  // worker under systemd or a shell that exits); only the worker's
+  // parent-death signal ends it. And this process can reap it and see how.
+  const std::string old_style = GTEST_FLAG_GET(death_test_style);
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  ASSERT_EQ(::prctl(PR_SET_CHILD_SUBREAPER, 1), 0);
+  EXPECT_EXIT(
+      {
+        PluginHost host;
+        if (!host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok()) std::_Exit(3);
+        auto s = frozen_session(host);
+        if (!s.ok() || proc_state(s->worker_pid()) != 'T') std::_Exit(4);
+        std::ofstream(pid_file) << s->worker_pid() << "\n";
+        ::raise(SIGKILL);
+      },
+      ::testing::KilledBySignal(SIGKILL), "");
+  int pid = 0;
+  std::ifstream(pid_file) >> pid;
+  EXPECT_GT(pid, 0);
+  int st = 0;
+  pid_t reaped = 0;
+  for (int i = 0; pid > 0 && i < 500 && reaped == 0; ++i) {
+    reaped = ::waitpid(pid, &st, WNOHANG);
+    if (reaped == 0) std::this_thread::sleep_for(10ms);
+  }
+  ::prctl(PR_SET_CHILD_SUBREAPER, 0);
+  GTEST_FLAG_SET(death_test_style, old_style);
+  EXPECT_EQ(reaped, pid) << "the frozen worker of a dead daemon is still there (state " << proc_state(pid) << ")";
+  if (reaped == pid) {
+    EXPECT_TRUE(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL) << "status " << st;
+  }
+  if (pid > 0 && reaped == 0) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &st, 0);
+  }
+  ::unsetenv("PROCAM_TEST_ARENA_DIR");
+  fs::remove_all(scratch);
+}
 
 }  // namespace
 }  // namespace procam::host

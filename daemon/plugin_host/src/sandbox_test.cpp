@@ -159,6 +159,24 @@ TEST_F(SandboxTest, NoSignalsToProcessesOutsideTheWorker) {
   EXPECT_TRUE(has(lines, "signal: blocked (Operation not permitted)")) << ::testing::PrintToString(lines);
 }
 
+// What freezing the worker after its outputs reply relies on (README.md
+// "Speed"): no new processes (they would share the arena and not stop with
+// the worker), nothing that makes the kernel send SIGCONT later, no process
+// group change, no native AIO, no PTRACE_TRACEME; threads stay allowed.
+TEST_F(SandboxTest, NothingThatCouldWriteOrResumeAFrozenWorker) {
+  const auto control = run("try_freeze_escape", false);
+  for (const char* rule : {"fork", "thread", "timer", "setsig", "pdeathsig", "setpgid", "aio"})
+    ASSERT_TRUE(has(control, std::string(rule) + ": allowed")) << rule << ": " << ::testing::PrintToString(control);
+  ::setenv("PROCAM_TEST_TRACEME", "1", 1);  // inherited by the worker; harmless there with the sandbox on
+  const auto lines = run("try_freeze_escape", true);
+  ::unsetenv("PROCAM_TEST_TRACEME");
+  EXPECT_TRUE(has(lines, "thread: allowed")) << ::testing::PrintToString(lines);
+  for (const char* rule : {"fork", "timer", "setsig", "pdeathsig", "setpgid", "traceme"})
+    EXPECT_TRUE(has(lines, std::string(rule) + ": blocked (Operation not permitted)"))
+        << rule << ": " << ::testing::PrintToString(lines);
+  EXPECT_TRUE(has(lines, "aio: blocked (Function not implemented)")) << ::testing::PrintToString(lines);
+}
+
 TEST_F(SandboxTest, CapabilitiesDroppedNoNewPrivsSeccompOn) {
   std::string status;
   const auto lines = run("try_caps", true, &status);

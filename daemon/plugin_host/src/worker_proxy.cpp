@@ -7,9 +7,14 @@
 #include <spawn.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
+
+#include <condition_variable>
+#include <functional>
+#include <mutex>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -43,6 +48,55 @@ std::string signal_text(int sig) {
 }
 
 std::string ms_text(std::chrono::milliseconds ms) { return std::to_string(ms.count()) + " ms"; }
+
+// Every worker is spawned from this one thread, which lives as long as the
+// process (never joined, never destroyed). The worker's parent-death signal
+// (SIGKILL, worker_main.cpp) fires when the *thread* that spawned it ends;
+// spawned from a scan or client thread, a worker would be killed when that
+// thread ends. From here it fires only when the daemon dies -- which is what
+// ends a worker the daemon had stopped (freeze(): a stopped worker reads no
+// EOF).
+class Spawner {
+public:
+  static Spawner& get() {
+    static Spawner* s = new Spawner;  // outlives every static destructor that may spawn
+    return *s;
+  }
+  // Runs `job` on the spawner thread and returns its result.
+  int run(const std::function<int()>& job) {
+    Job j{&job, 0, false};
+    std::unique_lock lock(mu_);
+    queue_.push_back(&j);
+    cv_.notify_all();
+    cv_.wait(lock, [&] { return j.done; });
+    return j.rc;
+  }
+
+private:
+  struct Job {
+    const std::function<int()>* fn;
+    int rc;
+    bool done;
+  };
+  Spawner() { std::thread([this] { loop(); }).detach(); }
+  void loop() {
+    std::unique_lock lock(mu_);
+    for (;;) {
+      cv_.wait(lock, [&] { return !queue_.empty(); });
+      Job* j = queue_.front();
+      queue_.erase(queue_.begin());
+      lock.unlock();
+      const int rc = (*j->fn)();
+      lock.lock();
+      j->rc = rc;
+      j->done = true;
+      cv_.notify_all();
+    }
+  }
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<Job*> queue_;
+};
 
 }  // namespace
 
@@ -131,6 +185,7 @@ Status WorkerProxy::read_hello(const wire::Message& hello) {
   const std::string scratch(r.str("scratch folder", 4096));
   const std::string problems(r.str("sandbox problems", 8192));
   if (!r.ok()) return Error(Code::corrupt_data, r.error());
+  sandbox_flags_ = flags;  // sent before any plugin code ran in the worker
   // Only a folder of the name the worker makes, where it makes them.
   const fs::path sp(scratch);
   const fs::path parent = scratch_parent_of(options_);
@@ -212,9 +267,15 @@ Status WorkerProxy::spawn(const std::string& worker_path) {
     sigaddset(&defaults, s);
   posix_spawnattr_setsigmask(&attr, &none);
   posix_spawnattr_setsigdefault(&attr, &defaults);
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+  // Its own process group: the daemon's group may become orphaned (its
+  // parent, a shell, exits), and the kernel then sends SIGCONT to every
+  // stopped member -- which would resume a frozen worker (freeze()). The
+  // worker's own group is orphaned only when the daemon is gone.
+  posix_spawnattr_setpgroup(&attr, 0);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
   std::vector<std::string> args = {worker_path, "--memory-limit-mb", std::to_string(options_.memory_limit_mb),
-                                   "--sandbox", options_.sandbox ? "1" : "0"};
+                                   "--sandbox", options_.sandbox ? "1" : "0", "--parent-pid",
+                                   std::to_string(::getpid())};
   if (!options_.scratch_parent.empty()) {
     args.push_back("--scratch-parent");
     args.push_back(options_.scratch_parent);
@@ -227,7 +288,8 @@ Status WorkerProxy::spawn(const std::string& worker_path) {
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = -1;
-  const int rc = ::posix_spawn(&pid, worker_path.c_str(), &fa, &attr, argv.data(), environ);
+  const int rc = Spawner::get().run(
+      [&] { return ::posix_spawn(&pid, worker_path.c_str(), &fa, &attr, argv.data(), environ); });
   posix_spawn_file_actions_destroy(&fa);
   posix_spawnattr_destroy(&attr);
   if (rc != 0)
@@ -307,6 +369,7 @@ bool WorkerProxy::end_session_for_reuse() {
   bridge_ = nullptr;  // the Session's bridge dies with it
   plan_blob_ = wire::Mapping();
   outputs_.reset();  // the Session (and every view of its outputs) is gone
+  thaw();            // so the worker may run and write its arena again
   outputs_blob_ = wire::Mapping();
   last_round_frames_ = 0;
   if (broken_ || errored_ || sessions_ >= options_.max_sessions_per_worker) return false;
@@ -335,6 +398,11 @@ Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, c
   if (broken_)
     return Error(Code::failed_precondition, "this session's worker is gone: " + broken_reason_,
                  "start a new scan");
+  // Only end_session follows a freeze (stop() answers itself while frozen;
+  // Session sends nothing else after outputs()), and it thaws first. Kept
+  // as a net: a frozen worker would never answer, and its deadline must not
+  // count time it was kept stopped.
+  thaw();
   const uint32_t seq = ++seq_;
   if (Status s = wire::send_msg(sock_.get(), type, seq, payload, fd); !s) {
     const std::string how = reap(false);
@@ -485,6 +553,9 @@ Status WorkerProxy::end_round(size_t frames) {
 }
 
 Status WorkerProxy::stop() {
+  // After outputs() (the worker is frozen) the worker's Session::stop would
+  // only mark a finished scan finished: nothing to ask a stopped worker.
+  if (frozen_) return {};
   auto m = call(wire::Msg::stop, "stop", {}, -1, options_.call_timeout);
   return m ? Status::Ok() : m.status();
 }
@@ -517,16 +588,93 @@ Result<std::vector<Output>> WorkerProxy::outputs() {
       if (Status s = outputs_copy_.adopt(m->fd.get()); !s)
         return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
     }
-    // From here on only the private copy is read: the worker may still write
-    // its arena (output_arena.hpp).
-    if (Status s = outputs_copy_.take(used); !s)
-      return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+    // A frozen worker cannot write its arena until the session ends: read
+    // it in place. Otherwise only the private copy is read: the worker may
+    // still write its arena (output_arena.hpp).
+    const Status s = freeze() ? outputs_copy_.view(used) : outputs_copy_.take(used);
+    if (!s) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
     decoded = wire::decode_outputs(outputs_copy_.data(), outputs_copy_.size(), abi);
   }
   if (!decoded) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + decoded.message());
   auto outs = outputs_from_abi(abi.data(), static_cast<uint32_t>(abi.size()), "plugin '" + plugin_ + "'");
   if (outs) outputs_ = *outs;
   return outs;
+}
+
+}  // namespace procam::host::detail
+
+namespace procam::host::detail {
+
+bool WorkerProxy::may_freeze() const {
+  constexpr uint32_t needed = wire::kSandboxSeccomp | wire::kSandboxFreezeSafe | wire::kSandboxLandlockScope;
+  return options_.freeze_outputs && options_.sandbox && pid_ > 0 && !broken_ && (sandbox_flags_ & needed) == needed;
+}
+
+namespace {
+// True when every thread of `pid` is stopped ('T') or done exiting (a zombie
+// leader, or gone from /proc/PID/task). A thread that was already exiting
+// when SIGSTOP came is not part of the group stop, and the kernel still
+// writes its clear_child_tid word and robust-futex list (exit_mm) -- memory
+// a plugin may have pointed into the arena. Those writes are done once the
+// thread is released or a zombie.
+bool threads_settled(pid_t pid) {
+  const std::string dir = "/proc/" + std::to_string(pid) + "/task";
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::FILE* f = std::fopen((it->path() / "stat").c_str(), "re");
+    if (f == nullptr) continue;  // released meanwhile
+    char buf[512];
+    const size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+    std::fclose(f);
+    buf[n] = '\0';
+    const char* paren = std::strrchr(buf, ')');
+    if (paren == nullptr || paren[1] != ' ') return false;
+    const char state = paren[2];
+    if (state != 'T' && state != 'Z' && state != 'X') return false;
+  }
+  return !ec;
+}
+}  // namespace
+
+bool WorkerProxy::freeze() {
+  if (frozen_) return true;
+  if (!may_freeze()) return false;
+  if (::kill(pid_, SIGSTOP) != 0) return false;
+  frozen_ = true;  // from here on thaw() must run, whatever happens
+  // The stop is complete when every thread of the worker has stopped (a
+  // thread inside a system call stops when it returns from it, after its
+  // last write); the kernel then reports it to the parent. A plugin thread
+  // that sends itself SIGCONT before it stops cancels the stop: the
+  // deadline catches that, and the caller copies instead.
+  const auto give_up = Clock::now() + std::chrono::seconds(1);
+  for (int i = 0;; ++i) {
+    siginfo_t info{};
+    if (::waitid(P_PID, static_cast<id_t>(pid_), &info, WSTOPPED | WEXITED | WNOWAIT | WNOHANG) != 0) {
+      if (errno == EINTR) continue;
+      break;  // ECHILD: SIGCHLD ignored, the kernel reaped it: no report to trust
+    }
+    if (info.si_pid == pid_) {
+      if (info.si_code == CLD_EXITED || info.si_code == CLD_KILLED || info.si_code == CLD_DUMPED) return true;
+      // CLD_TRAPPED (a debugger attached) and anything else: not ours to trust.
+      if (info.si_code != CLD_STOPPED) break;
+      if (threads_settled(pid_)) return true;
+    }
+    if (Clock::now() > give_up) {
+      PROCAM_LOG(plugins, warn) << "plugin '" << plugin_ << "': its worker did not stop within 1 s after its "
+                                << "outputs reply; the outputs are copied instead";
+      break;
+    }
+    if (i < 64) std::this_thread::yield();
+    else std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  thaw();
+  return false;
+}
+
+void WorkerProxy::thaw() {
+  if (!frozen_) return;
+  frozen_ = false;
+  if (pid_ > 0) ::kill(pid_, SIGCONT);
 }
 
 }  // namespace procam::host::detail

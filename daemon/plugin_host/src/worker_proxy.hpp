@@ -141,8 +141,18 @@ public:
   Status stop();  // the worker's Session::stop
 
   pid_t pid() const { return pid_; }
+  bool frozen() const { return frozen_; }  // stopped after its outputs reply (tests)
 
 private:
+  // Freezing (README.md "Speed"): after the outputs reply, SIGSTOP and wait
+  // until the kernel reports the whole thread group stopped (waitid
+  // WSTOPPED, WNOWAIT: the report stays for reap()). True when it is
+  // stopped (or already dead): no thread of it runs until thaw(). False if
+  // the worker's sandbox lacks the rules this relies on, or the stop did
+  // not complete within a second (the worker is resumed; the caller copies).
+  bool freeze();
+  void thaw();  // SIGCONT if frozen; before any later request
+  bool may_freeze() const;
   WorkerProxy(const IsolationOptions& options, std::string plugin);
   Status spawn(const std::string& worker_path);
   // Sends a request and waits for its ok (returned) or error reply, handling
@@ -164,6 +174,8 @@ private:
   wire::UniqueFd sock_;
   uint32_t seq_ = 0;
   bool broken_ = false;
+  uint32_t sandbox_flags_ = 0;  // from hello
+  bool frozen_ = false;         // SIGSTOPped by freeze(), not yet resumed
   bool errored_ = false;   // an error reply came: the worker is not reused
   uint32_t sessions_ = 0;  // sessions created on this worker
   std::string broken_reason_;
@@ -172,10 +184,11 @@ private:
   uint32_t next_slot_ = 0;
   size_t last_round_frames_ = 0;
   wire::Mapping plan_blob_;     // the last plan's patterns, kept until the next plan or the session's end
-  // The outputs' images and points: the daemon's private copy of the
-  // worker's output arena (output_arena.hpp), kept across the sessions of a
-  // reused worker; `outputs_` is what this session's outputs() returned
-  // (a second call returns it again: the copy is taken once per session).
+  // The outputs' images and points: the worker's output arena itself while
+  // the worker is frozen, else the daemon's private copy of it
+  // (output_arena.hpp), kept across the sessions of a reused worker;
+  // `outputs_` is what this session's outputs() returned (a second call
+  // returns it again: the arena is read once per session).
   wire::OutputSnapshot outputs_copy_;
   wire::Mapping outputs_blob_;  // instead, with reuse off: a sealed blob per session
   std::optional<std::vector<Output>> outputs_;

@@ -31,11 +31,17 @@ struct stat;
 namespace procam::host::wire {
 
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
-inline constexpr uint16_t kVersion = 3;  // 3: outputs through the output arena
+// 3: outputs through the output arena; 4: the daemon may stop the worker
+// (SIGSTOP) between a get_outputs reply and its next request.
+inline constexpr uint16_t kVersion = 4;
 inline constexpr size_t kHeaderSize = 16;
 inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
 inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
 inline constexpr int kControlFd = 3;                  // the socket's number in the worker
+// hello's sandbox flags the daemon acts on (worker/sandbox.hpp SandboxFlags).
+inline constexpr uint32_t kSandboxLandlockScope = 1u << 5;
+inline constexpr uint32_t kSandboxSeccomp = 1u << 6;
+inline constexpr uint32_t kSandboxFreezeSafe = 1u << 7;
 
 enum class Msg : uint16_t {
   // daemon -> worker

@@ -28,18 +28,27 @@
  *                the named socket $PROCAM_TEST_UNIX ("unix"); try_read:
  *                reading $PROCAM_TEST_SECRET ("read_outside") and
  *                /etc/ld.so.cache ("read_system", a file every program
- *                reads)
+ *                reads); try_freeze_escape: what the daemon's freeze of
+ *                the worker relies on being denied (README.md "Speed"): fork
+ *                ("fork"), a thread ("thread", must stay
+ *                allowed), a POSIX timer signalling SIGCONT ("timer"),
+ *                F_SETSIG ("setsig"), PR_SET_PDEATHSIG ("pdeathsig"),
+ *                joining the parent's process group ("setpgid"), native AIO
+ *                ("aio"), PTRACE_TRACEME ("traceme"; only tried with
+ *                $PROCAM_TEST_TRACEME set: without the sandbox it would make
+ *                the test process its tracer)
  *   scribble     behaves as "ok", and get_outputs starts a thread that, 100
  *                ms later, overwrites every writable "procam-outputs"
  *                mapping of the worker (the output arena, found in
  *                /proc/self/maps) with changing bytes for about a second,
  *                creating "scribbled" in its working directory (the
- *                scratch folder) after the first pass, or "no-arena" if it
+ *                scratch folder) after every pass, or "no-arena" if it
  *                found none: what the daemon returned must not change
  *   stream       plans 4096 frames and does nothing in add_frame: the
  *                per-frame cost of the host itself (bench/worker_bench.cpp)
  * Never load this into a process you care about.
  */
+#define _GNU_SOURCE 1 /* F_SETSIG */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -52,6 +61,10 @@
 #include <pthread.h>
 #include <sys/socket.h>
 #include <sys/un.h>
+#include <sys/prctl.h>
+#include <sys/ptrace.h>
+#include <sys/syscall.h>
+#include <sys/wait.h>
 #include <time.h>
 
 #include "procam/plugin_abi.h"
@@ -60,7 +73,7 @@
 
 FX_EXPORT const procam_plugin_info fx_info __asm__(PROCAM_PLUGIN_INFO_SYMBOL) = {
     PROCAM_PLUGIN_MAGIC, PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_info), 0, "faults", "0.0.1",
-    "ok,segv,abort,hang,oom,garbage,write_frame,scribble,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps,try_unix,try_read"};
+    "ok,segv,abort,hang,oom,garbage,write_frame,scribble,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps,try_unix,try_read,try_freeze_escape"};
 
 struct procam_session {
   char method[32];
@@ -88,7 +101,7 @@ static const char* fx_describe(void) {
          " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"},"
          " {\"name\": \"scribble\"}, {\"name\": \"stream\"}, {\"name\": \"try_network\"}, {\"name\": \"try_write_outside\"},"
          " {\"name\": \"try_write_scratch\"}, {\"name\": \"try_signal\"}, {\"name\": \"try_caps\"},"
-         " {\"name\": \"try_unix\"}, {\"name\": \"try_read\"}]";
+         " {\"name\": \"try_unix\"}, {\"name\": \"try_read\"}, {\"name\": \"try_freeze_escape\"}]";
 }
 
 static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
@@ -192,6 +205,8 @@ static int fx_add_frame(procam_session* s, uint32_t index, const procam_image* f
   return PROCAM_OK;
 }
 
+static void* fx_nothing(void* arg) { return arg; }
+
 static void fx_log(procam_session* s, const char* line) {
   if (s->host != NULL && s->host->log != NULL) s->host->log(s->host->ctx, PROCAM_LOG_INFO, line);
 }
@@ -240,6 +255,46 @@ static void fx_try(procam_session* s) {
     fd = open("/etc/ld.so.cache", O_RDONLY);
     fx_verdict(s, "read_system", fd >= 0 && read(fd, &c, 1) == 1);
     if (fd >= 0) close(fd);
+  } else if (is(s, "try_freeze_escape")) {
+    pid_t child = fork();
+    if (child == 0) _exit(0);
+    fx_verdict(s, "fork", child > 0);
+    if (child > 0) waitpid(child, NULL, 0);
+    {
+      pthread_t t;
+      int rc = pthread_create(&t, NULL, fx_nothing, NULL);
+      if (rc != 0) errno = rc;
+      fx_verdict(s, "thread", rc == 0);
+      if (rc == 0) pthread_join(t, NULL);
+    }
+    {
+      struct sigevent ev;
+      timer_t timer;
+      int ok;
+      memset(&ev, 0, sizeof ev);
+      ev.sigev_notify = SIGEV_SIGNAL;
+      ev.sigev_signo = SIGCONT;
+      ok = timer_create(CLOCK_MONOTONIC, &ev, &timer) == 0;
+      fx_verdict(s, "timer", ok);
+      if (ok) timer_delete(timer);
+    }
+    {
+      int fds[2];
+      if (pipe(fds) == 0) {
+        fx_verdict(s, "setsig", fcntl(fds[0], F_SETSIG, SIGCONT) == 0);
+        close(fds[0]);
+        close(fds[1]);
+      }
+    }
+    fx_verdict(s, "pdeathsig", prctl(PR_SET_PDEATHSIG, SIGCONT) == 0);
+    fx_verdict(s, "setpgid", setpgid(0, getpgid(getppid())) == 0);
+    {
+      unsigned long ctx = 0;
+      int ok = syscall(SYS_io_setup, 1, &ctx) == 0;
+      fx_verdict(s, "aio", ok);
+      if (ok) syscall(SYS_io_destroy, ctx);
+    }
+    if (getenv("PROCAM_TEST_TRACEME") != NULL) fx_verdict(s, "traceme", ptrace(PTRACE_TRACEME, 0, NULL, NULL) == 0);
   } else if (is(s, "try_signal")) {
     fx_verdict(s, "signal", kill(getppid(), SIGCONT) == 0);
   } else if (is(s, "try_caps")) {
@@ -319,7 +374,9 @@ static void* fx_scribbler(void* arg) {
       found = 1;
     }
     if (maps != NULL) fclose(maps);
-    if (pass == 0) fx_touch(found ? "scribbled" : "no-arena");
+    /* Every pass: the daemon empties the scratch folder when a reused
+       worker's session ends, and a frozen worker scribbles only after that. */
+    fx_touch(found ? "scribbled" : "no-arena");
     fx_sleep_ms(20);
   }
   return NULL;

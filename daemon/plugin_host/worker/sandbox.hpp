@@ -13,7 +13,10 @@
 //   - seccomp: socket() fails with EACCES for every family, AF_UNIX too (no
 //     network, no connecting to named Unix sockets: the worker needs no
 //     socket but the one it inherited), io_uring_setup fails with ENOSYS
-//     (it could bypass the socket rule);
+//     (it could bypass the socket rule); no new processes (clone only with
+//     CLONE_THREAD), no timer_create, mq_notify, F_SETSIG, PR_SET_PDEATHSIG,
+//     setsid, setpgid, ptrace, io_setup: what the daemon's freeze of the
+//     worker after its outputs reply relies on (README.md "Speed");
 //   - after the plugin is loaded (restrict_reads): Landlock file reads and
 //     execution only beneath the plugin's folder, the system's library and
 //     data folders and the scratch folder.
@@ -36,6 +39,10 @@ enum SandboxFlags : uint32_t {
   kLandlockNet = 1u << 4,
   kLandlockScope = 1u << 5,
   kSeccomp = 1u << 6,
+  // The seccomp filter also denies what would make freezing the worker
+  // unsound (new processes, delayed SIGCONT, parent-death signal, process
+  // group changes, ptrace, native AIO): set with kSeccomp.
+  kFreezeSafe = 1u << 7,
 };
 
 struct SandboxReport {

@@ -14,6 +14,7 @@
 // the daemon's side; a plugin crash ends it by that signal.
 #include <malloc.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -32,6 +33,9 @@
 
 using namespace procam;
 using namespace procam::host;
+
+static_assert(wire::kSandboxLandlockScope == worker::kLandlockScope && wire::kSandboxSeccomp == worker::kSeccomp &&
+              wire::kSandboxFreezeSafe == worker::kFreezeSafe);
 
 namespace {
 
@@ -301,6 +305,7 @@ int main(int argc, char** argv) {
   bool sandbox = true;
   std::string scratch_parent;
   std::vector<std::string> readable;
+  pid_t parent_pid = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--memory-limit-mb" && i + 1 < argc) {
@@ -311,6 +316,8 @@ int main(int argc, char** argv) {
       scratch_parent = argv[++i];
     } else if (a == "--readable" && i + 1 < argc) {
       readable.emplace_back(argv[++i]);
+    } else if (a == "--parent-pid" && i + 1 < argc) {
+      parent_pid = static_cast<pid_t>(std::strtol(argv[++i], nullptr, 10));
     } else {
       std::fprintf(stderr,
                    "procam-plugin-worker: unknown argument '%s'\n"
@@ -319,6 +326,13 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // End with the daemon, even while it keeps this worker stopped (SIGSTOP
+  // after the outputs reply: a stopped process reads no EOF). The daemon
+  // spawns every worker from one thread that lives as long as it does, so
+  // this fires when the daemon dies, not when some thread of it ends. The
+  // sandbox's seccomp filter keeps plugins from changing it.
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+  if (parent_pid > 0 && ::getppid() != parent_pid) return 0;  // the daemon died before the prctl
   ::signal(SIGPIPE, SIG_IGN);
   tune_allocator();
   // Nothing of the parent's but stdio and the control socket.

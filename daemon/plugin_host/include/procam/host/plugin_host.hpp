@@ -148,6 +148,14 @@ struct IsolationOptions {
   uint32_t max_idle_workers = 0;
   std::chrono::milliseconds idle_timeout{60000};
   uint32_t max_sessions_per_worker = 100;
+  // With reuse on, the outputs come back in the worker's output arena. If
+  // the worker's sandbox has the rules freezing relies on (seccomp and
+  // Landlock's signal scope, README.md "Speed"), the daemon stops the worker
+  // (SIGSTOP) after its outputs reply and hands out views into the arena
+  // itself, no copy; the worker is resumed (SIGCONT) when the Session ends.
+  // false, or a worker without those rules: the daemon copies the outputs
+  // out of the arena (the worker keeps running).
+  bool freeze_outputs = true;
 };
 
 // One frame of a round: show `pattern` on the projector, capture with `settings`.
