@@ -35,7 +35,7 @@ Maps blank(uint32_t w, uint32_t h) {
 // p given (>= 0) or estimated by estimate() (estimate_dop's rule; called
 // only when p is not given); records how in m.dop.
 template <class Estimate>
-double choose_dop(const Config& cfg, const Levels& lv, Maps& m, Estimate&& estimate) {
+double choose_dop(const Config& cfg, double min_sum, Maps& m, Estimate&& estimate) {
   double p = cfg.p;
   if (p >= 0) {
     m.dop = {{"source", "param p"}, {"value", p}};
@@ -43,8 +43,9 @@ double choose_dop(const Config& cfg, const Levels& lv, Maps& m, Estimate&& estim
     p = estimate();
     m.dop = {{"source", "estimated"},
              {"rule", "quantile dop_percentile of (E_w - E_b) / (E_w + E_b) over pixels with E_w + E_b > 40 noise "
-                      "sigma; equals p where a pixel sees only medium, less where it sees an object"},
-             {"min_sum_dn", lv.dop_min_sum},
+                      "sigma (of the images compared: one frame, or a background averaged over K - 2 frames); "
+                      "equals p where a pixel sees only medium, less where it sees an object"},
+             {"min_sum_dn", min_sum},
              {"percentile", cfg.dop_percentile}};
     if (!std::isfinite(p)) {
       m.notes.push_back("too few pixels above 40 noise sigma to estimate the DOP: backscatter not separated; pass "
@@ -88,7 +89,7 @@ Maps estimate_polarized_flood(std::vector<float> eb, const std::vector<float>& e
   for (size_t i = 0; i < eb.size(); ++i)
     if (double(eb[i]) < lv.saturation && double(ew[i]) < lv.saturation) b_ok[i] = eb[i], w_ok[i] = ew[i];
   const double p =
-      choose_dop(cfg, lv, m, [&] { return estimate_dop(b_ok, w_ok, lv.dop_min_sum, cfg.dop_percentile); });
+      choose_dop(cfg, lv.dop_min_sum, m, [&] { return estimate_dop(b_ok, w_ok, lv.dop_min_sum, cfg.dop_percentile); });
   const bool separate = p >= cfg.p_min;
   m.p = separate ? p : 0.0;
   for (size_t i = 0; i < eb.size(); ++i) {
@@ -224,16 +225,17 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
   if (polarised) {
     // The DOP from both backgrounds (A = 0 where a pixel sees only medium),
     // on the same <= 256k-pixel stride estimate_dop uses, before the pass.
-    p = choose_dop(cfg, lv, m, [&] {
+    const double bg_min_sum = background_dop_min_sum(lv, best.frames());
+    p = choose_dop(cfg, bg_min_sum, m, [&] {
       const size_t stride = dop_sample_stride(n);
       if (pass != StripingPass::reference) {  // parallel, no serial quantile; the same p bit for bit
         if (best.sample_current() && worst->sample_current())  // the compact copies kept at the last frame
           return packed_dop({best.sample_key1(), best.sample_key2(), best.sample_sum16(), best.frames()},
                             {worst->sample_key1(), worst->sample_key2(), worst->sample_sum16(), worst->frames()},
-                            best.sample_size(), 1, lv.saturation, lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
+                            best.sample_size(), 1, lv.saturation, bg_min_sum, cfg.dop_percentile, cfg.threads);
         return packed_dop({best.key1(), best.key2(), best.sum16(), best.frames()},
                           {worst->key1(), worst->key2(), worst->sum16(), worst->frames()}, (n + stride - 1) / stride,
-                          stride, lv.saturation, lv.dop_min_sum, cfg.dop_percentile, cfg.threads);
+                          stride, lv.saturation, bg_min_sum, cfg.dop_percentile, cfg.threads);
       }
       std::vector<float> sb, sw;
       sb.reserve(n / stride + 1);
@@ -243,7 +245,7 @@ Maps estimate_striping(const StripeStack& best, const StripeStack* worst, const 
           sb.push_back(decode_stripe_pixel(best, i, ds).background);
           sw.push_back(decode_stripe_pixel(*worst, i, ds).background);
         }
-      return estimate_dop(sb, sw, lv.dop_min_sum, cfg.dop_percentile);
+      return estimate_dop(sb, sw, bg_min_sum, cfg.dop_percentile);
     });
     separate = p >= cfg.p_min;
     m.p = separate ? p : 0.0;

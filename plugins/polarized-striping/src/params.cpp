@@ -136,6 +136,11 @@ Levels levels_for(const Config& cfg, double full_scale) noexcept {
   return l;
 }
 
+double background_dop_min_sum(const Levels& lv, uint32_t frames) noexcept {
+  const double averaged = frames > 2 ? double(frames - 2) : 1.0;
+  return std::max(lv.dop_min_sum / std::sqrt(averaged), 1e-6 * lv.full_scale);
+}
+
 }  // namespace procam::polarized_striping
 
 namespace procam::polarized_striping {

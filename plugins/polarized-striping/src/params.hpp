@@ -53,6 +53,15 @@ struct Levels {
 };
 Levels levels_for(const Config& cfg, double full_scale) noexcept;
 
+// The DOP estimate's floor for a striping scan's backgrounds. Each background
+// is the mean of K - 2 frames (docs/polarized-striping.md "striping"), so its
+// noise is sigma / sqrt(K - 2) and the same 40-sigma rule on r's noise
+// (<= 0.035) sits sqrt(K - 2) lower than for one frame. Without it, the
+// medium-only pixels, whose background is only the backscatter of the other
+// sheets, were all below the one-frame floor and p came out below p_min.
+// `frames` = K >= 3.
+double background_dop_min_sum(const Levels& lv, uint32_t frames) noexcept;
+
 // Projector columns lit by stripe k of `stripes` on a projector `proj_width`
 // wide: `width` columns from `first`, centred on (k + 0.5) W / K - 0.5 rounded
 // to whole columns; `centre` = first + (width - 1) / 2 is the column the
