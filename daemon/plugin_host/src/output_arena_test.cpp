@@ -143,6 +143,19 @@ fs::path wait_for_marker(const fs::path& scratch) {
 
 enum class Arena { frozen, copied, none };
 
+// An empty scratch parent for one test (name + pid), and the faults fixture
+// loaded into `host` with `iso` pointed at that scratch parent.
+fs::path fresh_scratch(const std::string& name) {
+  const fs::path scratch = fs::temp_directory_path() / (name + std::to_string(::getpid()));
+  fs::remove_all(scratch);
+  fs::create_directories(scratch);
+  return scratch;
+}
+void load_faults(PluginHost& host, IsolationOptions& iso, const fs::path& scratch) {
+  ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
+  iso.scratch_parent = scratch.string();
+}
+
 // A plugin thread overwrites the worker's output arena, starting 100 ms
 // after get_outputs, for about a second (it marks every pass in its scratch
 // folder): the outputs the daemon returned are the plugin's reply (the
@@ -158,13 +171,10 @@ enum class Arena { frozen, copied, none };
 //  - none (reuse off): the outputs travel in a sealed blob and no writable
 //    outputs mapping is left in the worker at all.
 void scribble_scan(Arena mode) {
-  const fs::path scratch = fs::temp_directory_path() / ("procam-arena-test-" + std::to_string(::getpid()));
-  fs::remove_all(scratch);
-  fs::create_directories(scratch);
+  const fs::path scratch = fresh_scratch("procam-arena-test-");
   PluginHost host;
-  ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
   IsolationOptions iso;
-  iso.scratch_parent = scratch.string();
+  ASSERT_NO_FATAL_FAILURE(load_faults(host, iso, scratch));
   iso.max_idle_workers = mode == Arena::none ? 0 : 1;
   iso.freeze_outputs = mode == Arena::frozen;
   host.set_isolation(iso);
@@ -255,13 +265,10 @@ TEST(OutputArenaTest, WithoutReuseNoWritableOutputsMappingIsLeftInTheWorker) { s
 // plugin gets another worker while the first holds its outputs; the frozen
 // one is resumed and reused afterwards.
 TEST(OutputArenaTest, AFrozenWorkerIsNotHandedAnotherScan) {
-  const fs::path scratch = fs::temp_directory_path() / ("procam-arena-test2-" + std::to_string(::getpid()));
-  fs::remove_all(scratch);
-  fs::create_directories(scratch);
+  const fs::path scratch = fresh_scratch("procam-arena-test2-");
   PluginHost host;
-  ASSERT_TRUE(host.load_file(std::string(PROCAM_FAULTS_FIXTURE_DIR) + "/faults.so").ok());
   IsolationOptions iso;
-  iso.scratch_parent = scratch.string();
+  ASSERT_NO_FATAL_FAILURE(load_faults(host, iso, scratch));
   iso.max_idle_workers = 2;
   host.set_isolation(iso);
   Image frame(4, 3, PixelType::u8);
