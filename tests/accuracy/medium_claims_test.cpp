@@ -314,6 +314,7 @@ struct CameraVariant {
   bool noise = true;
   int bits = 12;
   nlohmann::json extra = nlohmann::json::object();
+  std::string scene = "tank-chocolate-milk-8ml";
 };
 
 void run_variant(const CameraVariant& v) {
@@ -329,7 +330,7 @@ void run_variant(const CameraVariant& v) {
       }
     }
   };
-  ASSERT_TRUE(measure_scene("tank-chocolate-milk-8ml", m, "", edit, v.extra, &r)) << v.label;
+  ASSERT_TRUE(measure_scene(v.scene, m, "", edit, v.extra, &r)) << v.label;
   const double kappa = m.true_sigma - m.true_beta;
   std::printf("%-34s measure: sigma %+.3f %% (CI %.3f %%)  beta %+.3f %% (CI %.3f %%)  kappa %+5.1f %% (CI %.0f %%)  "
               "g %+.5f\n",
@@ -396,6 +397,24 @@ void run_variant(const CameraVariant& v) {
   std::printf("%-34s HDR/truth - 1 by rho band (mm):", "");
   for (int k = 0; k < 5; ++k) std::printf("  %g-%g: %+.4f %%", bands[k], bands[k + 1], cnt[k] > 0 ? 100 * sum[k] / cnt[k] : std::nan(""));
   std::printf("\n");
+  // The same by the truth's signal in the longest exposure (DN): the merge's
+  // bias depends on it (the camera's clip at black, the floor at 2 % of full scale).
+  const double t_max = params.value("exposure_max_us", 1e7);
+  const double levels[] = {0, 20, 82, 205, 410, 1000, 4000, 1e12};
+  double ls[7] = {}, lc[7] = {};
+  for (uint32_t y = uint32_t(cfg.fit.roi_y0); y <= uint32_t(cfg.fit.roi_y1); ++y)
+    for (uint32_t x = uint32_t(cfg.fit.roi_x0); x <= uint32_t(cfg.fit.roi_x1); ++x) {
+      if (std::hypot(x - cfg.fit.bulb_x_px, y - cfg.fit.bulb_y_px) < cfg.fit.mask_radius_px) continue;
+      const size_t i = size_t{y} * w + x;
+      if (!(truth[i] > 0) || !std::isfinite(hdr[i])) continue;
+      const double dn = double(truth[i]) * t_max;
+      for (int k = 0; k < 7; ++k)
+        if (dn >= levels[k] && dn < levels[k + 1]) ls[k] += double(hdr[i]) / double(truth[i]) - 1, lc[k] += 1;
+    }
+  std::printf("%-34s HDR/truth - 1 by DN at the longest exposure:", "");
+  for (int k = 0; k < 7; ++k)
+    std::printf("  %g-%g: %+.3f %% (%.0f px)", levels[k], levels[k + 1], lc[k] > 0 ? 100 * ls[k] / lc[k] : std::nan(""), lc[k]);
+  std::printf("\n");
 }
 
 TEST(MediumClaims, DISABLED_Fig411CameraBiasBreakdown) {
@@ -417,6 +436,34 @@ TEST(MediumClaims, DISABLED_Fig411CameraBiasBreakdown) {
   for (size_t i = 0; i < vs.size(); ++i)
     if (only == nullptr || std::to_string(i) == only || std::string(only).find("," + std::to_string(i) + ",") != std::string::npos)
       run_variant(vs[i]);
+}
+
+
+// Issue 14 brief pepsi14: why sigma is low on weak scatterers (Pepsi's beta
+// misses 6 % on some noise seeds). The same breakdown as above on a Table
+// 4.1 row at its table dilution (PROCAM_K14_MATERIAL, default Pepsi):
+// noise-free first (a model mismatch between the renderer and the fit),
+// then noise seeds. Exploration: run by hand.
+TEST(MediumClaims, DISABLED_WeakScattererBiasBreakdown) {
+  const char* env = std::getenv("PROCAM_K14_MATERIAL");
+  const std::string material = env != nullptr ? env : "Pepsi";
+  const sim::LibraryMaterial* lm = sim::find_material(material);
+  ASSERT_NE(lm, nullptr) << material;
+  const std::string scene = write_scene({material, lm->volume_ml > 0 ? lm->volume_ml : 23000.0, "green"}, 200);
+  std::vector<CameraVariant> vs = {
+      {material + ": noise off, 16 bit", 1, false, 16},
+      {material + ": noise off, 12 bit", 1, false, 12},
+  };
+  for (uint64_t seed = 1; seed <= 4; ++seed)
+    vs.push_back({material + ": noise on, 12 bit, seed " + std::to_string(seed), seed, true, 12});
+  const char* only = std::getenv("PROCAM_K14_ONLY");
+  const char* extra = std::getenv("PROCAM_K14_EXTRA");  // plugin params as JSON, e.g. {"min_signal":0}
+  for (size_t i = 0; i < vs.size(); ++i) {
+    vs[i].scene = scene;
+    if (extra != nullptr) vs[i].extra = nlohmann::json::parse(extra);
+    if (only == nullptr || std::to_string(i) == only || std::string(only).find("," + std::to_string(i) + ",") != std::string::npos)
+      run_variant(vs[i]);
+  }
 }
 
 }  // namespace

@@ -452,6 +452,13 @@ RadialProfile radial_profile(const std::vector<float>& radiance, uint32_t w, uin
     bin.rho_sd_px = std::sqrt(std::max(0.0, acc[b].rho2 / acc[b].n - bin.rho_px * bin.rho_px));
     const double md = acc[b].sum / acc[b].n;
     bin.mean = shift[b] + md;
+    if (s.min_bin_radiance > 0 && !(bin.mean >= s.min_bin_radiance)) {
+      // Too dark in every exposure: the bin's mean decides, not its pixels
+      // (a per-pixel cut would keep the noise-selected bright ones).
+      ++p.bins_dark;
+      p.pixels_dark += bin.n;
+      continue;
+    }
     bin.sumsq_dev = std::max(0.0, acc[b].sumsq - acc[b].n * md * md);
     if (bin.n >= 8) {
       // Least squares d ~ c0 + c1 x + c2 x^2 over the bin's pixels; RSS =
