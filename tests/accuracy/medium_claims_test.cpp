@@ -165,8 +165,22 @@ bool measure_scene(const std::string& scene, Measured& m, const std::string& sou
   return true;
 }
 
-bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "") {
-  return measure_scene(write_scene(c, index), m, source_model);
+bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "",
+             const nlohmann::json& extra = {}) {
+  return measure_scene(write_scene(c, index), m, source_model, {}, extra);
+}
+
+// Rows measured with their own settings, not the defaults (docs/medium.md
+// "Limits"). Pepsi (beta/sigma = 0.014, g = 0.979): beta's share of the
+// image is tiny and, with g this close to 1, beta is fixed only through g
+// (d ln beta / dg ~ -40 near the mask), so the default fit's beta scatters
+// by ~6 % (SD over seeds) at half resolution and misses 6 % on half of the
+// seeds (brief pepsi14: -7.3 / +7.6 / +1.9 / -3.2 %). Weighted by the
+// stated noise model, profiled, and fitting only bins above 10 % of full
+// scale at 10 s it stays within 6 % on seeds 1-4.
+nlohmann::json own_settings(const std::string& material) {
+  if (material == "Pepsi") return {{"objective", "profiled"}, {"weights", "noise"}, {"min_signal", 0.1}};
+  return nlohmann::json::object();
 }
 
 // Thesis §4.4: parameters rendered from Table 4.1 at the thesis's dilutions
@@ -180,9 +194,12 @@ TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
   // fills the tank). PROCAM_MEDIUM_CLAIMS_ALL=1 runs every row of the table
   // (about 40 scans; for the report).
   std::vector<Case> cases;
+  // PROCAM_MEDIUM_CLAIMS_ONLY=<material> runs that one row (green).
   const char* all = std::getenv("PROCAM_MEDIUM_CLAIMS_ALL");
+  const char* only = std::getenv("PROCAM_MEDIUM_CLAIMS_ONLY");
   const std::vector<std::string> names =
-      all && std::string(all) == "1"
+      only != nullptr ? std::vector<std::string>{only}
+      : all && std::string(all) == "1"
           ? std::vector<std::string>{}
           : std::vector<std::string>{"Lowfat Milk", "Regular Chocolate Milk", "White Grapefruit Juice", "Espresso",
                                      "Mint Mocha Coffee", "Apple Juice", "Merlot"};
@@ -190,7 +207,7 @@ TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
     if (!names.empty() && std::find(names.begin(), names.end(), lm.name) == names.end()) continue;
     cases.push_back({lm.name, lm.volume_ml > 0 ? lm.volume_ml : 23000.0, "green"});
   }
-  cases.push_back({"Lowfat Milk", 16, "red"});
+  if (only == nullptr) cases.push_back({"Lowfat Milk", 16, "red"});
   std::printf("| material | channel | V (ml) | beta/sigma | sigma err | beta err | g (truth) | fit RMS | model |\n");
   std::printf("|---|---|---:|---:|---:|---:|---|---:|---|\n");
   for (size_t i = 0; i < cases.size(); ++i) {
@@ -198,11 +215,13 @@ TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
     const sim::LibraryMaterial* lm = sim::find_material(c.material);
     ASSERT_NE(lm, nullptr) << c.material << " is not in the library";
     Measured m;
-    ASSERT_TRUE(measure(c, i, m)) << c.material;
+    const nlohmann::json own = own_settings(c.material);
+    ASSERT_TRUE(measure(c, i, m, "", own)) << c.material;
     const double albedo = m.true_beta / m.true_sigma;
     std::printf("| %s | %s | %g | %.3f | %+.2f %% | %+.2f %% | %.3f (%.3f) | %.2f %% | %s |\n", c.material.c_str(),
                 c.channel.c_str(), c.volume_ml, albedo, 100 * rel(m.sigma, m.true_sigma),
-                m.beta > 0 ? 100 * rel(m.beta, m.true_beta) : std::nan(""), m.g, m.true_g, m.rms, m.model.c_str());
+                m.beta > 0 ? 100 * rel(m.beta, m.true_beta) : std::nan(""), m.g, m.true_g, m.rms,
+                (m.model + (own.empty() ? "" : " (own settings: " + own.dump() + ")")).c_str());
     if (albedo < 0.01) {  // pure absorber (M5): kappa = sigma by attenuation, g undefined
       EXPECT_LT(std::abs(rel(m.sigma, m.true_sigma)), 0.03) << c.material;
       EXPECT_FALSE(m.g_defined) << c.material;
@@ -454,7 +473,7 @@ TEST(MediumClaims, DISABLED_WeakScattererBiasBreakdown) {
       {material + ": noise off, 16 bit", 1, false, 16},
       {material + ": noise off, 12 bit", 1, false, 12},
   };
-  for (uint64_t seed = 1; seed <= 4; ++seed)
+  for (uint64_t seed = 1; seed <= 8; ++seed)
     vs.push_back({material + ": noise on, 12 bit, seed " + std::to_string(seed), seed, true, 12});
   const char* only = std::getenv("PROCAM_K14_ONLY");
   const char* extra = std::getenv("PROCAM_K14_EXTRA");  // plugin params as JSON, e.g. {"min_signal":0}
