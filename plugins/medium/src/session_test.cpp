@@ -209,9 +209,10 @@ TEST(HdrMerge, RecoversRadianceAtEveryBitDepth) {
 // read noise 4 DN plus shot noise (0.41 DN per electron), 25 exposures
 // 2000 us .. 10 s, 10 000 pixels per level. The truth is L itself; the
 // bounds are from the noise model, not from a run: 3 DN at 10 s sits below
-// one read-noise sigma, where clipping alone adds ~+40 % (E max(0, N(3, 4))
-// = 4.2 DN); 300 DN at 10 s has a 2.6 % per-pixel SD, so its mean is known
-// to 0.03 % and 0.5 % would be 20 standard errors.
+// one read-noise sigma, where clipping alone adds +19 % to the longest
+// exposure (E max(0, N(3, 4.15)) = 3.57 DN; the shorter ones, all but 0 DN,
+// and the floor's selection add more); 300 DN at 10 s has a 2.6 % per-pixel
+// SD, so its mean is known to 0.03 % and 0.5 % would be 20 standard errors.
 TEST(HdrMerge, DarkPixelsAreBiasedUpByTheClipAtBlack) {
   constexpr uint32_t kW = 200, kH = 100;  // top half dark, bottom half at 300 DN
   const double fs = 4095, dn_per_e = fs / 10000, t_max = 1e7;
@@ -235,7 +236,7 @@ TEST(HdrMerge, DarkPixelsAreBiasedUpByTheClipAtBlack) {
   const double bias_dark = sd / half / dark - 1, bias_lit = sl / half / lit - 1;
   std::printf("merged / true - 1: dark in every frame (3 DN at 10 s) %+.1f %%, at 300 DN %+.3f %%\n",
               100 * bias_dark, 100 * bias_lit);
-  EXPECT_GT(bias_dark, 0.2);
+  EXPECT_GT(bias_dark, 0.15);
   EXPECT_LT(std::abs(bias_lit), 0.005);
 }
 
