@@ -204,15 +204,16 @@ TEST(HdrMerge, RecoversRadianceAtEveryBitDepth) {
 // pepsi14): a camera without a black pedestal (black_dn = 0, as the sim's)
 // clips read noise at 0, and the merge's floor keeps a dark pixel's longest
 // exposure only when its noise lifts it above 2 % of full scale. Both bias a
-// pixel that is dark in every frame upwards; a pixel at the default
+// pixel that is dark in every frame upwards; a pixel above the default
 // min_signal (5 % of full scale at the longest exposure) is not. 12 bit,
 // read noise 4 DN plus shot noise (0.41 DN per electron), 25 exposures
 // 2000 us .. 10 s, 10 000 pixels per level. The truth is L itself; the
 // bounds are from the noise model, not from a run: 3 DN at 10 s sits below
 // one read-noise sigma, where clipping alone adds +19 % to the longest
-// exposure (E max(0, N(3, 4.15)) = 3.57 DN; the shorter ones, all but 0 DN,
-// and the floor's selection add more); 300 DN at 10 s has a 2.6 % per-pixel
-// SD, so its mean is known to 0.03 % and 0.5 % would be 20 standard errors.
+// exposure (E max(0, N(3, 4.15)) = 3.57 DN; the shorter exposures, ~0 DN,
+// are clipped too, and the floor adds its selection); 300 DN at 10 s has a
+// 2.6 % per-pixel SD, so its mean is known to 0.03 % and 0.5 % would be 20
+// standard errors.
 TEST(HdrMerge, DarkPixelsAreBiasedUpByTheClipAtBlack) {
   constexpr uint32_t kW = 200, kH = 100;  // top half dark, bottom half at 300 DN
   const double fs = 4095, dn_per_e = fs / 10000, t_max = 1e7;
