@@ -165,8 +165,22 @@ bool measure_scene(const std::string& scene, Measured& m, const std::string& sou
   return true;
 }
 
-bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "") {
-  return measure_scene(write_scene(c, index), m, source_model);
+bool measure(const Case& c, size_t index, Measured& m, const std::string& source_model = "",
+             const nlohmann::json& extra = {}) {
+  return measure_scene(write_scene(c, index), m, source_model, {}, extra);
+}
+
+// Rows measured with their own settings, not the defaults (docs/medium.md
+// "Limits"). Pepsi (beta/sigma = 0.014, g = 0.979): beta's share of the
+// image is tiny and, with g this close to 1, beta is fixed only through g
+// (d ln beta / dg ~ -40 near the mask), so the default fit's beta scatters
+// by ~6 % (SD over seeds) at half resolution and misses 6 % on half of the
+// seeds (brief pepsi14: -7.3 / +7.6 / +1.9 / -3.2 %). Weighted by the
+// stated noise model, profiled, and fitting only bins above 10 % of full
+// scale at 10 s it stays within 6 % on seeds 1-4.
+nlohmann::json own_settings(const std::string& material) {
+  if (material == "Pepsi") return {{"objective", "profiled"}, {"weights", "noise"}, {"min_signal", 0.1}};
+  return nlohmann::json::object();
 }
 
 // Thesis §4.4: parameters rendered from Table 4.1 at the thesis's dilutions
@@ -180,9 +194,12 @@ TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
   // fills the tank). PROCAM_MEDIUM_CLAIMS_ALL=1 runs every row of the table
   // (about 40 scans; for the report).
   std::vector<Case> cases;
+  // PROCAM_MEDIUM_CLAIMS_ONLY=<material> runs that one row (green).
   const char* all = std::getenv("PROCAM_MEDIUM_CLAIMS_ALL");
+  const char* only = std::getenv("PROCAM_MEDIUM_CLAIMS_ONLY");
   const std::vector<std::string> names =
-      all && std::string(all) == "1"
+      only != nullptr ? std::vector<std::string>{only}
+      : all && std::string(all) == "1"
           ? std::vector<std::string>{}
           : std::vector<std::string>{"Lowfat Milk", "Regular Chocolate Milk", "White Grapefruit Juice", "Espresso",
                                      "Mint Mocha Coffee", "Apple Juice", "Merlot"};
@@ -190,7 +207,7 @@ TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
     if (!names.empty() && std::find(names.begin(), names.end(), lm.name) == names.end()) continue;
     cases.push_back({lm.name, lm.volume_ml > 0 ? lm.volume_ml : 23000.0, "green"});
   }
-  cases.push_back({"Lowfat Milk", 16, "red"});
+  if (only == nullptr) cases.push_back({"Lowfat Milk", 16, "red"});
   std::printf("| material | channel | V (ml) | beta/sigma | sigma err | beta err | g (truth) | fit RMS | model |\n");
   std::printf("|---|---|---:|---:|---:|---:|---|---:|---|\n");
   for (size_t i = 0; i < cases.size(); ++i) {
@@ -198,11 +215,13 @@ TEST(MediumClaims, Table41MaterialsFitBackThroughTheSimTank) {
     const sim::LibraryMaterial* lm = sim::find_material(c.material);
     ASSERT_NE(lm, nullptr) << c.material << " is not in the library";
     Measured m;
-    ASSERT_TRUE(measure(c, i, m)) << c.material;
+    const nlohmann::json own = own_settings(c.material);
+    ASSERT_TRUE(measure(c, i, m, "", own)) << c.material;
     const double albedo = m.true_beta / m.true_sigma;
     std::printf("| %s | %s | %g | %.3f | %+.2f %% | %+.2f %% | %.3f (%.3f) | %.2f %% | %s |\n", c.material.c_str(),
                 c.channel.c_str(), c.volume_ml, albedo, 100 * rel(m.sigma, m.true_sigma),
-                m.beta > 0 ? 100 * rel(m.beta, m.true_beta) : std::nan(""), m.g, m.true_g, m.rms, m.model.c_str());
+                m.beta > 0 ? 100 * rel(m.beta, m.true_beta) : std::nan(""), m.g, m.true_g, m.rms,
+                (m.model + (own.empty() ? "" : " (own settings: " + own.dump() + ")")).c_str());
     if (albedo < 0.01) {  // pure absorber (M5): kappa = sigma by attenuation, g undefined
       EXPECT_LT(std::abs(rel(m.sigma, m.true_sigma)), 0.03) << c.material;
       EXPECT_FALSE(m.g_defined) << c.material;
@@ -314,6 +333,7 @@ struct CameraVariant {
   bool noise = true;
   int bits = 12;
   nlohmann::json extra = nlohmann::json::object();
+  std::string scene = "tank-chocolate-milk-8ml";
 };
 
 void run_variant(const CameraVariant& v) {
@@ -329,7 +349,7 @@ void run_variant(const CameraVariant& v) {
       }
     }
   };
-  ASSERT_TRUE(measure_scene("tank-chocolate-milk-8ml", m, "", edit, v.extra, &r)) << v.label;
+  ASSERT_TRUE(measure_scene(v.scene, m, "", edit, v.extra, &r)) << v.label;
   const double kappa = m.true_sigma - m.true_beta;
   std::printf("%-34s measure: sigma %+.3f %% (CI %.3f %%)  beta %+.3f %% (CI %.3f %%)  kappa %+5.1f %% (CI %.0f %%)  "
               "g %+.5f\n",
@@ -396,6 +416,24 @@ void run_variant(const CameraVariant& v) {
   std::printf("%-34s HDR/truth - 1 by rho band (mm):", "");
   for (int k = 0; k < 5; ++k) std::printf("  %g-%g: %+.4f %%", bands[k], bands[k + 1], cnt[k] > 0 ? 100 * sum[k] / cnt[k] : std::nan(""));
   std::printf("\n");
+  // The same by the truth's signal in the longest exposure (DN): the merge's
+  // bias depends on it (the camera's clip at black, the floor at 2 % of full scale).
+  const double t_max = params.value("exposure_max_us", 1e7);
+  const double levels[] = {0, 20, 82, 205, 410, 1000, 4000, 1e12};
+  double ls[7] = {}, lc[7] = {};
+  for (uint32_t y = uint32_t(cfg.fit.roi_y0); y <= uint32_t(cfg.fit.roi_y1); ++y)
+    for (uint32_t x = uint32_t(cfg.fit.roi_x0); x <= uint32_t(cfg.fit.roi_x1); ++x) {
+      if (std::hypot(x - cfg.fit.bulb_x_px, y - cfg.fit.bulb_y_px) < cfg.fit.mask_radius_px) continue;
+      const size_t i = size_t{y} * w + x;
+      if (!(truth[i] > 0) || !std::isfinite(hdr[i])) continue;
+      const double dn = double(truth[i]) * t_max;
+      for (int k = 0; k < 7; ++k)
+        if (dn >= levels[k] && dn < levels[k + 1]) ls[k] += double(hdr[i]) / double(truth[i]) - 1, lc[k] += 1;
+    }
+  std::printf("%-34s HDR/truth - 1 by DN at the longest exposure:", "");
+  for (int k = 0; k < 7; ++k)
+    std::printf("  %g-%g: %+.3f %% (%.0f px)", levels[k], levels[k + 1], lc[k] > 0 ? 100 * ls[k] / lc[k] : std::nan(""), lc[k]);
+  std::printf("\n");
 }
 
 TEST(MediumClaims, DISABLED_Fig411CameraBiasBreakdown) {
@@ -417,6 +455,34 @@ TEST(MediumClaims, DISABLED_Fig411CameraBiasBreakdown) {
   for (size_t i = 0; i < vs.size(); ++i)
     if (only == nullptr || std::to_string(i) == only || std::string(only).find("," + std::to_string(i) + ",") != std::string::npos)
       run_variant(vs[i]);
+}
+
+
+// Issue 14 brief pepsi14: why sigma is low on weak scatterers (Pepsi's beta
+// misses 6 % on some noise seeds). The same breakdown as above on a Table
+// 4.1 row at its table dilution (PROCAM_K14_MATERIAL, default Pepsi):
+// noise-free first (a model mismatch between the renderer and the fit),
+// then noise seeds. Exploration: run by hand.
+TEST(MediumClaims, DISABLED_WeakScattererBiasBreakdown) {
+  const char* env = std::getenv("PROCAM_K14_MATERIAL");
+  const std::string material = env != nullptr ? env : "Pepsi";
+  const sim::LibraryMaterial* lm = sim::find_material(material);
+  ASSERT_NE(lm, nullptr) << material;
+  const std::string scene = write_scene({material, lm->volume_ml > 0 ? lm->volume_ml : 23000.0, "green"}, 200);
+  std::vector<CameraVariant> vs = {
+      {material + ": noise off, 16 bit", 1, false, 16},
+      {material + ": noise off, 12 bit", 1, false, 12},
+  };
+  for (uint64_t seed = 1; seed <= 8; ++seed)
+    vs.push_back({material + ": noise on, 12 bit, seed " + std::to_string(seed), seed, true, 12});
+  const char* only = std::getenv("PROCAM_K14_ONLY");
+  const char* extra = std::getenv("PROCAM_K14_EXTRA");  // plugin params as JSON, e.g. {"min_signal":0}
+  for (size_t i = 0; i < vs.size(); ++i) {
+    vs[i].scene = scene;
+    if (extra != nullptr) vs[i].extra = nlohmann::json::parse(extra);
+    if (only == nullptr || std::to_string(i) == only || std::string(only).find("," + std::to_string(i) + ",") != std::string::npos)
+      run_variant(vs[i]);
+  }
 }
 
 }  // namespace

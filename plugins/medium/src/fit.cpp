@@ -452,6 +452,13 @@ RadialProfile radial_profile(const std::vector<float>& radiance, uint32_t w, uin
     bin.rho_sd_px = std::sqrt(std::max(0.0, acc[b].rho2 / acc[b].n - bin.rho_px * bin.rho_px));
     const double md = acc[b].sum / acc[b].n;
     bin.mean = shift[b] + md;
+    if (s.min_bin_radiance > 0 && !(bin.mean >= s.min_bin_radiance)) {
+      // Too dark in every exposure: the bin's mean decides, not its pixels
+      // (a per-pixel cut would keep the noise-selected bright ones).
+      ++p.bins_dark;
+      p.pixels_dark += bin.n;
+      continue;
+    }
     bin.sumsq_dev = std::max(0.0, acc[b].sumsq - acc[b].n * md * md);
     if (bin.n >= 8) {
       // Least squares d ~ c0 + c1 x + c2 x^2 over the bin's pixels; RSS =
@@ -489,7 +496,11 @@ Minimum minimise_from(const RadialProfile& p, const FitSettings& s, Phase phase,
 FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::vector<float>& radiance, uint32_t w,
                       uint32_t h) {
   FitResult r;
-  if (p.bins.size() < 8 || p.pixels < 64) {
+  // Too few bins because the rest were too dark in every exposure
+  // (min_bin_radiance): no scattered light the camera can measure, which is
+  // a pure absorber's image (M5), not a geometry error.
+  const bool too_dark = (p.bins.size() < 8 || p.pixels < 64) && p.bins_dark > 0;
+  if ((p.bins.size() < 8 || p.pixels < 64) && !too_dark) {
     r.error = "only " + std::to_string(p.pixels) + " usable pixels in " + std::to_string(p.bins.size()) +
               " radial bins outside the bulb mask: check bulb_x_px/bulb_y_px, mask_radius_px and the ROI, and that "
               "the radiance map is not saturated everywhere";
@@ -504,7 +515,7 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
   if (!r.beta_absolute) r.notes.emplace_back("beta is relative (I0 = 1): give source_intensity or water_radiance + bulb_radius_mm");
 
   Problem pr(p, s);
-  bool absorber = !(pr.emax() > 0);
+  bool absorber = too_dark || !(pr.emax() > 0);
   std::vector<double> k;
   if (!absorber) {
     Minimum m = search(pr, s, Phase::henyey_greenstein, {-0.6, -0.2, 0.2, 0.5, 0.7, 0.8, 0.87, 0.92, 0.96, 0.99}, 3);
@@ -569,6 +580,9 @@ FitResult fit_profile(const RadialProfile& p, const FitSettings& s, const std::v
                        : insignificant ? "beta is below 1.96 standard errors (not significant)"
                                        : "beta / sigma = " + fmt(r.beta.value / r.sigma.value) +
                                              " < absorber_albedo";
+  } else if (too_dark) {
+    r.model_reason = "only " + std::to_string(p.bins.size()) + " radial bins outside the bulb mask reach min_signal (" +
+                     std::to_string(p.bins_dark) + " are darker in every exposure): no measurable scattered light";
   } else {
     r.model_reason = "no light outside the bulb mask (max radiance <= 0)";
   }

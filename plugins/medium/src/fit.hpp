@@ -96,6 +96,10 @@ struct FitSettings {
   double absorber_albedo = 0.01;        // beta / sigma below this: pure absorber
   double source_intensity = 0;          // I0 (DN/us mm^2); 0 = from water_radiance, or relative
   double water_radiance = 0;            // bulb's direct radiance in pure water (DN/us); 0 = unknown
+  // Bins whose mean radiance is below this (DN/us) are not fitted: dark in
+  // every exposure, their merged value is biased by the camera's clip at
+  // black (radial_profile). 0 = fit every bin (radiance not from a bracket).
+  double min_bin_radiance = 0;
 };
 
 struct Bin {
@@ -115,6 +119,8 @@ struct RadialProfile {
   std::vector<Bin> bins;
   uint64_t pixels = 0;      // fitted pixels
   uint64_t bins_dropped = 0;  // rings with a NaN (saturated) pixel: not fitted
+  uint64_t bins_dark = 0;     // rings darker than FitSettings::min_bin_radiance: not fitted
+  uint64_t pixels_dark = 0;   // their pixels
   double within_ss = 0;     // sum of bins' sumsq_dev
 };
 

@@ -109,6 +109,10 @@ class MeasureSession final : public BracketSession {
     const uint32_t w = rig_.cameras[0].width, h = rig_.cameras[0].height;
     radiance_ = merge_->radiance();
     saturated_ = merge_->saturated_pixels();
+    // Bins dark in every exposure are not fitted (min_signal): their mean is
+    // biased up by the camera's clip at black and the merge's floor.
+    const double t_max = *std::max_element(cfg_.exposures_us.begin(), cfg_.exposures_us.end());
+    cfg_.fit.min_bin_radiance = cfg_.min_signal * merge_->full_scale() / t_max;
     profile_ = radial_profile(radiance_, w, h, cfg_.fit);
     fit_ = fit_profile(profile_, cfg_.fit, radiance_, w, h);
     // fit_residual: (E - fit) / max of the measured profile (Eq. 4.6's
@@ -165,7 +169,10 @@ class MeasureSession final : public BracketSession {
     r["hdr"]["saturated_pixels"] = saturated_;
     nlohmann::json f = {{"fitted_pixels", profile_.pixels},
                         {"bins", profile_.bins.size()},
-                        {"bins_dropped", profile_.bins_dropped}};
+                        {"bins_dropped", profile_.bins_dropped},
+                        {"bins_dark", profile_.bins_dark},
+                        {"pixels_dark", profile_.pixels_dark},
+                        {"min_bin_radiance", cfg_.fit.min_bin_radiance}};
     if (!fit_.error.empty()) {
       f["error"] = fit_.error;
     } else {

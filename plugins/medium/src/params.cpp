@@ -40,6 +40,9 @@ std::vector<ParamSpec> common_specs() {
       {"floor", ParamType::number, 0.02, 0.0, 0.5, {},
        "linear values below this fraction of full scale are noise-dominated: weight 1e-6 in the merge (used only if "
        "a pixel has nothing better); 0.02 = 5 DN at 8 bit"},
+      {"min_signal", ParamType::number, 0.05, 0.0, 0.5, {},
+       "fit only radial bins whose mean radiance reaches this fraction of full scale in the longest exposure; "
+       "darker ones are biased up by the camera's clip at black and the floor (docs/medium.md, the fit step 1); 0 = fit all"},
       {"response", ParamType::string, "linear", -kInf, kInf, {"linear", "gamma", "lut"},
        "camera response: linear (raw or linear-mode frames), gamma (DN_lin = FS (DN / FS)^gamma), or lut "
        "(response_lut: one linear value per DN code)"},
@@ -188,6 +191,7 @@ sdk::Error parse_config(const std::string& method, const nlohmann::json& params,
   cfg.hdr.black_dn = p.get_number("black_dn");
   cfg.hdr.saturation = p.get_number("saturation");
   cfg.hdr.floor = p.get_number("floor");
+  cfg.min_signal = p.get_number("min_signal");
   const std::string response = p.get_string("response");
   if (response == "gamma") cfg.hdr.gamma = p.get_number("gamma");
   if (response == "lut")

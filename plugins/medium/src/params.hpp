@@ -25,6 +25,7 @@ struct Config {
   HdrSettings hdr;
   FitSettings fit;
   std::vector<double> exposures_us;     // the bracket, one frame each (per dilution)
+  double min_signal = 0.05;             // measure: fit bins reaching this fraction of full scale at the longest exposure
   bool spot = false;                    // projector pattern: a spot (else white)
   double spot_x_px = -1, spot_y_px = -1, spot_radius_px = 20;
   std::vector<double> volumes_ml;       // concentration: one HDR bracket per volume, increasing
