@@ -132,10 +132,26 @@ Result<Config> parse_config(const nlohmann::json& j, const std::string& base_dir
     c.results_dir = resolve(base_dir, j.value("results_dir", c.results_dir));
     key = "log";
     c.log = j.value("log", c.log);
+    // Counts are read as JSON integers only: a float such as 1e60 would
+    // otherwise be converted to an unsigned type, which is undefined
+    // behaviour (found by fuzz_config in CI), and 2.5 would be truncated.
     key = "threads";
-    c.threads = j.value("threads", c.threads);
+    if (j.contains("threads")) {
+      const auto& v = j["threads"];
+      if (!v.is_number_integer() || v.get<int64_t>() < 1 || v.get<int64_t>() > 256)
+        return Error(Code::invalid_argument, "daemon config: 'threads' must be an integer 1..256, got " + v.dump().substr(0, 40),
+                     "e.g. \"threads\": 2");
+      c.threads = static_cast<decltype(c.threads)>(v.get<int64_t>());
+    }
     key = "max_queue";
-    c.max_queue = j.value("max_queue", c.max_queue);
+    if (j.contains("max_queue")) {
+      const auto& v = j["max_queue"];
+      if (!v.is_number_integer() || v.get<int64_t>() < 1 || v.get<int64_t>() > 100000)
+        return Error(Code::invalid_argument,
+                     "daemon config: 'max_queue' must be an integer 1..100000, got " + v.dump().substr(0, 40),
+                     "e.g. \"max_queue\": 16");
+      c.max_queue = static_cast<decltype(c.max_queue)>(v.get<int64_t>());
+    }
     key = "probe_plugins";
     c.probe_plugins = j.value("probe_plugins", c.probe_plugins);
     key = "plugins";

@@ -3,6 +3,7 @@
 // (tests/fuzz/regressions/) through the fuzz harnesses, built with the normal
 // compiler: runs in every `make test`, with or without clang.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -10,6 +11,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include "../../daemon/procamd/config.hpp"
 
 extern "C" int FuzzRequest(const uint8_t* data, size_t size);
 extern "C" int FuzzConfig(const uint8_t* data, size_t size);
@@ -64,6 +67,35 @@ TEST(FuzzRegression, WorkerProtocolCorpusAndCrashInputs) {
     SCOPED_TRACE(f.string());
     EXPECT_EQ(FuzzWorker(reinterpret_cast<const uint8_t*>(s.data()), s.size()), 0);
   }
+}
+
+// The count fields accept JSON integers in range only. A huge float (1e52
+// threads, found by fuzz_config in CI) used to reach an unsigned conversion,
+// which is undefined behaviour; 2.5 was silently truncated to 2.
+TEST(FuzzRegression, ConfigCountsAreIntegersInRange) {
+  const auto base = nlohmann::json{{"rig", nlohmann::json{{"name", "inline"}}}};
+  auto with = [&](const char* key, nlohmann::json v) {
+    auto j = base;
+    j[key] = std::move(v);
+    return procam::daemon::parse_config(j, "/fuzz/base");
+  };
+  ASSERT_TRUE(procam::daemon::parse_config(base, "/fuzz/base").ok());
+  for (const char* key : {"threads", "max_queue"}) {
+    SCOPED_TRACE(key);
+    for (const nlohmann::json& bad : {nlohmann::json(1.2e52), nlohmann::json(2.5), nlohmann::json(-1),
+                                      nlohmann::json(0), nlohmann::json(1000000), nlohmann::json("4")}) {
+      auto c = with(key, bad);
+      ASSERT_FALSE(c.ok()) << bad.dump();
+      EXPECT_NE(c.status().message().find(key), std::string::npos) << c.status().message();
+      EXPECT_NE(c.status().message().find("integer"), std::string::npos) << c.status().message();
+    }
+  }
+  auto ok = with("threads", 8);
+  ASSERT_TRUE(ok.ok()) << ok.status().message();
+  EXPECT_EQ(ok->threads, 8u);
+  ok = with("max_queue", 100000);
+  ASSERT_TRUE(ok.ok()) << ok.status().message();
+  EXPECT_EQ(ok->max_queue, 100000u);
 }
 
 }  // namespace
