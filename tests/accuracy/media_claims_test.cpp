@@ -28,9 +28,16 @@
 // numbers are printed for the report.
 #include <gtest/gtest.h>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <string>
@@ -152,10 +159,93 @@ double snr_against(const float* e, const float* t, const std::vector<size_t>& id
   return rms > 0 ? (se / double(n)) / rms : std::numeric_limits<double>::infinity();
 }
 
+// ---- Report files (docs/report/ch5/), written only when PROCAM_REPORT_DIR
+// is set: `PROCAM_REPORT_DIR=docs/report/ch5 build/tests/accuracy/procam_media_claims_test`.
+std::string report_dir() {
+  const char* d = std::getenv("PROCAM_REPORT_DIR");
+  if (!d || !*d) return "";
+  std::error_code ec;
+  std::filesystem::create_directories(d, ec);
+  return d;
+}
+
+// An image scaled for viewing: its 99.5th percentile at 230 of 255, NaN black.
+cv::Mat preview_u8(const float* img, uint32_t w, uint32_t h) {
+  const double top = std::max(percentile_of(img, size_t{w} * h, 0.995), 1e-12);
+  cv::Mat out(static_cast<int>(h), static_cast<int>(w), CV_8UC1);
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const float v = img[size_t{y} * w + x];
+      out.at<uint8_t>(static_cast<int>(y), static_cast<int>(x)) =
+          std::isfinite(v) ? static_cast<uint8_t>(std::clamp(230.0 * double(v) / top, 0.0, 255.0)) : 0;
+    }
+  return out;
+}
+
+// Tiles side by side, each under a caption line.
+void write_montage(const std::string& path, const std::vector<std::pair<std::string, cv::Mat>>& tiles) {
+  if (tiles.empty()) return;
+  const int cap = 26, w = tiles[0].second.cols, h = tiles[0].second.rows;
+  cv::Mat out(h + cap, w * static_cast<int>(tiles.size()), CV_8UC3, cv::Scalar(255, 255, 255));
+  for (size_t i = 0; i < tiles.size(); ++i) {
+    cv::Mat bgr;
+    cv::cvtColor(tiles[i].second, bgr, cv::COLOR_GRAY2BGR);
+    bgr.copyTo(out(cv::Rect(static_cast<int>(i) * w, cap, w, h)));
+    cv::putText(out, tiles[i].first, {static_cast<int>(i) * w + 4, 18}, cv::FONT_HERSHEY_SIMPLEX, 0.42,
+                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  cv::imwrite(path, out);
+}
+
+// A bar chart: groups of bars (one value per series), a legend, the value
+// printed above each bar. y from 0 to the largest value x 1.15.
+void write_bars(const std::string& path, const std::string& title, const std::vector<std::string>& groups,
+                const std::vector<std::string>& series, const std::vector<std::vector<double>>& value) {
+  const int W = 1040, H = 480, L = 60, R = 300, T = 50, B = 60;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  double vmax = 0;
+  for (const auto& g : value)
+    for (double v : g)
+      if (std::isfinite(v)) vmax = std::max(vmax, v);
+  if (vmax <= 0) return;
+  vmax *= 1.15;
+  const cv::Scalar black(0, 0, 0), palette[] = {{160, 160, 160}, {200, 120, 0}, {0, 140, 0}, {0, 0, 200}, {120, 0, 160}};
+  auto Y = [&](double v) { return H - B - static_cast<int>(v / vmax * (H - T - B)); };
+  cv::rectangle(img, {L, T}, {W - R, H - B}, black);
+  for (int k = 0; k <= 4; ++k) {
+    char t[32];
+    std::snprintf(t, sizeof t, "%.2g", vmax * k / 4);
+    cv::putText(img, t, {8, Y(vmax * k / 4) + 4}, cv::FONT_HERSHEY_SIMPLEX, 0.42, black, 1, cv::LINE_AA);
+  }
+  cv::putText(img, title, {L, T - 18}, cv::FONT_HERSHEY_SIMPLEX, 0.55, black, 1, cv::LINE_AA);
+  const int gw = (W - L - R) / static_cast<int>(groups.size()), bw = (gw - 20) / static_cast<int>(series.size());
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const int x0 = L + static_cast<int>(g) * gw + 10;
+    cv::putText(img, groups[g], {x0, H - B + 22}, cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1, cv::LINE_AA);
+    for (size_t s = 0; s < series.size(); ++s) {
+      const double v = value[g][s];
+      if (!std::isfinite(v)) continue;
+      const int x = x0 + static_cast<int>(s) * bw;
+      cv::rectangle(img, {x, Y(v)}, {x + bw - 4, H - B}, palette[s % std::size(palette)], cv::FILLED);
+      char t[32];
+      std::snprintf(t, sizeof t, "%.3g", v);
+      cv::putText(img, t, {x, Y(v) - 4}, cv::FONT_HERSHEY_SIMPLEX, 0.38, black, 1, cv::LINE_AA);
+    }
+  }
+  for (size_t s = 0; s < series.size(); ++s) {
+    const int y = T + 12 + static_cast<int>(s) * 22;
+    cv::rectangle(img, {W - R + 12, y - 8}, {W - R + 26, y + 4}, palette[s % std::size(palette)], cv::FILLED);
+    cv::putText(img, series[s], {W - R + 32, y + 3}, cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1, cv::LINE_AA);
+  }
+  cv::imwrite(path, img);
+}
+
 TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
   const std::vector<std::string> methods = {"flood", "polarized-flood", "striping", "polarized-striping"};
-  std::map<std::string, double> contrast, cqm, dop_used, dop_truth;
+  std::map<std::string, double> contrast, cqm, dop_used, dop_truth, exposure;
   double truth_contrast = 0;
+  std::vector<std::pair<std::string, cv::Mat>> tiles;
+  uint32_t tw = 0, th = 0;
   for (const auto& m : methods) {
     ScanRun r;
     // Each method at its own exposure, as on a real rig (the thesis
@@ -212,6 +302,15 @@ TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
     }
     truth_contrast = michelson(r.truth.medium_direct.ptr<float>(), px);
     std::printf("heavy milk  %-19s chart contrast %.3f  plugin cqm_mean %.3f\n", m.c_str(), contrast[m], cqm[m]);
+    exposure[m] = exposure_us;
+    tw = r.truth.medium_direct.width(), th = r.truth.medium_direct.height();
+    char cap[96];
+    std::snprintf(cap, sizeof cap, "%s  C=%.3f", m.c_str(), contrast[m]);
+    tiles.emplace_back(cap, preview_u8(img, tw, th));
+    if (tiles.size() == methods.size()) {
+      std::snprintf(cap, sizeof cap, "true D (no medium light)  C=%.3f", truth_contrast);
+      tiles.emplace_back(cap, preview_u8(r.truth.medium_direct.ptr<float>(), tw, th));
+    }
   }
   std::printf("heavy milk  true direct D         chart contrast %.3f (no backscatter)\n", truth_contrast);
   // Thesis Fig. 5.6 (heavy milk): polarized striping > striping > polarized
@@ -232,6 +331,31 @@ TEST(MediaClaims, HeavyMilkPolarizationAndStripingBeatFloodContrast) {
   EXPECT_GE(contrast["polarized-flood"], contrast["flood"] - 0.01);
   for (const auto& [m, c] : contrast) EXPECT_LE(c, truth_contrast + 0.02) << m << ": more contrast than the scene has";
   EXPECT_GT(cqm["striping"], cqm["flood"]);
+  if (const std::string dir = report_dir(); !dir.empty()) {
+    write_montage(dir + "/fig56-heavy-images.png", tiles);
+    std::vector<std::vector<double>> v(1);
+    for (const auto& m : methods) v[0].push_back(contrast[m]);
+    v[0].push_back(truth_contrast);
+    auto series = methods;
+    series.push_back("true D");
+    write_bars(dir + "/fig56-heavy-contrast.png", "Fig. 5.6, heavy milk: chart contrast against truth (higher is better)",
+               {"heavy milk (16 ml)"}, series, v);
+    std::ofstream md(dir + "/fig56-heavy.md");
+    md << "| heavy milk (16 ml) | exposure (ms) | chart contrast | plugin `cqm_mean` | `dop_used` (truth: DOP of B) |\n"
+          "|---|---:|---:|---:|---:|\n";
+    char line[256];
+    for (const auto& m : methods) {
+      std::snprintf(line, sizeof line, "| `%s` | %.0f | %.3f | %.3f | %s |\n", m.c_str(), exposure[m] / 1000.0,
+                    contrast[m], cqm[m],
+                    dop_used.count(m) ? (std::to_string(dop_used[m]).substr(0, 5) + " (" +
+                                         std::to_string(dop_truth[m]).substr(0, 5) + ")")
+                                            .c_str()
+                                      : "–");
+      md << line;
+    }
+    std::snprintf(line, sizeof line, "| true direct signal D | | %.3f | | |\n", truth_contrast);
+    md << line;
+  }
   // Both DOP estimates are used (>= p_min, else dop_used is 0) and, being a
   // high quantile of a ratio that is p only where a pixel sees medium alone,
   // do not exceed the truth's DOP of B (median over the chart, 0.293) by more than the ratio's noise
@@ -326,6 +450,26 @@ TEST(MediaClaims, SeparationDirectAndPolarizedStripingSignalAgainstTruth) {
   // G / D = 10.0, 2026-11-24; shot noise alone predicts a ratio <= 0.43).
   EXPECT_GT(g_over_d, 1.0) << "the heavy tank should have more global than direct light on the chart";
   EXPECT_LT(snr_sep_h, snr_ps_h) << "high-frequency separation's direct image should be noisier (Fig. 5.4)";
+  if (const std::string dir = report_dir(); !dir.empty()) {
+    write_bars(dir + "/fig54-snr.png", "Fig. 5.4: SNR against truth (higher is better)",
+               {"moderate milk (8 ml)", "heavy milk (16 ml)"}, {"separation/checker direct", "polarized-striping signal"},
+               {{snr_sep, snr_ps}, {snr_sep_h, snr_ps_h}});
+    const uint32_t w = sep.truth.medium_direct.width(), h = sep.truth.medium_direct.height();
+    write_montage(dir + "/fig54-moderate-images.png",
+                  {{"separation/checker direct", preview_u8(direct, w, h)},
+                   {"polarized-striping signal", preview_u8(signal, w, h)},
+                   {"true D", preview_u8(sep.truth.medium_direct.ptr<float>(), w, h)}});
+    std::ofstream md(dir + "/fig54.md");
+    char line[256];
+    md << "| tank | G / D on the chart | exposure (ms) | separation/checker direct SNR | polarized-striping signal SNR |\n"
+          "|---|---:|---:|---:|---:|\n";
+    std::snprintf(line, sizeof line, "| moderate (8 ml) | %.2f | %.1f | %.2f | %.2f |\n", g_over_d_moderate,
+                  exposure_us / 1000.0, snr_sep, snr_ps);
+    md << line;
+    std::snprintf(line, sizeof line, "| heavy (16 ml) | %.2f | %.1f | %.2f | %.2f |\n", g_over_d, exposure_h / 1000.0,
+                  snr_sep_h, snr_ps_h);
+    md << line;
+  }
 }
 
 }  // namespace
