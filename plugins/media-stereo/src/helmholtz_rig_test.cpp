@@ -31,6 +31,7 @@
 
 #include <unistd.h>
 
+#include "procam/core/image_io.hpp"
 #include "procam/engine/rig_json.hpp"
 #include "procam/engine/scan_runner.hpp"
 #include "procam/host/plugin_host.hpp"
@@ -253,6 +254,60 @@ INSTANTIATE_TEST_SUITE_P(Objects, HelmholtzThroughTheRig,
                              n += "_averaged_" + std::to_string(param_info.param.frames_per_pair);
                            return n;
                          });
+
+// frames_per_pair n > 1: each pair image is the mean of n frames, and a
+// sample clipped in ANY of them stays clipped (the mean of a clipped and an
+// unclipped sample looks like a valid, wrong signal). Scanned once with n = 2
+// and recorded; then the first of camera 0's two frames of every pair is
+// clipped on its left half (x < w/2) and the recording decoded offline.
+// Camera 0's image enters every pair, so its left half must give no depth at
+// all, while the right half decodes as the untouched recording does.
+TEST(HelmholtzRig, FramesPerPairKeepsASampleClippedInAnyFrameClipped) {
+  const nlohmann::json cfg = rig_config();
+  auto rig = open_rig("media-stereo-rig-plane-matte");
+  ASSERT_TRUE(rig);
+  const std::string rec = (std::filesystem::temp_directory_path() /
+                           ("procam_helmholtz_fpp_" + std::to_string(::getpid()))).string();
+  std::filesystem::create_directories(rec);
+  const ScanOut live = host_scan(*rig, params(cfg, "media", 2), rec, false);
+  ASSERT_EQ(live.patterns, 16u);  // 4 pairs x 2 images x 2 frames
+  const ScanOut again = host_scan(*rig, params(cfg, "media", 2), rec, true);
+  uint32_t w = 0, h = 0;
+  // Frame index (2(j-1) + side)·n + k; side 0 is camera 0, k = 0 the first repeat.
+  for (size_t j = 1; j <= 4; ++j) {
+    const std::string path = rec + "/" + engine::recorded_frame_name(1, (2 * (j - 1)) * 2);
+    auto img = read_image(path);
+    ASSERT_TRUE(img.ok()) << img.status().to_string();
+    w = img->width(), h = img->height();
+    ASSERT_EQ(img->channels(), 1u);
+    const auto top = static_cast<uint16_t>(img->max_value());
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w / 2; ++x) img->row<uint16_t>(y)[x] = top;
+    ASSERT_TRUE(write_image(path, *img).ok());
+  }
+  const ScanOut clipped = host_scan(*rig, params(cfg, "media", 2), rec, true);
+  std::filesystem::remove_all(rec);
+  ASSERT_EQ(again.depth.size(), size_t{w} * h);
+  ASSERT_EQ(clipped.depth.size(), size_t{w} * h);
+  size_t left_before = 0, left_after = 0, right_before = 0, right_same = 0;
+  for (uint32_t y = 0; y < h; ++y)
+    for (uint32_t x = 0; x < w; ++x) {
+      const size_t i = size_t{y} * w + x;
+      if (x < w / 2) {
+        left_before += std::isfinite(again.depth[i]);
+        left_after += std::isfinite(clipped.depth[i]);
+      } else if (x >= w / 2 + 8 && std::isfinite(again.depth[i])) {  // beyond the 5x5 window's reach
+        ++right_before;
+        right_same += clipped.depth[i] == again.depth[i];
+      }
+    }
+  std::printf("frames_per_pair 2, left half clipped in one frame: valid left %zu -> %zu, right unchanged %zu of %zu\n",
+              left_before, left_after, right_same, right_before);
+  EXPECT_GT(left_before, size_t{w} * h / 8) << "the untouched recording should decode the left half";
+  EXPECT_EQ(left_after, 0u) << "a sample clipped in one of the n frames must stay clipped in their mean";
+  EXPECT_GT(right_before, size_t{w} * h / 8);
+  EXPECT_EQ(right_same, right_before) << "pixels away from the clipped half should not change";
+}
 
 // ---- issue 13: where the error came from, and reciprocity ----------------
 // The lead measured, on the matte plane: 14.3 deg with noise, 7.76 deg and an
