@@ -208,11 +208,46 @@ bool clear_of_mask(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t
 //  - it agrees with its row's valid neighbours (row_column_estimate() within
 //    kCorrectionNeighbourPx), where it has any: global light is smooth, so a
 //    pixel that the first pass lost among valid neighbours lies between them.
-// Returns the number of pixels resolved.
+//
+// Re-check of first-pass claims (issue 18, session 14; recheck_claims, on by
+// default; docs/structured-light.md "Error correction rounds"): the mask
+// switches off the projector pixels that valid pixels claim, so a valid,
+// unflagged pixel whose claimed projector pixel is off (claim_masked()) must
+// go dark in the round if its claim was its direct light. One that still
+// decodes with all four codes agreeing (kAllAgree) more than
+// kRefutedMovePx columns from its claim is lit from another projector
+// column: its claim was a global (mirror) path's, and it is refuted. It takes
+// the round's column when that passes the flagged pixels' geometric tests
+// (clear_of_mask(), and the row-neighbour test against the row's valid pixels
+// that are not refuted themselves); else it becomes invalid (kError), never
+// keeping a column known to be a mirror's. The flagged pixels' neighbour test
+// then reads the map with the refuted pixels already replaced: next to a
+// mirror the first pass's neighbours are wrong together.
+// Returns the number of flagged pixels resolved; counts (optional) gets the
+// refuted ones; undo (optional) gets the previous values of every pixel the
+// merge changed, to take the round back.
+inline constexpr float kRefutedMovePx = 2.0f;
+struct MergeCounts {
+  size_t resolved = 0;       // flagged pixels that took a new column
+  size_t refuted = 0;        // valid pixels whose claim the round refuted
+  size_t refuted_moved = 0;  // ... of them, took the round's column (others: invalid)
+};
+struct MergeUndo {
+  size_t i;
+  float coord, confidence;
+  uint8_t valid, cls;
+  bool was_flagged;  // a flagged pixel resolved (else a refuted claim)
+};
 size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, const VoteMaps& v,
                         const std::vector<float>& masked_white,
                         const std::vector<float>& round1_white, std::vector<float>& coord,
                         std::vector<uint8_t>& valid, std::vector<float>& confidence,
-                        std::vector<uint8_t>& cls);
+                        std::vector<uint8_t>& cls, bool recheck_claims = true,
+                        MergeCounts* counts = nullptr, std::vector<MergeUndo>* undo = nullptr);
+
+// True when the projector pixel that column `col` of camera pixel i names
+// (rounded, as correction_mask() switches pixels off) is switched off in
+// `mask`; false when it cannot be located or the mask is empty.
+bool claim_masked(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t i, float col);
 
 }  // namespace procam::sl
