@@ -213,21 +213,6 @@ bool clear_of_mask(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t
   return true;
 }
 
-bool claim_masked(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t i, float col) {
-  if (mask.empty() || std::isnan(col)) return false;
-  const sdk::RigCamera& cam = rig.cameras.at(0);
-  const auto u = static_cast<uint32_t>(i % cam.width), v = static_cast<uint32_t>(i / cam.width);
-  const auto x = triangulate_column(cam.calibration, rig.projector, u, v, col);
-  if (!x) return false;
-  double pu = 0, pv = 0;
-  rig.projector.project(cam.calibration.cam_from_proj.inverse() * *x, pu, pv);
-  if (!std::isfinite(pu) || !std::isfinite(pv)) return false;
-  const auto cu = static_cast<int64_t>(std::lround(pu)), cv = static_cast<int64_t>(std::lround(pv));
-  if (cu < 0 || cv < 0 || cu >= int64_t{rig.projector_width} || cv >= int64_t{rig.projector_height})
-    return false;
-  return mask[static_cast<size_t>(cv) * rig.projector_width + static_cast<size_t>(cu)] == 0;
-}
-
 size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, const VoteMaps& v,
                         const std::vector<float>& masked_white,
                         const std::vector<float>& round1_white, std::vector<float>& coord,
@@ -246,7 +231,7 @@ size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, c
   if (recheck_claims && !mask.empty())
     for (size_t i = 0; i < n; ++i)
       if (valid[i] != 0 && !flagged(cls[i]) && v.valid[i] != 0 && v.cls[i] == kAllAgree &&
-          std::fabs(v.coord[i] - coord[i]) > kRefutedMovePx && claim_masked(rig, mask, i, coord[i]))
+          std::fabs(v.coord[i] - coord[i]) > kRefutedMovePx)
         refuted.push_back(i);
   if (!refuted.empty()) {
     // Their neighbour test reads the row's valid pixels that are not refuted.

@@ -210,19 +210,25 @@ bool clear_of_mask(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t
 //    pixel that the first pass lost among valid neighbours lies between them.
 //
 // Re-check of first-pass claims (issue 18, session 14; recheck_claims, on by
-// default; docs/structured-light.md "Error correction rounds"): the mask
-// switches off the projector pixels that valid pixels claim, so a valid,
-// unflagged pixel whose claimed projector pixel is off (claim_masked()) must
-// go dark in the round if its claim was its direct light. One that still
-// decodes with all four codes agreeing (kAllAgree) more than
-// kRefutedMovePx columns from its claim is lit from another projector
-// column: its claim was a global (mirror) path's, and it is refuted. It takes
-// the round's column when that passes the flagged pixels' geometric tests
-// (clear_of_mask(), and the row-neighbour test against the row's valid pixels
-// that are not refuted themselves); else it becomes invalid (kError), never
-// keeping a column known to be a mirror's. The flagged pixels' neighbour test
-// then reads the map with the refuted pixels already replaced: next to a
-// mirror the first pass's neighbours are wrong together.
+// default; docs/structured-light.md "Error correction rounds", rule 3): the
+// masked round re-decodes the first pass's valid pixels too. A valid,
+// unflagged pixel that decodes in the round with all four codes agreeing
+// (kAllAgree) more than kRefutedMovePx columns from its first-pass column
+// (its claim) is *refuted*: a right claim is the pixel's direct light, and
+// the mask only removes light, so either the claim's projector pixel is
+// still on and the claim would still win, or it was switched off and the
+// pixel keeps only global light, which does not make four codes of
+// different structure agree on one column (the assumption; it fails where a
+// strong glossy path from one column remains: val2's satin post). So the
+// claim came from a global (mirror) path, whose source the mask switched
+// off. The pixel takes the round's column when that passes the flagged
+// pixels' geometric tests (clear_of_mask(), and the row-neighbour test
+// against the row's valid pixels that are not refuted themselves); else it
+// becomes invalid (kError), never keeping a column known to be a mirror's.
+// The flagged pixels' neighbour test then reads the map with the refuted
+// pixels already replaced: next to a mirror the first pass's neighbours are
+// wrong together (session 14: 1 182 of the copper tube's 1 305 right masked
+// answers were refused by it).
 // Returns the number of flagged pixels resolved; counts (optional) gets the
 // refuted ones; undo (optional) gets the previous values of every pixel the
 // merge changed, to take the round back.
@@ -244,10 +250,5 @@ size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, c
                         std::vector<uint8_t>& valid, std::vector<float>& confidence,
                         std::vector<uint8_t>& cls, bool recheck_claims = true,
                         MergeCounts* counts = nullptr, std::vector<MergeUndo>* undo = nullptr);
-
-// True when the projector pixel that column `col` of camera pixel i names
-// (rounded, as correction_mask() switches pixels off) is switched off in
-// `mask`; false when it cannot be located or the mask is empty.
-bool claim_masked(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t i, float col);
 
 }  // namespace procam::sl

@@ -238,10 +238,10 @@ TEST(Correction, MergeTakesOnlyErrorPixelsThatPassEveryRule) {
 
 // Re-check of first-pass claims (recheck_claims). The masked round is voted
 // from four per-code maps (vote_pixels), so "all four agree" is the vote's
-// own class. Valid first-pass pixels claim projector column 32, a mirror's:
-// projector rows 6..16, columns 30..34 are switched off, so in the masked
-// round a right claim would leave the pixel dark.
-TEST(Correction, MergeRefutesAClaimWhoseProjectorPixelIsOffButStillDecodesElsewhere) {
+// own class. Most valid first-pass pixels claim projector column 32, a
+// mirror's: projector rows 6..16, columns 30..34 are switched off, as the
+// mirror's source would be.
+TEST(Correction, MergeRefutesAClaimWhenAllFourCodesAgreeElsewhereUnderTheMask) {
   const sdk::Rig rig = rectified_rig();
   std::vector<uint8_t> mask(kW * kH, 255);
   for (uint32_t y = 6; y <= 16; ++y)
@@ -277,9 +277,6 @@ TEST(Correction, MergeRefutesAClaimWhoseProjectorPixelIsOffButStillDecodesElsewh
   // ... the masked answer equals the claim (within kRefutedMovePx) ...
   const size_t d = claim(20, 8, 32.0f);
   masked(d, 33, 33, 33, 33);
-  // ... the claimed projector pixel is on (a direct pixel the mask left lit) ...
-  const size_t e = claim(10, 20, 45.0f);
-  masked(e, 50, 50, 50, 50);
   // ... and the pixel goes dark, as a right claim should.
   const size_t f = claim(20, 16, 32.0f);
   (void)f;
@@ -300,6 +297,10 @@ TEST(Correction, MergeRefutesAClaimWhoseProjectorPixelIsOffButStillDecodesElsewh
   const size_t fl = 14 * kW + 12;
   cls[fl] = kError;
   masked(fl, 52, 52, 52, 52);
+  // Fires also where the claim's projector pixel is on (projector row 20 is
+  // not masked): a right claim would have kept its direct light and won.
+  const size_t e = claim(10, 20, 45.0f);
+  masked(e, 50, 50, 50, 50);
   // Refuted, new column named by a switched-off projector pixel margin: invalid.
   const size_t k = claim(10, 16, 32.0f);
   masked(k, 36, 36, 36, 36);  // (36, 16) within 2 of column 34, switched off
@@ -324,17 +325,17 @@ TEST(Correction, MergeRefutesAClaimWhoseProjectorPixelIsOffButStillDecodesElsewh
   std::vector<MergeUndo> undo;
   const size_t resolved = merge_correction(rig, mask, v, masked_white, round1, coord, valid,
                                            confidence, cls, true, &counts, &undo);
-  EXPECT_EQ(counts.refuted, 7u);  // a, g, h1, h2, i1, i2, k
-  EXPECT_EQ(counts.refuted_moved, 5u);
+  EXPECT_EQ(counts.refuted, 8u);  // a, e, g, h1, h2, i1, i2, k
+  EXPECT_EQ(counts.refuted_moved, 6u);
   EXPECT_EQ(resolved, 1u);  // fl
   EXPECT_EQ(counts.resolved, 1u);
-  for (const auto& [i, col] : {std::pair{a, 50.0f}, {h1, 50.0f}, {h2, 52.0f}, {i1, 50.0f},
+  for (const auto& [i, col] : {std::pair{a, 50.0f}, {e, 50.0f}, {h1, 50.0f}, {h2, 52.0f}, {i1, 50.0f},
                                 {i2, 54.0f}, {fl, 52.0f}}) {
     EXPECT_EQ(coord[i], col) << i;
     EXPECT_EQ(valid[i], 255) << i;
     EXPECT_EQ(cls[i], kAllAgree) << i;
   }
-  for (size_t i : {b, c, d, e, f, g_nb}) {
+  for (size_t i : {b, c, d, f, g_nb}) {
     EXPECT_EQ(coord[i], coord0[i]) << i;
     EXPECT_EQ(valid[i], 255) << i;
     EXPECT_EQ(cls[i], kAllAgree) << i;
@@ -345,11 +346,11 @@ TEST(Correction, MergeRefutesAClaimWhoseProjectorPixelIsOffButStillDecodesElsewh
     EXPECT_EQ(cls[i], kError) << i;
   }
   // The undo list holds every changed pixel's previous value.
-  ASSERT_EQ(undo.size(), 8u);
+  ASSERT_EQ(undo.size(), 9u);
   for (const MergeUndo& u : undo) {
     EXPECT_EQ(u.was_flagged, u.i == fl) << u.i;
     if (u.i == fl) EXPECT_TRUE(std::isnan(u.coord));
-    else EXPECT_EQ(u.coord, 32.0f) << u.i;
+    else EXPECT_EQ(u.coord, u.i == e ? 45.0f : 32.0f) << u.i;
   }
   // Off: no claim is re-checked, and the flagged pixel's neighbours are the
   // mirror's 32 (|52 - 32| > kCorrectionNeighbourPx): it stays an error.
@@ -359,6 +360,7 @@ TEST(Correction, MergeRefutesAClaimWhoseProjectorPixelIsOffButStillDecodesElsewh
             0u);
   EXPECT_EQ(off.refuted, 0u);
   for (size_t i : {a, g, h1, i1, k}) EXPECT_EQ(coord_off[i], 32.0f) << i;
+  EXPECT_EQ(coord_off[e], 45.0f);
   EXPECT_EQ(cls_off[fl], kError);
 }
 
