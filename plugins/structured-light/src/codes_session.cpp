@@ -346,8 +346,9 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         confidence_ = std::move(v.confidence);
         cls_ = std::move(v.cls);
         conflicts_ = r.conflicts;
-      } else {  // correction: only flagged pixels take the new result, where every
-        // ground-truth-free test passes (correction.hpp merge_correction;
+      } else {  // correction: flagged pixels take the new result where every
+        // ground-truth-free test passes, and refuted first-pass claims are
+        // replaced or made invalid (correction.hpp merge_correction;
         // r.intensity is the masked white frame)
         // The merge keeps the previous values of every pixel it changes, to
         // take the round's flagged-pixel answers back when its acceptance
@@ -367,9 +368,9 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         // answers that did pass are suspect too: on the steel ball (0.62)
         // they were wrong 2.0 % of the time against the scene's 0.87 %.
         // Refuted claims (recheck_claims) are not taken back: their test does
-        // not rest on the probe's model (a pixel whose claimed projector pixel
-        // is off still decodes, all four codes agreeing, elsewhere), and the
-        // value they had is known to be a global path's.
+        // not rest on the probe's model (a valid pixel decodes under the mask,
+        // all four codes agreeing, elsewhere), and the value they had is known
+        // to be a global path's.
         stats.discarded = stats.acceptance < cfg_.min_acceptance;
         for (const MergeUndo& u : undo) {
           if (stats.discarded && u.was_flagged) {
@@ -797,12 +798,13 @@ std::vector<sdk::ParamSpec> common_specs(bool ensemble) {
                  "a correction round whose new values passed the no-ground-truth tests "
                  "(all four codes agree, light kept and reduced, column clear of the mask) for "
                  "fewer than this fraction of the pixels its probe predicted fixable is discarded "
-                 "(its values taken back) and correcting stops"});
+                 "(its flagged pixels' values taken back) and correcting stops"});
     s.push_back({"recheck_claims", sdk::ParamType::boolean, true, -kInf, kInf, {},
-                 "in a correction round, a valid pixel whose claimed projector pixel is switched off "
-                 "but that still decodes, all four codes agreeing, more than 2 columns away was lit "
-                 "by a global (mirror) path in the first pass: it takes the round's column if that "
-                 "passes the merge's geometric tests, else it becomes invalid"});
+                 "in a correction round, a valid pixel that decodes under the mask with all four "
+                 "codes agreeing more than 2 columns from its first-pass column was lit by a global "
+                 "(mirror) path in the first pass (a right column would still win, or go dark with "
+                 "its projector pixel off): it takes the round's column if that passes the merge's "
+                 "geometric tests, else it becomes invalid"});
     s.push_back({"code_maps", sdk::ParamType::boolean, false, -kInf, kInf, {},
                  "also output each code's own round-1 column map (proj_col_px_<code>) for inspection"});
     s.push_back({"mask_dilate_px", sdk::ParamType::integer, 2, 0.0, 16.0, {},
