@@ -305,8 +305,9 @@ INSTANTIATE_TEST_SUITE_P(Validation2, Issue18,
                          issue18_name);
 INSTANTIATE_TEST_SUITE_P(Validation3, Issue18,
                          ::testing::Values(Issue18Scene{"val3-niche-corners", true},
-                                           // measured miss (README): auto 2.886 % vs xor02 2.326 %
-                                           Issue18Scene{"val3-copper-nickel-cylinders", false},
+                                           // session 13's miss (auto 2.886 % vs xor02 2.326 %) closed
+                                           // by the rounds' re-check of first-pass claims (session 14)
+                                           Issue18Scene{"val3-copper-nickel-cylinders", true},
                                            Issue18Scene{"val3-alabaster-silicone", true},
                                            Issue18Scene{"val3-near-ramp-far", true}),
                          issue18_name);

@@ -44,6 +44,7 @@ struct Config {
   double auto_tolerance = 0.001;
   double min_round_gain = 0.002;
   double min_acceptance = 0.7;
+  bool recheck_claims = true;
   double probe_margin = 0.5;
   uint32_t max_weak_error_px = 1;
   // Single codes only (the vote has no intervals): the noise rule and
@@ -345,17 +346,19 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         confidence_ = std::move(v.confidence);
         cls_ = std::move(v.cls);
         conflicts_ = r.conflicts;
-      } else {  // correction: only flagged pixels take the new result, where every
-        // ground-truth-free test passes (correction.hpp merge_correction;
+      } else {  // correction: flagged pixels take the new result where every
+        // ground-truth-free test passes, and refuted first-pass claims are
+        // replaced or made invalid (correction.hpp merge_correction;
         // r.intensity is the masked white frame)
-        // Only flagged pixels can change: keep their values, to take the
-        // whole round back when its acceptance rate is too low (below).
-        struct Kept { size_t i; float coord, confidence; uint8_t valid, cls; };
-        std::vector<Kept> kept;
-        for (size_t i = 0; i < n; ++i)
-          if (flagged(cls_[i])) kept.push_back({i, coord_[i], confidence_[i], valid_[i], cls_[i]});
+        // The merge keeps the previous values of every pixel it changes, to
+        // take the round's flagged-pixel answers back when its acceptance
+        // rate is too low (below).
+        std::vector<MergeUndo> undo;
+        MergeCounts mc;
         stats.resolved += merge_correction(rig_, mask_, v, r.intensity, intensity_, coord_, valid_,
-                                           confidence_, cls_);
+                                           confidence_, cls_, cfg_.recheck_claims, &mc, &undo);
+        stats.refuted = mc.refuted;
+        stats.refuted_moved = mc.refuted_moved;
         stats.acceptance = forecast_.fixable > 0 ? fraction(stats.resolved, forecast_.fixable) : 0.0;
         // Issue 18, "if the round's acceptance rate is low, stop": a round
         // whose answers passed the tests for fewer than min_acceptance of the
@@ -364,18 +367,21 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         // mask removes their global light) failed for most of them, so the
         // answers that did pass are suspect too: on the steel ball (0.62)
         // they were wrong 2.0 % of the time against the scene's 0.87 %.
+        // Refuted claims (recheck_claims) are not taken back: their test does
+        // not rest on the probe's model (a valid pixel decodes under the mask,
+        // all four codes agreeing, elsewhere), and the value they had is known
+        // to be a global path's.
         stats.discarded = stats.acceptance < cfg_.min_acceptance;
-        if (stats.discarded) {
-          for (const Kept& k : kept) {
-            coord_[k.i] = k.coord;
-            confidence_[k.i] = k.confidence;
-            valid_[k.i] = k.valid;
-            cls_[k.i] = k.cls;
+        for (const MergeUndo& u : undo) {
+          if (stats.discarded && u.was_flagged) {
+            coord_[u.i] = u.coord;
+            confidence_[u.i] = u.confidence;
+            valid_[u.i] = u.valid;
+            cls_[u.i] = u.cls;
+          } else if (valid_[u.i] != 0) {
+            if (resolved_in_.size() != n) resolved_in_.assign(n, 0);
+            resolved_in_[u.i] = static_cast<uint8_t>(corrections_done_);
           }
-        } else {
-          if (resolved_in_.size() != n) resolved_in_.assign(n, 0);
-          for (const Kept& k : kept)
-            if (valid_[k.i] != 0) resolved_in_[k.i] = static_cast<uint8_t>(corrections_done_);
         }
       }
       recycle_maps(std::move(r));  // what this round's result still holds
@@ -395,6 +401,8 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
         st["resolved"] = stats.resolved;
         st["acceptance"] = stats.acceptance;
         st["discarded"] = stats.discarded;
+        st["refuted"] = stats.refuted;
+        st["refuted_moved"] = stats.refuted_moved;
       }
     }
     rounds_.push_back(stats);
@@ -567,6 +575,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
       report["mask_guard_px"] = cfg_.mask_guard_px;
       report["min_round_gain"] = cfg_.min_round_gain;
       report["min_acceptance"] = cfg_.min_acceptance;
+      report["recheck_claims"] = cfg_.recheck_claims;
       report["conflicts"] = conflicts_;
       report["steps"] = steps_;
       report["transport_classes"] = classes;
@@ -585,6 +594,7 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     size_t errors = 0, resolved = 0, lit = 0;  // errors: flagged pixels (errors + conflicts)
     double acceptance = 1.0;                   // correction: resolved / forecast fixable
     bool discarded = false;                    // correction: acceptance < min_acceptance, taken back
+    size_t refuted = 0, refuted_moved = 0;     // correction: first-pass claims refuted (merge_correction)
   };
   enum class Step { first, codes, probe, correction };
 
@@ -788,7 +798,13 @@ std::vector<sdk::ParamSpec> common_specs(bool ensemble) {
                  "a correction round whose new values passed the no-ground-truth tests "
                  "(all four codes agree, light kept and reduced, column clear of the mask) for "
                  "fewer than this fraction of the pixels its probe predicted fixable is discarded "
-                 "(its values taken back) and correcting stops"});
+                 "(its flagged pixels' values taken back) and correcting stops"});
+    s.push_back({"recheck_claims", sdk::ParamType::boolean, true, -kInf, kInf, {},
+                 "in a correction round, a valid pixel that decodes under the mask with all four "
+                 "codes agreeing more than 2 columns from its first-pass column was lit by a global "
+                 "(mirror) path in the first pass (a right column would still win, or go dark with "
+                 "its projector pixel off): it takes the round's column if that passes the merge's "
+                 "geometric tests, else it becomes invalid"});
     s.push_back({"code_maps", sdk::ParamType::boolean, false, -kInf, kInf, {},
                  "also output each code's own round-1 column map (proj_col_px_<code>) for inspection"});
     s.push_back({"mask_dilate_px", sdk::ParamType::integer, 2, 0.0, 16.0, {},
@@ -898,6 +914,7 @@ sdk::Error create_codes_session(const sdk::CreateArgs& args, std::unique_ptr<sdk
     cfg.min_progress = params.get_number("min_progress");
     cfg.min_round_gain = params.get_number("min_round_gain");
     cfg.min_acceptance = params.get_number("min_acceptance");
+    cfg.recheck_claims = params.get_bool("recheck_claims");
     cfg.probe_margin = params.get_number("probe_margin");
     cfg.mask_dilate_px = static_cast<uint32_t>(params.get_int("mask_dilate_px"));
     cfg.mask_guard_px = static_cast<uint32_t>(params.get_int("mask_guard_px"));

@@ -217,12 +217,61 @@ size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, c
                         const std::vector<float>& masked_white,
                         const std::vector<float>& round1_white, std::vector<float>& coord,
                         std::vector<uint8_t>& valid, std::vector<float>& confidence,
-                        std::vector<uint8_t>& cls) {
+                        std::vector<uint8_t>& cls, bool recheck_claims, MergeCounts* counts,
+                        std::vector<MergeUndo>* undo) {
   const size_t n = cls.size();
   const size_t width = rig.cameras.at(0).width;
-  std::vector<size_t> take;  // decided on the first-pass maps, then written
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const auto remember = [&](size_t i, bool was_flagged) {
+    if (undo != nullptr) undo->push_back({i, coord[i], confidence[i], valid[i], cls[i], was_flagged});
+  };
+  MergeCounts c;
+  // 1. Refuted claims, decided on the first-pass maps.
+  std::vector<size_t> refuted;
+  if (recheck_claims && !mask.empty())
+    for (size_t i = 0; i < n; ++i)
+      if (valid[i] != 0 && !flagged(cls[i]) && v.valid[i] != 0 && v.cls[i] == kAllAgree &&
+          std::fabs(v.coord[i] - coord[i]) > kRefutedMovePx)
+        refuted.push_back(i);
+  if (!refuted.empty()) {
+    // Their neighbour test reads the row's valid pixels that are not refuted.
+    std::vector<float> kept = coord;
+    for (size_t i : refuted) kept[i] = nan;
+    std::vector<uint8_t> moves(refuted.size(), 0);
+    for (size_t k = 0; k < refuted.size(); ++k) {
+      const size_t i = refuted[k];
+      if (!clear_of_mask(rig, mask, i, v.coord[i])) continue;
+      const float est = row_column_estimate(kept, width, i, kCorrectionNeighbourReachPx);
+      moves[k] = std::isnan(est) || std::fabs(v.coord[i] - est) <= kCorrectionNeighbourPx;
+    }
+    for (size_t k = 0; k < refuted.size(); ++k) {
+      const size_t i = refuted[k];
+      remember(i, false);
+      if (moves[k] != 0) {
+        coord[i] = v.coord[i];
+        confidence[i] = v.confidence[i];
+        cls[i] = v.cls[i];
+        ++c.refuted_moved;
+      } else {  // the claim is a mirror's, the new column unconfirmed: no answer
+        coord[i] = nan;
+        valid[i] = 0;
+        confidence[i] = 0.0f;
+        cls[i] = kError;
+      }
+    }
+    c.refuted = refuted.size();
+  }
+  // 2. Flagged pixels (not the ones step 1 just made invalid), their
+  // neighbour test on the maps step 1 corrected.
+  std::vector<uint8_t> was_refuted;
+  if (!refuted.empty()) {
+    was_refuted.assign(n, 0);
+    for (size_t i : refuted) was_refuted[i] = 1;
+  }
+  std::vector<size_t> take;  // decided on the maps as step 1 left them, then written
   for (size_t i = 0; i < n; ++i) {
     if (!(flagged(cls[i]) && v.valid[i] != 0 && v.cls[i] == kAllAgree && masked_white.size() == n &&
+          (was_refuted.empty() || was_refuted[i] == 0) &&
           fixable_pixel(masked_white[i], round1_white[i]) && clear_of_mask(rig, mask, i, v.coord[i])))
       continue;
     const float est = row_column_estimate(coord, width, i, kCorrectionNeighbourReachPx);
@@ -230,11 +279,14 @@ size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, c
     take.push_back(i);
   }
   for (size_t i : take) {
+    remember(i, true);
     coord[i] = v.coord[i];
     valid[i] = 255;
     confidence[i] = v.confidence[i];
     cls[i] = v.cls[i];
   }
+  c.resolved = take.size();
+  if (counts != nullptr) *counts = c;
   return take.size();
 }
 

@@ -208,11 +208,47 @@ bool clear_of_mask(const sdk::Rig& rig, const std::vector<uint8_t>& mask, size_t
 //  - it agrees with its row's valid neighbours (row_column_estimate() within
 //    kCorrectionNeighbourPx), where it has any: global light is smooth, so a
 //    pixel that the first pass lost among valid neighbours lies between them.
-// Returns the number of pixels resolved.
+//
+// Re-check of first-pass claims (issue 18, session 14; recheck_claims, on by
+// default; docs/structured-light.md "Error correction rounds", rule 3): the
+// masked round re-decodes the first pass's valid pixels too. A valid,
+// unflagged pixel that decodes in the round with all four codes agreeing
+// (kAllAgree) more than kRefutedMovePx columns from its first-pass column
+// (its claim) is *refuted*: a right claim is the pixel's direct light, and
+// the mask only removes light, so either the claim's projector pixel is
+// still on and the claim would still win, or it was switched off and the
+// pixel keeps only global light, which does not make four codes of
+// different structure agree on one column (the assumption; it fails where a
+// strong glossy path from one column remains: val2's satin post). So the
+// claim came from a global (mirror) path, whose source the mask switched
+// off. The pixel takes the round's column when that passes the flagged
+// pixels' geometric tests (clear_of_mask(), and the row-neighbour test
+// against the row's valid pixels that are not refuted themselves); else it
+// becomes invalid (kError), never keeping a column known to be a mirror's.
+// The flagged pixels' neighbour test then reads the map with the refuted
+// pixels already replaced: next to a mirror the first pass's neighbours are
+// wrong together (session 14: 1 182 of the copper tube's 1 305 right masked
+// answers were refused by it).
+// Returns the number of flagged pixels resolved; counts (optional) gets the
+// refuted ones; undo (optional) gets the previous values of every pixel the
+// merge changed, to take the round back.
+inline constexpr float kRefutedMovePx = 2.0f;
+struct MergeCounts {
+  size_t resolved = 0;       // flagged pixels that took a new column
+  size_t refuted = 0;        // valid pixels whose claim the round refuted
+  size_t refuted_moved = 0;  // ... of them, took the round's column (others: invalid)
+};
+struct MergeUndo {
+  size_t i;
+  float coord, confidence;
+  uint8_t valid, cls;
+  bool was_flagged;  // a flagged pixel resolved (else a refuted claim)
+};
 size_t merge_correction(const sdk::Rig& rig, const std::vector<uint8_t>& mask, const VoteMaps& v,
                         const std::vector<float>& masked_white,
                         const std::vector<float>& round1_white, std::vector<float>& coord,
                         std::vector<uint8_t>& valid, std::vector<float>& confidence,
-                        std::vector<uint8_t>& cls);
+                        std::vector<uint8_t>& cls, bool recheck_claims = true,
+                        MergeCounts* counts = nullptr, std::vector<MergeUndo>* undo = nullptr);
 
 }  // namespace procam::sl

@@ -13,6 +13,7 @@
 #include <limits>
 #include <random>
 #include <iterator>
+#include <utility>
 #include <vector>
 
 #include "correction.hpp"
@@ -233,6 +234,134 @@ TEST(Correction, MergeTakesOnlyErrorPixelsThatPassEveryRule) {
   std::vector<uint8_t> cls2(n, kError), valid2(n, 0);
   std::vector<float> coord2(n, kNaN), conf2(n, 0.0f);
   EXPECT_EQ(merge_correction(rig, mask, v, std::vector<float>(3, 1.0f), round1, coord2, valid2, conf2, cls2), 0u);
+}
+
+// Re-check of first-pass claims (recheck_claims). The masked round is voted
+// from four per-code maps (vote_pixels), so "all four agree" is the vote's
+// own class. Most valid first-pass pixels claim projector column 32, a
+// mirror's: projector rows 6..16, columns 30..34 are switched off, as the
+// mirror's source would be.
+TEST(Correction, MergeRefutesAClaimWhenAllFourCodesAgreeElsewhereUnderTheMask) {
+  const sdk::Rig rig = rectified_rig();
+  std::vector<uint8_t> mask(kW * kH, 255);
+  for (uint32_t y = 6; y <= 16; ++y)
+    for (uint32_t x = 30; x <= 34; ++x) mask[y * kW + x] = 0;
+  const size_t n = size_t{kW} * kH;
+  std::vector<float> coord(n, kNaN), confidence(n, 0.0f), masked_white(n, 0.5f), round1(n, 1.0f);
+  std::vector<uint8_t> valid(n, 0), cls(n, kUnlit);
+  std::vector<float> code[kEnsembleCodes];
+  for (auto& c : code) c.assign(n, kNaN);  // the masked round: dark unless set below
+  const auto claim = [&](uint32_t u, uint32_t y, float col) {
+    const size_t i = size_t{y} * kW + u;
+    coord[i] = col;
+    valid[i] = 255;
+    confidence[i] = 1.0f;
+    cls[i] = kAllAgree;
+    return i;
+  };
+  const auto masked = [&](size_t i, float g, float x2, float x4, float m) {
+    code[kGray][i] = g;
+    code[kXor02][i] = x2;
+    code[kXor04][i] = x4;
+    code[kMinsw][i] = m;
+  };
+  // Fires: claim 32 (switched off), the masked round's four codes agree at 50.
+  const size_t a = claim(10, 6, 32.0f);
+  masked(a, 50, 50, 50, 50);
+  // Must not fire: the codes disagree (two pairs) ...
+  const size_t b = claim(20, 6, 32.0f);
+  masked(b, 50, 50, 60, 60);
+  // ... fewer than four valid, the three agreeing ...
+  const size_t c = claim(10, 8, 32.0f);
+  masked(c, 50, kNaN, 50, 50);
+  // ... the masked answer equals the claim (within kRefutedMovePx) ...
+  const size_t d = claim(20, 8, 32.0f);
+  masked(d, 33, 33, 33, 33);
+  // ... and the pixel goes dark, as a right claim should.
+  const size_t f = claim(20, 16, 32.0f);
+  (void)f;
+  // Refuted, but its new column fails the row-neighbour test (a valid,
+  // unrefuted neighbour 3 px away claims 20): invalid, not the mirror's 32.
+  const size_t g = claim(10, 10, 32.0f);
+  masked(g, 50, 50, 50, 50);
+  const size_t g_nb = claim(13, 10, 20.0f);
+  // Two refuted neighbours: neither's estimate reads the other's refuted claim.
+  const size_t h1 = claim(10, 12, 32.0f), h2 = claim(12, 12, 32.0f);
+  masked(h1, 50, 50, 50, 50);
+  masked(h2, 52, 52, 52, 52);
+  // A flagged pixel between two refuted ones: its neighbour test reads their
+  // corrected columns (50, 54 -> estimate 52), not the mirror's 32.
+  const size_t i1 = claim(10, 14, 32.0f), i2 = claim(14, 14, 32.0f);
+  masked(i1, 50, 50, 50, 50);
+  masked(i2, 54, 54, 54, 54);
+  const size_t fl = 14 * kW + 12;
+  cls[fl] = kError;
+  masked(fl, 52, 52, 52, 52);
+  // Fires also where the claim's projector pixel is on (projector row 20 is
+  // not masked): a right claim would have kept its direct light and won.
+  const size_t e = claim(10, 20, 45.0f);
+  masked(e, 50, 50, 50, 50);
+  // Refuted, new column named by a switched-off projector pixel margin: invalid.
+  const size_t k = claim(10, 16, 32.0f);
+  masked(k, 36, 36, 36, 36);  // (36, 16) within 2 of column 34, switched off
+
+  std::vector<uint8_t> lit(n, 255);
+  VoteMaps v;
+  v.coord.resize(n);
+  v.valid.resize(n);
+  v.confidence.resize(n);
+  v.cls.resize(n);
+  const float* const cp[kEnsembleCodes] = {code[0].data(), code[1].data(), code[2].data(),
+                                           code[3].data()};
+  vote_pixels(cp, lit.data(), 0, n, 1.0f, v.coord.data(), v.valid.data(), v.confidence.data(),
+              v.cls.data());
+  ASSERT_EQ(v.cls[a], kAllAgree);
+  ASSERT_NE(v.cls[c], kAllAgree);  // three agreeing codes are kPartial, not all four
+
+  const std::vector<float> coord0 = coord;
+  std::vector<float> coord_off = coord, conf_off = confidence;
+  std::vector<uint8_t> valid_off = valid, cls_off = cls;
+  MergeCounts counts;
+  std::vector<MergeUndo> undo;
+  const size_t resolved = merge_correction(rig, mask, v, masked_white, round1, coord, valid,
+                                           confidence, cls, true, &counts, &undo);
+  EXPECT_EQ(counts.refuted, 8u);  // a, e, g, h1, h2, i1, i2, k
+  EXPECT_EQ(counts.refuted_moved, 6u);
+  EXPECT_EQ(resolved, 1u);  // fl
+  EXPECT_EQ(counts.resolved, 1u);
+  for (const auto& [i, col] : {std::pair{a, 50.0f}, {e, 50.0f}, {h1, 50.0f}, {h2, 52.0f}, {i1, 50.0f},
+                                {i2, 54.0f}, {fl, 52.0f}}) {
+    EXPECT_EQ(coord[i], col) << i;
+    EXPECT_EQ(valid[i], 255) << i;
+    EXPECT_EQ(cls[i], kAllAgree) << i;
+  }
+  for (size_t i : {b, c, d, f, g_nb}) {
+    EXPECT_EQ(coord[i], coord0[i]) << i;
+    EXPECT_EQ(valid[i], 255) << i;
+    EXPECT_EQ(cls[i], kAllAgree) << i;
+  }
+  for (size_t i : {g, k}) {
+    EXPECT_TRUE(std::isnan(coord[i])) << i;
+    EXPECT_EQ(valid[i], 0) << i;
+    EXPECT_EQ(cls[i], kError) << i;
+  }
+  // The undo list holds every changed pixel's previous value.
+  ASSERT_EQ(undo.size(), 9u);
+  for (const MergeUndo& u : undo) {
+    EXPECT_EQ(u.was_flagged, u.i == fl) << u.i;
+    if (u.i == fl) EXPECT_TRUE(std::isnan(u.coord));
+    else EXPECT_EQ(u.coord, u.i == e ? 45.0f : 32.0f) << u.i;
+  }
+  // Off: no claim is re-checked, and the flagged pixel's neighbours are the
+  // mirror's 32 (|52 - 32| > kCorrectionNeighbourPx): it stays an error.
+  MergeCounts off;
+  EXPECT_EQ(merge_correction(rig, mask, v, masked_white, round1, coord_off, valid_off, conf_off,
+                             cls_off, false, &off),
+            0u);
+  EXPECT_EQ(off.refuted, 0u);
+  for (size_t i : {a, g, h1, i1, k}) EXPECT_EQ(coord_off[i], 32.0f) << i;
+  EXPECT_EQ(coord_off[e], 45.0f);
+  EXPECT_EQ(cls_off[fl], kError);
 }
 
 // The conflict rule on hand-made votes: only {gray, xor02/04} agreeing
