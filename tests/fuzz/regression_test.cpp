@@ -310,4 +310,32 @@ TEST(FuzzRegression, ConfigCountsAreIntegersInRange) {
   EXPECT_EQ(ok->max_queue, 100000u);
 }
 
+// plugins.freeze_outputs reaches IsolationOptions::freeze_outputs; absent it
+// stays on (the default every rig ran with), and a non-boolean is refused
+// naming the key.
+TEST(ProcamdConfig, PluginsFreezeOutputs) {
+  auto parse = [](nlohmann::json plugins) {
+    nlohmann::json j{{"rig", nlohmann::json{{"name", "inline"}}}};
+    if (!plugins.is_null()) j["plugins"] = std::move(plugins);
+    return procam::daemon::parse_config(j, "/fuzz/base");
+  };
+  auto dflt = parse(nullptr);
+  ASSERT_TRUE(dflt.ok()) << dflt.status().message();
+  EXPECT_TRUE(dflt->plugins.freeze_outputs);
+  auto off = parse({{"freeze_outputs", false}, {"max_idle_workers", 1u}});
+  ASSERT_TRUE(off.ok()) << off.status().message();
+  EXPECT_FALSE(off->plugins.freeze_outputs);
+  EXPECT_TRUE(off->plugins.sandbox);  // the shared boolean branch sets only its own key
+  EXPECT_TRUE(off->plugins.prestart);
+  auto on = parse({{"freeze_outputs", true}});
+  ASSERT_TRUE(on.ok()) << on.status().message();
+  EXPECT_TRUE(on->plugins.freeze_outputs);
+  for (const nlohmann::json& bad : {nlohmann::json("false"), nlohmann::json(0), nlohmann::json(nullptr)}) {
+    auto c = parse({{"freeze_outputs", bad}});
+    ASSERT_FALSE(c.ok()) << bad.dump();
+    EXPECT_NE(c.status().message().find("plugins.freeze_outputs"), std::string::npos) << c.status().message();
+    EXPECT_NE(c.status().message().find("true or false"), std::string::npos) << c.status().message();
+  }
+}
+
 }  // namespace
