@@ -7,6 +7,7 @@
 
 #include <sys/mman.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -105,8 +106,17 @@ procam::Status decode_worker_seed(const std::string& seed) {
     return wire::decode_plan(blob, plan);
   }
   if (which == 3) {
+    // As fuzz_worker.cpp: references into a 64 KiB stand-in heap.
+    alignas(64) static uint8_t heap[1 << 16];
+    const wire::HeapResolver resolve = [](uint64_t off, uint64_t bytes, std::string& why) -> const uint8_t* {
+      if (off > sizeof heap || bytes > sizeof heap - off) {
+        why = "outside the heap";
+        return nullptr;
+      }
+      return heap + off;
+    };
     std::vector<procam_output> outs;
-    return wire::decode_outputs(blob, outs);
+    return wire::decode_outputs(blob.data(), blob.size(), outs, resolve);
   }
   wire::CreateRequest req;
   return wire::decode_create(blob, req);
@@ -257,6 +267,17 @@ TEST(FuzzRegression, WorkerSeedsFromTheEncoders) {
     outs[3].kind = PROCAM_OUTPUT_JSON;
     outs[3].json = R"({"a": 1})";
     add("outputs-every-kind", 3, wire::encode_outputs(outs));
+    // The same with the image and the points named in a shared heap
+    // (protocol v5, get_outputs 2), at offsets inside the stand-in heap.
+    alignas(64) static float heap[1024];
+    std::copy(pxf.begin(), pxf.end(), heap);
+    std::copy(pxf.begin(), pxf.end(), heap + 64);
+    outs[0].image.data = heap;
+    outs[2].points = heap + 64;
+    const wire::HeapSpan span{reinterpret_cast<const uint8_t*>(heap), sizeof heap};
+    wire::Writer refs;
+    wire::write_outputs(refs, outs, &span);
+    add("outputs-heap-refs", 3, refs.bytes());
   }
   {
     wire::CreateRequest req;
