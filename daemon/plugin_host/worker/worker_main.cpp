@@ -276,7 +276,8 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
         const wire::HeapSpan heap{worker::heap::base(), worker::heap::size()};
         const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs, mode == 2 ? &heap : nullptr); };
         if (!req.ok() || mode > 2) {
-          reply_error(Error(Code::invalid_argument, "malformed get_outputs: " + req.error()));
+          reply_error(Error(Code::invalid_argument, "malformed get_outputs: " +
+                                                        (req.ok() ? "mode " + std::to_string(mode) : req.error())));
           break;
         }
         if (!arena) {
