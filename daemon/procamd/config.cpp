@@ -19,7 +19,7 @@ std::string resolve(const std::string& base, const std::string& p) {
 
 // "plugins": {"isolation": "process" | "in_process", "trusted": [names],
 // "worker": path, "call_timeout_ms", "per_frame_timeout_ms", "memory_limit_mb", "sandbox", "prestart",
-// "max_idle_workers", "idle_timeout_ms", "max_sessions_per_worker", "readable": [folders]}.
+// "max_idle_workers", "idle_timeout_ms", "max_sessions_per_worker", "freeze_outputs", "readable": [folders]}.
 Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, PluginsConfig& out) {
   const char* example =
       "{\"isolation\": \"process\", \"trusted\": [\"structured-light\"], \"memory_limit_mb\": 8192}";
@@ -47,9 +47,9 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
                        "folders plugin workers may read besides the plugin's, the system's and their scratch folder");
         out.readable.push_back(resolve(base_dir, p.get<std::string>()));
       }
-    } else if (it.key() == "sandbox" || it.key() == "prestart") {
+    } else if (it.key() == "sandbox" || it.key() == "prestart" || it.key() == "freeze_outputs") {
       if (!v.is_boolean()) return Error(Code::invalid_argument, "daemon config: '" + key + "' must be true or false");
-      (it.key() == "sandbox" ? out.sandbox : out.prestart) = v.get<bool>();
+      (it.key() == "sandbox" ? out.sandbox : it.key() == "prestart" ? out.prestart : out.freeze_outputs) = v.get<bool>();
     } else if (it.key() == "worker") {
       if (!v.is_string() || v.get<std::string>().empty())
         return Error(Code::invalid_argument, "daemon config: '" + key + "' must be a path to procam-plugin-worker");
@@ -80,7 +80,8 @@ Status parse_plugins(const nlohmann::json& pv, const std::string& base_dir, Plug
     } else if (it.key() != "comment") {
       return Error(Code::invalid_argument, "daemon config: unknown key '" + key + "'",
                    "known keys: isolation, trusted, worker, call_timeout_ms, per_frame_timeout_ms, memory_limit_mb, "
-                   "sandbox, prestart, max_idle_workers, idle_timeout_ms, max_sessions_per_worker, readable");
+                   "sandbox, prestart, max_idle_workers, idle_timeout_ms, max_sessions_per_worker, freeze_outputs, "
+                   "readable");
     }
   }
   return {};

@@ -36,6 +36,9 @@ struct PluginsConfig {
   uint64_t max_idle_workers = 1;
   uint64_t idle_timeout_ms = 60000;
   uint64_t max_sessions_per_worker = 100;
+  // With reuse on: stop the worker (SIGSTOP) while the daemon reads its
+  // outputs in place, instead of copying them (README.md "Speed").
+  bool freeze_outputs = true;
   std::vector<std::string> readable;  // more folders a sandboxed worker may read
 };
 

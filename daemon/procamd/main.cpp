@@ -121,6 +121,7 @@ int main(int argc, char** argv) {
     iso.max_idle_workers = static_cast<uint32_t>(cfg->plugins.max_idle_workers);
     iso.idle_timeout = std::chrono::milliseconds(cfg->plugins.idle_timeout_ms);
     iso.readable = cfg->plugins.readable;
+    iso.freeze_outputs = cfg->plugins.freeze_outputs;
     iso.max_sessions_per_worker = static_cast<uint32_t>(
         std::min<uint64_t>(cfg->plugins.max_sessions_per_worker, UINT32_MAX));
     plugins.set_isolation(std::move(iso));

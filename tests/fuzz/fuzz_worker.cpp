@@ -6,6 +6,7 @@
 // blob); the rest is its input. Each must accept or refuse with a Status,
 // never throw, crash or read outside the input: every byte a decoded view
 // claims is read here, so ASan catches a bound that was not checked.
+// Outputs may refer into a shared heap (a 64 KiB stand-in here).
 #include <sys/mman.h>
 
 #include <cstddef>
@@ -34,6 +35,17 @@ wire::Mapping map_copy(const uint8_t* data, size_t size) {
 }
 
 volatile uint64_t g_sink;
+
+// The daemon's view of a worker's shared heap (protocol v5 references):
+// 64 KiB, every reference bounds-checked as OutputSnapshot does.
+alignas(64) uint8_t g_heap[1 << 16];
+const uint8_t* resolve_heap(uint64_t off, uint64_t bytes, std::string& why) {
+  if (off > sizeof g_heap || bytes > sizeof g_heap - off) {
+    why = "outside the heap";
+    return nullptr;
+  }
+  return g_heap + off;
+}
 
 void touch_image(const procam_image& v) {
   const size_t row = wire::packed_row_bytes(v);
@@ -77,7 +89,7 @@ extern "C" int PROCAM_FUZZ_ENTRY(const uint8_t* data, size_t size) {
     case 3: {
       wire::Mapping m = map_copy(data, size);
       std::vector<procam_output> outs;
-      if (!wire::decode_outputs(m, outs).ok()) break;
+      if (!wire::decode_outputs(m.data(), m.size(), outs, resolve_heap).ok()) break;
       for (const procam_output& o : outs) {
         g_sink = std::strlen(o.name) + std::strlen(o.unit) + std::strlen(o.description);
         if (o.kind == PROCAM_OUTPUT_IMAGE) touch_image(o.image);

@@ -19,6 +19,7 @@
 
 #include "procam/core/image.hpp"
 #include "procam/host/plugin_host.hpp"
+#include "worker_wire.hpp"
 
 namespace procam::host {
 namespace {
@@ -247,7 +248,8 @@ TEST_F(IsolationTest, WorkerOfAnotherProtocolVersionIsRefusedClearly) {
   ::rmdir(dir);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.status().code(), Code::plugin_error) << s.status().to_string();
-  EXPECT_TRUE(contains(s.status().message(), "protocol version 99, expected 4")) << s.status().message();
+  EXPECT_TRUE(contains(s.status().message(), "protocol version 99, expected " + std::to_string(wire::kVersion)))
+      << s.status().message();
   EXPECT_TRUE(contains(s.status().message(), "from another build")) << s.status().message();
   EXPECT_TRUE(no_children());
 }

@@ -20,7 +20,10 @@
 // its sandbox keeping anything else from writing the arena or resuming it;
 // README.md "Speed") the daemon decodes and hands out views into the arena
 // itself (view()) until it resumes the worker at the session's end: then the
-// copy above is not taken, and what is left is the worker's memcpy.
+// copy above is not taken. Maps the plugin allocated in the worker's shared
+// heap (worker/shared_heap.hpp) are not in the arena at all then: the reply
+// names them and the daemon reads them in the heap (heap_in_place()), so no
+// output byte is copied on either side.
 //
 // Ownership: OutputArena belongs to the worker (one per process, kept across
 // sessions); OutputSnapshot to one WorkerProxy (kept across the sessions of a
@@ -33,6 +36,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <string>
+#include <vector>
 
 #include "procam/core/status.hpp"
 #include "worker_wire.hpp"
@@ -82,9 +87,29 @@ public:
   uint64_t size() const { return used_; }
   bool has_arena() const { return arena_.size() > 0; }
 
+  // The worker's shared heap (WORKER_PROTOCOL.md "Shared heap"), sent with
+  // its hello: a memfd sealed against shrinking and growing, at most
+  // kMaxBlob bytes, mapped read-only once and not pre-faulted (it is
+  // sparse: only what the plugin allocated has pages).
+  Status adopt_heap(int fd);
+  bool has_heap() const { return heap_.size() > 0; }
+  // Resolvers for decode_outputs' heap references. In place: views into
+  // the heap itself, only while the worker is frozen (as view()). Copied:
+  // each referenced range copied into private memory now, valid until the
+  // next take()/view(). Both check the range against the heap and that
+  // every page of it was written (mincore, then SEEK_DATA for pages not
+  // resident: a hole would make this process allocate what it reads).
+  HeapResolver heap_in_place();
+  HeapResolver heap_copied();
+
 private:
+  const uint8_t* heap_range(uint64_t offset, uint64_t bytes, std::string& why);
   Mapping arena_;  // read-only, shared with the worker
   Mapping copy_;   // private, anonymous, grow-only
+  UniqueFd heap_fd_;
+  Mapping heap_;                    // read-only, shared with the worker
+  std::vector<Mapping> heap_copies_;  // heap_copied()'s ranges
+  std::vector<uint8_t> populated_;    // per heap page: mapped here already (heap_range)
   const uint8_t* data_ = nullptr;  // copy_ after take(), arena_ after view()
   uint64_t used_ = 0;
 };

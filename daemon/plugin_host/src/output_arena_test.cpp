@@ -14,6 +14,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -123,6 +125,80 @@ char proc_state(int pid) {
   return paren == std::string::npos || paren + 2 >= text.size() ? 0 : text[paren + 2];
 }
 
+// The name of the mapping of this process that holds `p` (the last field
+// of /proc/self/maps: "/memfd:procam-outputs-heap (deleted)", ...), or "".
+std::string mapping_of(const void* p) {
+  std::ifstream maps("/proc/self/maps");
+  const auto at = reinterpret_cast<uintptr_t>(p);
+  for (std::string line; std::getline(maps, line);) {
+    unsigned long lo = 0, hi = 0;
+    if (std::sscanf(line.c_str(), "%lx-%lx", &lo, &hi) != 2 || at < lo || at >= hi) continue;
+    const size_t slash = line.find('/');
+    return slash == std::string::npos ? "[anonymous]" : line.substr(slash);
+  }
+  return "";
+}
+
+// The worker's shared heap, daemon side: adopted only sealed against
+// resizing; a reference resolves in place to the heap's own bytes only when
+// every page of its range was written (a hole would make the daemon
+// allocate what it reads) and it lies inside the heap; copied, it resolves
+// to private memory holding the same bytes.
+TEST(OutputArenaTest, SharedHeapReferencesAreCheckedAndResolved) {
+  const size_t size = size_t{4} << 20;
+  wire::OutputSnapshot snap;
+  {
+    const int loose = ::memfd_create("procam-outputs-heap", MFD_CLOEXEC | MFD_ALLOW_SEALING);
+    ASSERT_GE(loose, 0);
+    ASSERT_EQ(::ftruncate(loose, static_cast<off_t>(size)), 0);
+    ASSERT_EQ(::fcntl(loose, F_ADD_SEALS, F_SEAL_SHRINK), 0);  // may still grow
+    const Status st = snap.adopt_heap(loose);
+    EXPECT_FALSE(st.ok());
+    EXPECT_NE(st.message().find("sealed against resizing"), std::string::npos) << st.message();
+    ::close(loose);
+    EXPECT_FALSE(snap.has_heap());
+  }
+  const int fd = ::memfd_create("procam-outputs-heap", MFD_CLOEXEC | MFD_ALLOW_SEALING);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::ftruncate(fd, static_cast<off_t>(size)), 0);
+  ASSERT_EQ(::fcntl(fd, F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL), 0);
+  void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+  ASSERT_NE(p, MAP_FAILED);
+  wire::Mapping worker_view(p, size);
+  // The worker writes [1 MiB, 1 MiB + 64 KiB); the rest stays sparse.
+  auto* w = worker_view.mutable_data();
+  for (size_t i = 0; i < 65536; ++i) w[(1 << 20) + i] = static_cast<uint8_t>(i * 7);
+  ASSERT_TRUE(snap.adopt_heap(fd).ok());
+  ::close(fd);  // the snapshot keeps its own descriptor
+  ASSERT_TRUE(snap.has_heap());
+  std::string why;
+  auto in_place = snap.heap_in_place();
+  const uint8_t* r = in_place(1 << 20, 65536, why);
+  ASSERT_NE(r, nullptr) << why;
+  EXPECT_EQ(r[65535], static_cast<uint8_t>(65535 * 7));
+  EXPECT_EQ(mapping_of(r).find("procam-outputs-heap") != std::string::npos, true) << mapping_of(r);
+  // One page past the written range: a hole.
+  why.clear();
+  EXPECT_EQ(in_place(1 << 20, 65536 + 4096, why), nullptr);
+  EXPECT_NE(why.find("unwritten"), std::string::npos) << why;
+  why.clear();
+  EXPECT_EQ(in_place(0, 4096, why), nullptr);
+  EXPECT_NE(why.find("unwritten"), std::string::npos) << why;
+  why.clear();
+  EXPECT_EQ(in_place(size - 64, 128, why), nullptr);
+  EXPECT_NE(why.find("byte shared heap"), std::string::npos) << why;
+  why.clear();
+  EXPECT_EQ(in_place(~uint64_t{0} - 10, 64, why), nullptr);  // no wrap-around
+  auto copied = snap.heap_copied();
+  const uint8_t* c = copied(1 << 20, 65536, why);
+  ASSERT_NE(c, nullptr) << why;
+  EXPECT_NE(c, r);
+  EXPECT_EQ(std::memcmp(c, r, 65536), 0);
+  // The worker writing afterwards changes the heap, not the copy.
+  w[(1 << 20) + 5] ^= 0xff;
+  EXPECT_NE(c[5], r[5]);
+}
+
 // The scribbler's marker in any worker scratch folder under `scratch`, or "".
 fs::path find_marker(const fs::path& scratch) {
   std::error_code ec;
@@ -179,6 +255,7 @@ void scribble_scan(Arena mode) {
   iso.freeze_outputs = mode == Arena::frozen;
   host.set_isolation(iso);
   std::vector<float> client_copy;  // what a client saved (a result file) while it held the outputs
+  std::vector<float> big_copy;
   {
     auto s = host.create_session("faults", "scribble", "{}", "{}");
     ASSERT_TRUE(s.ok()) << s.status().to_string();
@@ -195,7 +272,15 @@ void scribble_scan(Arena mode) {
     ASSERT_TRUE(outs.ok()) << outs.status().to_string();
     // What the returned views show, checked against the fixture's values.
     auto check = [&](const char* when) {
-      ASSERT_EQ(outs->size(), 4u) << when;
+      ASSERT_EQ(outs->size(), 5u) << when;
+      const Output& big = (*outs)[4];
+      EXPECT_EQ(big.name, "heap_image") << when;
+      ASSERT_EQ(big.image.width, 512u);
+      ASSERT_EQ(big.image.height, 512u);
+      const auto* bp = static_cast<const float*>(big.image.data);
+      size_t wrong = 0;
+      for (size_t i = 0; i < 512 * 512; ++i) wrong += bp[i] != static_cast<float>(i % 251);
+      EXPECT_EQ(wrong, 0u) << when << ": heap_image pixels changed";
       const Output& sum = (*outs)[0];
       EXPECT_EQ(sum.name, "frame_sum") << when;
       EXPECT_DOUBLE_EQ(sum.scalar, 3 * 12 * 7.0) << when;
@@ -212,6 +297,21 @@ void scribble_scan(Arena mode) {
       EXPECT_EQ(std::string((*outs)[3].json), "{\"frames\": 3}") << when;
     };
     check("at once");
+    // Where the big map is read from: frozen, the worker's shared heap
+    // itself (no copy anywhere); copied, the daemon's private copy; without
+    // reuse, the sealed blob.
+    const std::string where = mapping_of((*outs)[4].image.data);
+#if !defined(__SANITIZE_ADDRESS__)  // an ASan worker has no shared heap
+    if (mode == Arena::frozen) {
+      EXPECT_NE(where.find("procam-outputs-heap"), std::string::npos) << where;
+    }
+#endif
+    if (mode == Arena::copied) {
+      EXPECT_EQ(where.find("procam-outputs"), std::string::npos) << where;
+    }
+    if (mode == Arena::none) {
+      EXPECT_NE(where.find("procam-outputs-blob"), std::string::npos) << where;
+    }
     if (mode == Arena::frozen) {
       // Stopped, and the scribbler (due 100 ms after the reply) cannot run.
       EXPECT_EQ(proc_state(s->worker_pid()), 'T') << "the worker is not stopped while its outputs are held";
@@ -238,6 +338,8 @@ void scribble_scan(Arena mode) {
     const auto* px = static_cast<const float*>((*outs)[1].image.data);
     client_copy.assign(px, px + 4);
     client_copy.insert(client_copy.end(), (*outs)[2].points, (*outs)[2].points + 8);
+    const auto* bp = static_cast<const float*>((*outs)[4].image.data);
+    big_copy.assign(bp, bp + 512 * 512);
   }
   if (mode == Arena::frozen) {
     // The session is gone: the worker was resumed (and kept for reuse), and
@@ -252,6 +354,10 @@ void scribble_scan(Arena mode) {
   EXPECT_EQ(client_copy[2], 3.0f);
   EXPECT_TRUE(std::isnan(client_copy[3]));
   for (size_t i = 0; i < 8; ++i) EXPECT_EQ(client_copy[4 + i], static_cast<float>(i));
+  ASSERT_EQ(big_copy.size(), 512u * 512u);
+  size_t wrong = 0;
+  for (size_t i = 0; i < big_copy.size(); ++i) wrong += big_copy[i] != static_cast<float>(i % 251);
+  EXPECT_EQ(wrong, 0u);
   fs::remove_all(scratch);
 }
 

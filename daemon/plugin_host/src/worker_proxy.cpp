@@ -201,6 +201,12 @@ Status WorkerProxy::read_hello(const wire::Message& hello) {
     else
       PROCAM_LOG(plugins, warn) << "plugin workers run with a partial sandbox: " << problems;
   }
+  // The worker's shared heap (version 5), mapped once; without it (or if
+  // it is unusable) outputs are copied into the arena as before.
+  if (hello.fd) {
+    if (Status st = outputs_copy_.adopt_heap(hello.fd.get()); !st)
+      PROCAM_LOG(plugins, warn) << "plugin '" << plugin_ << "': its worker's shared heap is not used: " << st.message();
+  }
   return {};
 }
 
@@ -568,7 +574,11 @@ Result<std::vector<Output>> WorkerProxy::outputs() {
   // this side copies from; one that cannot (reuse off) sends a sealed blob,
   // mapped without a copy (WORKER_PROTOCOL.md "Output arena").
   const bool arena = options_.max_idle_workers > 0;
-  auto m = call(wire::Msg::get_outputs, "get_outputs", std::string(1, arena ? '\1' : '\0'), -1,
+  // Maps already in the worker's shared heap are named, not copied, only
+  // when this side will read them frozen (README.md "Speed"): a worker that
+  // keeps running would send them through the arena anyway.
+  const bool heap = arena && outputs_copy_.has_heap() && may_freeze();
+  auto m = call(wire::Msg::get_outputs, "get_outputs", std::string(1, heap ? '\2' : arena ? '\1' : '\0'), -1,
                 round_deadline(last_round_frames_));
   if (!m) return m.status();
   wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
@@ -588,12 +598,15 @@ Result<std::vector<Output>> WorkerProxy::outputs() {
       if (Status s = outputs_copy_.adopt(m->fd.get()); !s)
         return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
     }
-    // A frozen worker cannot write its arena until the session ends: read
-    // it in place. Otherwise only the private copy is read: the worker may
-    // still write its arena (output_arena.hpp).
-    const Status s = freeze() ? outputs_copy_.view(used) : outputs_copy_.take(used);
+    // A frozen worker cannot write its arena or its heap until the session
+    // ends: read them in place. Otherwise only private copies are read: the
+    // worker may still write both (output_arena.hpp).
+    const bool frozen = freeze();
+    const Status s = frozen ? outputs_copy_.view(used) : outputs_copy_.take(used);
     if (!s) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
-    decoded = wire::decode_outputs(outputs_copy_.data(), outputs_copy_.size(), abi);
+    wire::HeapResolver refs;
+    if (heap) refs = frozen ? outputs_copy_.heap_in_place() : outputs_copy_.heap_copied();
+    decoded = wire::decode_outputs(outputs_copy_.data(), outputs_copy_.size(), abi, refs);
   }
   if (!decoded) return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + decoded.message());
   auto outs = outputs_from_abi(abi.data(), static_cast<uint32_t>(abi.size()), "plugin '" + plugin_ + "'");

@@ -556,20 +556,57 @@ std::string encode_outputs(const std::vector<Output>& outputs) {
   return std::move(w.bytes());
 }
 
-void write_outputs(Writer& w, const std::vector<Output>& outputs) {
+namespace {
+// Offset of [p, p + n) in the heap when it lies wholly inside at an aligned
+// offset; ~0 otherwise.
+uint64_t heap_offset(const HeapSpan* heap, const void* p, uint64_t n) {
+  if (heap == nullptr || heap->base == nullptr || p == nullptr || n == 0) return ~uint64_t{0};
+  const auto* b = static_cast<const uint8_t*>(p);
+  if (b < heap->base || b >= heap->base + heap->size) return ~uint64_t{0};
+  const uint64_t off = static_cast<uint64_t>(b - heap->base);
+  if (off % kHeapAlign != 0 || n > heap->size - off) return ~uint64_t{0};
+  return off;
+}
+}  // namespace
+
+void write_outputs(Writer& w, const std::vector<Output>& outputs, const HeapSpan* heap) {
   w.u32(static_cast<uint32_t>(outputs.size()));
   for (const Output& o : outputs) {
     w.str(o.name);
-    w.u32(o.kind);
+    // Bulk data already in the shared heap is named, not copied.
+    uint64_t off = ~uint64_t{0};
+    if (o.kind == PROCAM_OUTPUT_IMAGE) {
+      const size_t row = packed_row_bytes(o.image);
+      if (row != 0 && o.image.stride_bytes == row) off = heap_offset(heap, o.image.data, uint64_t{row} * o.image.height);
+    } else if (o.kind == PROCAM_OUTPUT_POINTS) {
+      off = heap_offset(heap, o.points, o.point_count * o.point_stride * sizeof(float));
+    }
+    const bool ref = off != ~uint64_t{0};
+    w.u32(ref ? kHeapKind | static_cast<uint32_t>(o.kind) : static_cast<uint32_t>(o.kind));
     w.str(o.unit);
     w.str(o.description);
     switch (o.kind) {
-      case PROCAM_OUTPUT_IMAGE: put_image(w, o.image); break;
+      case PROCAM_OUTPUT_IMAGE:
+        if (!ref) {
+          put_image(w, o.image);
+          break;
+        }
+        w.u32(o.image.width);
+        w.u32(o.image.height);
+        w.u32(o.image.channels);
+        w.u32(o.image.pixel_type);
+        w.u32(o.image.bit_depth);
+        w.u64(off);
+        break;
       case PROCAM_OUTPUT_SCALAR: w.f64(o.scalar); break;
       case PROCAM_OUTPUT_POINTS:
         w.u64(o.point_count);
         w.u32(o.point_stride);
         w.str(o.point_fields);
+        if (ref) {
+          w.u64(off);
+          break;
+        }
         w.align(4);
         w.raw(o.points, o.point_count * o.point_stride * sizeof(float));
         break;
@@ -583,21 +620,60 @@ Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out) {
   return decode_outputs(blob.data(), blob.size(), out);
 }
 
-Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out) {
+Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out, const HeapResolver& heap) {
   BlobIn in(data, size);
   const uint32_t n = in.u32("output count");
   if (n > 10000) return Error(Code::corrupt_data, std::to_string(n) + " outputs");
   out.assign(n, procam_output{});
+  // A heap reference: `bytes` at the next u64's offset, through `heap`.
+  const auto from_heap = [&](uint64_t bytes, const char* what) -> const uint8_t* {
+    const uint64_t off = in.u64(what);
+    if (!in.ok()) return nullptr;
+    if (!heap) {
+      in.r().fail(std::string(what) + " refers to a shared heap this reply may not use");
+      return nullptr;
+    }
+    if (off % kHeapAlign != 0) {
+      in.r().fail(std::string(what) + " at heap offset " + std::to_string(off) + ", not a multiple of " +
+                  std::to_string(kHeapAlign));
+      return nullptr;
+    }
+    std::string why;
+    const uint8_t* p = heap(off, bytes, why);
+    if (p == nullptr) in.r().fail(std::string(what) + ": " + why);
+    return p;
+  };
   for (uint32_t i = 0; i < n && in.ok(); ++i) {
     procam_output& o = out[i];
     o.name = in.str("output name");
-    o.kind = in.u32("output kind");
+    const uint32_t wire_kind = in.u32("output kind");
+    const bool ref = (wire_kind & kHeapKind) != 0;
+    o.kind = ref ? wire_kind & ~kHeapKind : wire_kind;
     o.unit = in.str("output unit");
     o.description = in.str("output description");
-    switch (o.kind) {
+    switch (wire_kind) {
       case PROCAM_OUTPUT_IMAGE: o.image = in.image("output image"); break;
+      case kHeapImage: {
+        procam_image& v = o.image;
+        v.width = in.u32("output image");
+        v.height = in.u32("output image");
+        v.channels = in.u32("output image");
+        v.pixel_type = in.u32("output image");
+        v.bit_depth = in.u32("output image");
+        if (!in.ok()) break;
+        const size_t row = packed_row_bytes(v);
+        size_t total = 0;
+        if (row == 0 || __builtin_mul_overflow(row, size_t{v.height}, &total)) {
+          in.r().fail("output image: unknown pixel type or impossible size");
+          break;
+        }
+        v.stride_bytes = row;
+        v.data = from_heap(total, "output image");
+        break;
+      }
       case PROCAM_OUTPUT_SCALAR: o.scalar = in.f64("scalar"); break;
-      case PROCAM_OUTPUT_POINTS: {
+      case PROCAM_OUTPUT_POINTS:
+      case kHeapPoints: {
         o.point_count = in.u64("point count");
         o.point_stride = in.u32("point stride");
         o.point_fields = in.str("point fields");
@@ -606,11 +682,11 @@ Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_outpu
           in.r().fail("impossible point count");
           break;
         }
-        o.points = reinterpret_cast<const float*>(in.bytes(4, bytes, "points"));
+        o.points = reinterpret_cast<const float*>(ref ? from_heap(bytes, "points") : in.bytes(4, bytes, "points"));
         break;
       }
       case PROCAM_OUTPUT_JSON: o.json = in.str("json"); break;
-      default: in.r().fail("unknown output kind " + std::to_string(o.kind));
+      default: in.r().fail("unknown output kind " + std::to_string(wire_kind));
     }
   }
   if (!in.ok()) return blob_error("outputs", in);

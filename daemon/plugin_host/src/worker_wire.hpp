@@ -32,8 +32,9 @@ namespace procam::host::wire {
 
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
 // 3: outputs through the output arena; 4: the daemon may stop the worker
-// (SIGSTOP) between a get_outputs reply and its next request.
-inline constexpr uint16_t kVersion = 4;
+// (SIGSTOP) between a get_outputs reply and its next request; 5: hello may
+// carry the worker's shared heap, and outputs may refer into it.
+inline constexpr uint16_t kVersion = 5;
 inline constexpr size_t kHeaderSize = 16;
 inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
 inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
@@ -252,12 +253,33 @@ struct AbiPlan {
 };
 Status decode_plan(const Mapping& blob, AbiPlan& out);
 
+// Outputs may name where their bulk data lies in the worker's shared heap
+// (worker/shared_heap.hpp) instead of carrying it: wire kinds kHeapImage
+// and kHeapPoints, written only when get_outputs asked for them.
+inline constexpr uint32_t kHeapKind = 0x100;
+inline constexpr uint32_t kHeapImage = kHeapKind | PROCAM_OUTPUT_IMAGE;
+inline constexpr uint32_t kHeapPoints = kHeapKind | PROCAM_OUTPUT_POINTS;
+inline constexpr uint64_t kHeapAlign = 64;  // a heap reference's offset is a multiple of this
+// The writer's view of the heap: [base, base + size).
+struct HeapSpan {
+  const uint8_t* base = nullptr;
+  size_t size = 0;
+};
+// The reader's: the bytes [offset, offset + bytes) of the heap, checked
+// (range, written pages) and readable until the session ends, or nullptr
+// with the reason in `why`.
+using HeapResolver = std::function<const uint8_t*(uint64_t offset, uint64_t bytes, std::string& why)>;
+
 std::string encode_outputs(const std::vector<Output>& outputs);
-void write_outputs(Writer& w, const std::vector<Output>& outputs);
+// With `heap`, a packed image or a point array that lies wholly inside it,
+// at an offset that is a multiple of kHeapAlign, is written as a reference.
+void write_outputs(Writer& w, const std::vector<Output>& outputs, const HeapSpan* heap = nullptr);
 Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out);
 // The same over bytes the caller owns (the daemon's copy of the output
-// arena, output_arena.hpp); views point into them.
-Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out);
+// arena, output_arena.hpp); views point into them, and into what `heap`
+// gives for references (none allowed without it).
+Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out,
+                      const HeapResolver& heap = {});
 
 // An error reply: code, message, hint.
 std::string encode_error(const Status& st);

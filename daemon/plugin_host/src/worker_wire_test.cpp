@@ -171,6 +171,129 @@ TEST(WorkerWire, RandomlyFlippedOutputsNeverReadOutOfBounds) {
   }
 }
 
+// Version 5: with the writer's heap span, a packed image or a point array
+// that lies inside the heap at an aligned offset is named (offset), not
+// copied; the reader resolves it through its own view of the heap and gets
+// those very bytes. Anything else is copied as before.
+TEST(WorkerWire, OutputsInTheSharedHeapAreNamedNotCopied) {
+  const size_t heap_size = size_t{1} << 20;
+  void* hp = ::mmap(nullptr, heap_size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  ASSERT_NE(hp, MAP_FAILED);
+  Mapping heap_map(hp, heap_size);
+  auto* heap = static_cast<uint8_t*>(hp);
+  auto* img = reinterpret_cast<float*>(heap + 4096);     // 64x64 F32 map in the heap
+  auto* pts = reinterpret_cast<float*>(heap + 65536);    // 100 points of 3 floats in the heap
+  auto* odd = reinterpret_cast<float*>(heap + 131072 + 4);  // in the heap, unaligned: copied
+  for (int i = 0; i < 64 * 64; ++i) img[i] = static_cast<float>(i);
+  for (int i = 0; i < 300; ++i) pts[i] = static_cast<float>(-i);
+  for (int i = 0; i < 16; ++i) odd[i] = 0.5f * static_cast<float>(i);
+  float outside[4] = {9, 8, 7, 6};
+  std::vector<Output> outs(4);
+  outs[0].name = "depth_mm";
+  outs[0].kind = PROCAM_OUTPUT_IMAGE;
+  outs[0].image = {64, 64, 1, PROCAM_PIXEL_F32, 32, 0, 256, img};
+  outs[1].name = "cloud";
+  outs[1].kind = PROCAM_OUTPUT_POINTS;
+  outs[1].points = pts;
+  outs[1].point_count = 100;
+  outs[1].point_stride = 3;
+  outs[1].point_fields = "x,y,z";
+  outs[2].name = "odd";
+  outs[2].kind = PROCAM_OUTPUT_IMAGE;
+  outs[2].image = {4, 4, 1, PROCAM_PIXEL_F32, 32, 0, 16, odd};
+  outs[3].name = "small";
+  outs[3].kind = PROCAM_OUTPUT_IMAGE;
+  outs[3].image = {2, 2, 1, PROCAM_PIXEL_F32, 32, 0, 8, outside};
+  const HeapSpan span{heap, heap_size};
+  Writer w;
+  write_outputs(w, outs, &span);
+  const std::string with_refs = w.bytes();
+  const std::string copied = encode_outputs(outs);
+  // The two heap blocks (16 KiB + 1200 B) are not in the encoding (each
+  // reference adds an 8-byte offset; the copy adds alignment padding).
+  EXPECT_LE(with_refs.size() + 16384 + 1200, copied.size() + 16);
+  std::vector<std::pair<uint64_t, uint64_t>> asked;
+  const HeapResolver resolve = [&](uint64_t off, uint64_t bytes, std::string& why) -> const uint8_t* {
+    asked.emplace_back(off, bytes);
+    if (off > heap_size || bytes > heap_size - off) {
+      why = "out of the heap";
+      return nullptr;
+    }
+    return heap + off;
+  };
+  std::vector<procam_output> abi;
+  auto* data = reinterpret_cast<const uint8_t*>(with_refs.data());
+  Status st = decode_outputs(data, with_refs.size(), abi, resolve);
+  ASSERT_TRUE(st.ok()) << st.to_string();
+  ASSERT_EQ(abi.size(), 4u);
+  EXPECT_EQ(abi[0].kind, static_cast<uint32_t>(PROCAM_OUTPUT_IMAGE));
+  EXPECT_EQ(abi[0].image.data, img);  // the very bytes, no copy
+  EXPECT_EQ(abi[0].image.stride_bytes, 256u);
+  EXPECT_EQ(abi[1].kind, static_cast<uint32_t>(PROCAM_OUTPUT_POINTS));
+  EXPECT_EQ(abi[1].points, pts);
+  EXPECT_EQ(abi[1].point_count, 100u);
+  EXPECT_NE(abi[2].image.data, odd);  // unaligned: carried in the encoding
+  EXPECT_EQ(static_cast<const float*>(abi[2].image.data)[15], 7.5f);
+  EXPECT_EQ(static_cast<const float*>(abi[3].image.data)[3], 6.0f);
+  ASSERT_EQ(asked.size(), 2u);
+  EXPECT_EQ(asked[0], std::make_pair(uint64_t{4096}, uint64_t{64 * 64 * 4}));
+  EXPECT_EQ(asked[1], std::make_pair(uint64_t{65536}, uint64_t{1200}));
+  // A reader that allows no heap refuses references, naming why.
+  st = decode_outputs(data, with_refs.size(), abi);
+  ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.code(), Code::corrupt_data);
+  EXPECT_NE(st.message().find("shared heap"), std::string::npos) << st.message();
+  // A resolver's refusal is the decode's.
+  const HeapResolver refuse = [](uint64_t, uint64_t, std::string& why) -> const uint8_t* {
+    why = "unwritten pages";
+    return nullptr;
+  };
+  st = decode_outputs(data, with_refs.size(), abi, refuse);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("unwritten pages"), std::string::npos) << st.message();
+  // Without the span the same outputs are copied, byte for byte as before.
+  Writer plain;
+  write_outputs(plain, outs, nullptr);
+  EXPECT_EQ(plain.bytes(), copied);
+}
+
+// A hostile worker's reference: unaligned offsets are refused before the
+// resolver is asked; flipped bytes never make the reader go out of bounds.
+TEST(WorkerWire, HeapReferencesAreCheckedBeforeTheyAreResolved) {
+  std::vector<Output> outs(1);
+  static float block[16 * 16] __attribute__((aligned(64)));
+  outs[0].name = "m";
+  outs[0].kind = PROCAM_OUTPUT_IMAGE;
+  outs[0].image = {16, 16, 1, PROCAM_PIXEL_F32, 32, 0, 64, block};
+  const HeapSpan span{reinterpret_cast<const uint8_t*>(block), sizeof block};
+  Writer w;
+  write_outputs(w, outs, &span);
+  std::string bytes = w.bytes();
+  ASSERT_EQ(bytes.size(), 4 + (4 + 2) + 4 + (4 + 1) + (4 + 1) + 5 * 4 + 8u);
+  int asked = 0;
+  const HeapResolver resolve = [&](uint64_t off, uint64_t n, std::string& why) -> const uint8_t* {
+    ++asked;
+    if (off > sizeof block || n > sizeof block - off) {
+      why = "out of the heap";
+      return nullptr;
+    }
+    return reinterpret_cast<const uint8_t*>(block) + off;
+  };
+  std::vector<procam_output> abi;
+  bytes[bytes.size() - 8] = 4;  // offset 4
+  Status st = decode_outputs(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), abi, resolve);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("not a multiple of 64"), std::string::npos) << st.message();
+  EXPECT_EQ(asked, 0);
+  bytes[bytes.size() - 8] = 64;  // aligned, but 1 KiB from there runs past the block
+  st = decode_outputs(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), abi, resolve);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("out of the heap"), std::string::npos) << st.message();
+  bytes[bytes.size() - 8] = 0;
+  st = decode_outputs(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), abi, resolve);
+  EXPECT_TRUE(st.ok()) << st.to_string();
+}
+
 TEST(WorkerWire, UnsealedBlobsAreRefused) {
   const int fd = ::memfd_create("unsealed", MFD_CLOEXEC);
   ASSERT_GE(fd, 0);

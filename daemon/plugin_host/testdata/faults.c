@@ -37,10 +37,14 @@
  *                ("aio"), PTRACE_TRACEME ("traceme"; only tried with
  *                $PROCAM_TEST_TRACEME set: without the sandbox it would make
  *                the test process its tracer)
- *   scribble     behaves as "ok", and get_outputs starts a thread that, 100
- *                ms later, overwrites every writable "procam-outputs"
- *                mapping of the worker (the output arena, found in
- *                /proc/self/maps) with changing bytes for about a second,
+ *   scribble     behaves as "ok" plus a fifth output, "heap_image": a
+ *                512x512 F32 map (pixel i = i % 251) allocated with the
+ *                host's operator new[] (in a worker: its shared heap,
+ *                worker/shared_heap.hpp), and get_outputs starts a thread
+ *                that, 100 ms later, overwrites that map and every
+ *                writable "procam-outputs" mapping of the worker but the
+ *                heap (the output arena, found in /proc/self/maps) with
+ *                changing bytes for about a second,
  *                creating "scribbled" in its working directory (the
  *                scratch folder) after every pass, or "no-arena" if it
  *                found none: what the daemon returned must not change
@@ -87,8 +91,14 @@ struct procam_session {
   uint32_t pw, ph;               /* pattern size: the projector's */
   uint8_t* pattern;              /* pw x ph zeros */
   procam_plan plan;
-  procam_output outputs[4];
+  procam_output outputs[5];
 };
+
+/* The C++ runtime's operator new[] / delete[] where the host has one (weak:
+   resolved in the process that loads this fixture). */
+extern void* _Znam(unsigned long) __attribute__((weak));
+#define FX_BIG_SIDE 512
+static float* g_big; /* "scribble"'s heap_image: allocated once, kept for the process */
 
 static void set_error(procam_error* err, const char* msg) {
   if (err) snprintf(err->message, sizeof err->message, "%s", msg);
@@ -367,12 +377,13 @@ static void* fx_scribbler(void* arg) {
     while (maps != NULL && fgets(line, sizeof line, maps) != NULL) {
       unsigned long lo, hi;
       char perms[8];
-      if (strstr(line, "procam-outputs") == NULL || sscanf(line, "%lx-%lx %7s", &lo, &hi, perms) != 3 ||
-          perms[1] != 'w')
+      if (strstr(line, "procam-outputs") == NULL || strstr(line, "procam-outputs-heap") != NULL ||
+          sscanf(line, "%lx-%lx %7s", &lo, &hi, perms) != 3 || perms[1] != 'w')
         continue;
       memset((void*)lo, 0x40 + pass % 32, hi - lo);
       found = 1;
     }
+    if (g_big != NULL) memset(g_big, 0x40 + pass % 32, sizeof(float) * FX_BIG_SIDE * FX_BIG_SIDE);
     if (maps != NULL) fclose(maps);
     /* Every pass: the daemon empties the scratch folder when a reused
        worker's session ends, and a frozen worker scribbles only after that. */
@@ -414,12 +425,27 @@ static int fx_get_outputs(procam_session* s, const procam_output** outs, uint32_
   s->outputs[3].name = "report";
   s->outputs[3].kind = PROCAM_OUTPUT_JSON;
   s->outputs[3].json = "{\"frames\": 3}";
+  *count = 4;
   if (is(s, "scribble")) {
     pthread_t t;
+    if (g_big == NULL && _Znam != NULL) g_big = (float*)_Znam(sizeof(float) * FX_BIG_SIDE * FX_BIG_SIDE);
+    if (g_big != NULL) {
+      for (i = 0; i < FX_BIG_SIDE * FX_BIG_SIDE; ++i) g_big[i] = (float)(i % 251);
+      s->outputs[4].name = "heap_image";
+      s->outputs[4].kind = PROCAM_OUTPUT_IMAGE;
+      s->outputs[4].unit = "";
+      s->outputs[4].image.width = FX_BIG_SIDE;
+      s->outputs[4].image.height = FX_BIG_SIDE;
+      s->outputs[4].image.channels = 1;
+      s->outputs[4].image.pixel_type = PROCAM_PIXEL_F32;
+      s->outputs[4].image.bit_depth = 32;
+      s->outputs[4].image.stride_bytes = sizeof(float) * FX_BIG_SIDE;
+      s->outputs[4].image.data = g_big;
+      *count = 5;
+    }
     if (pthread_create(&t, NULL, fx_scribbler, NULL) == 0) pthread_detach(t);
   }
   *outs = s->outputs;
-  *count = 4;
   return PROCAM_OK;
 }
 

@@ -9,7 +9,9 @@
 // that) and drives it through the same Session, whose checks run here and
 // again in the daemon. Frames are read from the shared ring (mapped
 // read-only); plans go back as sealed memfd blobs, outputs through the
-// output arena (output_arena.hpp).
+// output arena (output_arena.hpp), where maps the plugin allocated in the
+// worker's shared heap (shared_heap.hpp, its operator new) are named
+// rather than copied.
 // Exit: 0 when the daemon closes the socket; 2 on a protocol error from
 // the daemon's side; a plugin crash ends it by that signal.
 #include <malloc.h>
@@ -18,6 +20,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -29,6 +32,7 @@
 #include "procam/host/plugin_host.hpp"
 #include "output_arena.hpp"
 #include "sandbox.hpp"
+#include "shared_heap.hpp"
 #include "worker_wire.hpp"
 
 using namespace procam;
@@ -186,7 +190,10 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
   hello.u32(sandbox.flags);
   hello.str(sandbox.scratch);
   hello.str(sandbox.problems.substr(0, 4096));
-  if (!wire::send_msg(kSock, wire::Msg::hello, 0, hello.bytes())) return 0;
+  // The shared heap goes with hello (the daemon maps it once); the worker
+  // keeps only its mapping.
+  if (!wire::send_msg(kSock, wire::Msg::hello, 0, hello.bytes(), worker::heap::fd())) return 0;
+  worker::heap::close_fd();
   Served s;
   s.sandbox = sandbox_on;
   s.scratch = sandbox.scratch;
@@ -259,13 +266,18 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
           reply_error(outs.status());
           break;
         }
-        const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs); };
         // Payload u8: 1 = into the output arena (a worker the daemon may
-        // reuse), 0 = a sealed blob of its own (WORKER_PROTOCOL.md).
+        // reuse), 2 = the same, naming maps that lie in the shared heap
+        // instead of copying them (the daemon reads them with this worker
+        // stopped), 0 = a sealed blob of its own (WORKER_PROTOCOL.md).
         wire::Reader req(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
-        const bool arena = req.u8("arena flag") != 0;
-        if (!req.ok()) {
-          reply_error(Error(Code::invalid_argument, "malformed get_outputs: " + req.error()));
+        const uint8_t mode = req.u8("arena flag");
+        const bool arena = mode != 0;
+        const wire::HeapSpan heap{worker::heap::base(), worker::heap::size()};
+        const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs, mode == 2 ? &heap : nullptr); };
+        if (!req.ok() || mode > 2) {
+          reply_error(Error(Code::invalid_argument, "malformed get_outputs: " +
+                                                        (req.ok() ? "mode " + std::to_string(mode) : req.error())));
           break;
         }
         if (!arena) {
@@ -338,6 +350,14 @@ int main(int argc, char** argv) {
   // Nothing of the parent's but stdio and the control socket.
   ::close_range(wire::kControlFd + 1, ~0u, 0);
   apply_limits(memory_limit_mb);
+#if !defined(__SANITIZE_ADDRESS__)
+  // Large allocations from here on come from the shared heap
+  // (shared_heap_new.cpp): 1 GiB of address space, a quarter of the limit
+  // at most; pages only where the plugin allocates.
+  const uint64_t limit = memory_limit_mb >= (uint64_t{1} << 40) ? 0 : memory_limit_mb << 20;
+  worker::heap::init(static_cast<size_t>(limit > 0 ? std::min<uint64_t>(uint64_t{1} << 30, limit / 4)
+                                                   : uint64_t{1} << 30));
+#endif
   // Plugin log lines reach the daemon through the protocol; only the
   // worker's own warnings go to stderr (the daemon's log).
   log::configure("warn,plugins=off");
