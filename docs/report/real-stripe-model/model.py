@@ -13,7 +13,12 @@ candidates without a gap and half-width <= 1.5. Planes most significant first.
 import numpy as np, sys, json
 from PIL import Image
 import os
-S=os.path.join(os.environ.get('PROCAM_DATA_DIR', os.path.join(os.path.dirname(__file__), '../../../../shared/data')),
+# The real sample is not in the repository: point PROCAM_DATA_DIR at the
+# folder that holds real/procam-calibration-sample/ (docs/report/real.md).
+if not os.environ.get('PROCAM_DATA_DIR'):
+    sys.exit('model.py: set PROCAM_DATA_DIR to the folder holding real/procam-calibration-sample/ '
+             '(the procam-calibration sample, MIT; see docs/report/real.md)')
+S=os.path.join(os.environ['PROCAM_DATA_DIR'],
              'real/procam-calibration-sample/sample_data/capture_%d/graycode_%02d.png')
 def load(c):
     return np.stack([np.asarray(Image.open(S%(c,i)).convert('L'),dtype=np.float32) for i in range(42)])
