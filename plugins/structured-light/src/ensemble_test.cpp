@@ -298,7 +298,13 @@ TEST(Vote, Rules) {
       {100, 101, nan, 500, 255, kPartial, 100.5f, 0.5f},              // gray + xor02: midpoint
       {nan, 900, 101, 100, 255, kPartial, 100.5f, 0.5f},              // xor04 + minsw: midpoint
       {300, 100, 101, 700, 255, kInterreflection, 100.5f, 0.5f},      // logical pair: midpoint
-      {100, 400, 700, 101, 255, kSubsurface, 101, 0.5f},              // Gray pair: still minsw's (thesis)
+      // Session 15: the Gray pair a full column apart (the agree_px limit):
+      // their midpoint, the only value within 0.5 of both (fires) ...
+      {100, 400, 700, 101, 255, kSubsurface, 100.5f, 0.5f},
+      {101, 400, 700, 100, 255, kSubsurface, 100.5f, 0.5f},
+      // ... closer than that: min-SW's value, as the thesis says (must not fire).
+      {100, 400, 700, 99.5f, 255, kSubsurface, 99.5f, 0.5f},
+      {100, 400, 700, 100, 255, kSubsurface, 100, 0.5f},
   };
   for (const Case& c : cases) {
     const float g[1] = {c.g}, x2[1] = {c.x2}, x4[1] = {c.x4}, m[1] = {c.m};
@@ -315,6 +321,34 @@ TEST(Vote, Rules) {
       EXPECT_EQ(valid, 255);
     }
     EXPECT_EQ(conf, c.conf);
+  }
+}
+
+// Issue 18, session 15: the reported column (report_columns) is the refined
+// column rounded to half a column where the vote is not unanimous, but it
+// moves the vote's value by at most half a column (a row fit across a crease
+// pulled right votes a full column off on val4-near-box-far-floor).
+TEST(Vote, ReportedColumnMovesTheVoteAtMostHalfAColumn) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  struct Case { float vote; uint8_t valid; float conf; float refined; float reported; };
+  const Case cases[] = {
+      {100.0f, 255, 0.5f, 100.9f, 100.5f},    // fires: the fit says +0.9, only +0.5 taken
+      {100.0f, 255, 0.75f, 99.1f, 99.5f},     // fires, the other side
+      {100.25f, 255, 0.5f, 101.2f, 100.75f},  // a median on the quarter grid: still +-0.5
+      {100.0f, 255, 0.5f, 100.4f, 100.5f},    // must not fire: rounded to the half grid, 0.5 away
+      {100.0f, 255, 0.5f, 99.8f, 100.0f},     // must not fire
+      {100.0f, 255, 1.0f, 100.9f, 100.0f},    // unanimous: the median stands
+      {100.0f, 255, 0.5f, nan, 100.0f},       // no refinement: the vote stands
+      {nan, 0, 0.0f, 100.0f, nan},            // invalid: untouched
+  };
+  for (const Case& c : cases) {
+    float coord = c.vote;
+    report_columns(&coord, &c.valid, &c.conf, &c.refined, 1);
+    if (std::isnan(c.reported)) {
+      EXPECT_TRUE(std::isnan(coord));
+    } else {
+      EXPECT_EQ(coord, c.reported) << c.vote << " refined " << c.refined;
+    }
   }
 }
 

@@ -61,7 +61,11 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
     uint8_t c = kPartial;
     float value = 0.0f;
     if (pairs == 1 && gray_pair) {
-      value = v[kMinsw];
+      // min-SW's value (thesis), but their midpoint when the two are a full
+      // agree_px apart (in half columns, as vote_keys compares them).
+      const bool full_apart = std::floor(2.0f * std::fabs(v[kGray] - v[kMinsw]) + 1e-3f) >=
+                              std::floor(2.0f * agree_px);
+      value = full_apart ? 0.5f * (v[kGray] + v[kMinsw]) : v[kMinsw];
       c = kSubsurface;
     } else {
       for (uint32_t k : kPreference)
@@ -92,11 +96,18 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
   }
 }
 
+namespace {
+// report_columns: the refined column moves the vote's value by at most half
+// a column (issue 18, session 15).
+constexpr float kMaxReportShift = 0.5f;
+}  // namespace
+
 void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
                     size_t n) {
   for (size_t i = 0; i < n; ++i)
     if (valid[i] != 0 && confidence[i] < 1.0f && std::isfinite(refined[i]))
-      coord[i] = 0.5f * std::nearbyint(2.0f * refined[i]);
+      coord[i] = std::clamp(0.5f * std::nearbyint(2.0f * refined[i]), coord[i] - kMaxReportShift,
+                            coord[i] + kMaxReportShift);
 }
 
 int32_t agree_key_threshold(float agree_px) {
@@ -141,8 +152,12 @@ void vote_keys_scalar(const int32_t* const key[kEnsembleCodes], const uint8_t* l
     const int32_t hi = std::max(std::max(m0 ? a0 : -1, m1 ? a1 : -1), std::max(m2 ? a2 : -1, m3 ? a3 : -1));
     const bool trim = members >= 3;
     const int32_t msum = m0 * a0 + m1 * a1 + m2 * a2 + m3 * a3;
-    const int32_t sum = sub ? a3 : trim ? msum - lo - hi : msum;
-    const int32_t count = sub ? 1 : trim ? members - 2 : 2;
+    // {gray, minsw} a full agree_px apart: their midpoint, not minsw's value
+    // (issue 18, session 15; docs/structured-light.md "Ensemble vote").
+    const int32_t d03 = a0 - a3;
+    const bool sub_value = sub && (d03 < 0 ? -d03 : d03) < agree2;
+    const int32_t sum = sub_value ? a3 : trim ? msum - lo - hi : msum;
+    const int32_t count = sub_value ? 1 : trim ? members - 2 : 2;
     const auto c = static_cast<uint8_t>(sub ? kSubsurface : inter ? kInterreflection : pairs == 6 ? kAllAgree : kPartial);
     const bool is_lit = lit[i] != 0;
     const bool ok = best > 0 && is_lit;
@@ -215,8 +230,11 @@ __attribute__((target("avx2"))) void vote_keys_avx2(const int32_t* const key[kEn
     const __m256i trim = _mm256_cmpgt_epi32(count, _mm256_set1_epi32(2));
     sum = pick8(trim, _mm256_sub_epi32(sum, _mm256_add_epi32(lo, hi)), sum);  // 2 members: their sum
     count = pick8(trim, _mm256_sub_epi32(count, _mm256_set1_epi32(2)), count);  // and count 2: midpoint
-    sum = pick8(sub, a3, sum);
-    count = pick8(sub, one, count);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
+    // {gray, minsw} a full agree_px apart keep their midpoint (scalar kernel).
+    const __m256i sub_value =
+        _mm256_and_si256(sub, _mm256_cmpgt_epi32(_mm256_set1_epi32(agree2), _mm256_abs_epi32(_mm256_sub_epi32(a0, a3))));
+    sum = pick8(sub_value, a3, sum);
+    count = pick8(sub_value, one, count);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
     const __m256 scale = _mm256_blendv_ps(half, quarter, _mm256_castsi256_ps(_mm256_cmpeq_epi32(count, _mm256_set1_epi32(2))));
     const __m256 mean = _mm256_mul_ps(_mm256_cvtepi32_ps(sum), scale);
     __m256i c = _mm256_set1_epi32(kPartial);
@@ -295,8 +313,11 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
     const __mmask16 trim = _mm512_cmpgt_epi32_mask(count, _mm512_set1_epi32(2));
     sum = _mm512_mask_sub_epi32(sum, trim, sum, _mm512_add_epi32(lo, hi));  // 2 members: their sum
     count = _mm512_mask_sub_epi32(count, trim, count, _mm512_set1_epi32(2));  // and count 2: midpoint
-    sum = _mm512_mask_mov_epi32(sum, sub, a3);
-    count = _mm512_mask_mov_epi32(count, sub, one);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
+    // {gray, minsw} a full agree_px apart keep their midpoint (scalar kernel).
+    const __mmask16 sub_value = static_cast<__mmask16>(
+        sub & _mm512_cmpgt_epi32_mask(_mm512_set1_epi32(agree2), _mm512_abs_epi32(_mm512_sub_epi32(a0, a3))));
+    sum = _mm512_mask_mov_epi32(sum, sub_value, a3);
+    count = _mm512_mask_mov_epi32(count, sub_value, one);  // 1 or 2: scale the key by 1/2 or 1/4 (exact)
     const __m512 mean = _mm512_mul_ps(
         _mm512_cvtepi32_ps(sum),
         _mm512_mask_mov_ps(half, _mm512_cmpeq_epi32_mask(count, _mm512_set1_epi32(2)), quarter));

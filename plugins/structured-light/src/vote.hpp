@@ -10,7 +10,15 @@
 //   - no code has support          -> error pixel (C6), invalid, class kError
 //     (or kUnlit when the pixel is not lit);
 //   - the only agreeing pair is {gray, minsw}  -> minsw's value, kSubsurface
-//     (thesis: "if only the two Gray codes agree, return min-SW's value");
+//     (thesis: "if only the two Gray codes agree, return min-SW's value"),
+//     except when the two are a full agree_px apart: then their midpoint
+//     (issue 18, session 15). Both are taken to lie within agree_px of the
+//     truth; a column apart, the values within a column of both are the
+//     span between them, and min-SW's value is its far end from gray:
+//     where sub-surface light shifts min-SW's wide stripe edge by one code
+//     column (1.25 projector columns at W = 1280) it is 1.5 off, the
+//     midpoint 1 (val4-milkglass-soap-stack's skin cylinder: 79 of its
+//     353 such pixels wrong, 5 with the midpoint);
 //   - otherwise the *pick* is the first code, in the order gray, xor04, xor02,
 //     minsw, among those with the largest support, and the value is the
 //     median of the pick and every code agreeing with it when they are 3 or
@@ -85,7 +93,13 @@ int32_t agree_key_threshold(float agree_px);  // floor(2 * agree_px), agree_px >
 // confidence < 1), coord becomes the row-refined column `refined`
 // (refine_columns, subpixel.hpp: clamped to +-1 column of the vote, the
 // vote's value where the row has no consistent neighbours) rounded to the
-// nearest half column; unanimous pixels keep their median. Pixels [0, n).
+// nearest half column, and then clamped to within 0.5 of the vote's value
+// (issue 18, session 15); unanimous pixels keep their median. Why 0.5: the
+// refinement corrects a shared code bias of about half a column (marble:
+// no pixel needs more), but a line fit whose 11-pixel window crosses a
+// crease follows the other face's slope and, at the old +-1 clamp, moved
+// right votes a full column off (val4-near-box-far-floor: 307 of its 308
+// wrong pixels had a right vote, 47 wrong with the 0.5 clamp). Pixels [0, n).
 void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
                     size_t n);
 
