@@ -153,6 +153,12 @@ void BitPlaneStream::set_format(const procam_image& frame) {
     std::fill_n(noise_sq_.get(), sn, 0.0);
     std::fill_n(noise_bad_.get(), sn, uint8_t{0});
   }
+  if (layout_.inverse && keep_code_ >= 0 && static_cast<size_t>(keep_code_) < codes_.size()) {
+    kept_bytes_ = sdk::bytes_per_sample(frame.pixel_type);
+    // Every byte is written by the fold of its plane (all planes are folded
+    // before the kept samples are read: require_complete).
+    kept_ = make_pixel_array<uint8_t>(2 * size_t{codes_[static_cast<size_t>(keep_code_)].bits} * n * kept_bytes_);
+  }
   for (CodeState& s : codes_) {
     const int margins = s.has_weak ? 2 : 1;
     s.tracked = track_;
@@ -262,6 +268,19 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
   const size_t w = width_;
   const bool track = s.tracked && which == 0;  // strict planes only
   const auto plane_index = static_cast<uint8_t>(role.plane);
+  // keep_pairs: the pair's rows copied as they are folded (in cache then).
+  uint8_t* kept_plane = nullptr;
+  size_t kept_row = 0, kept_stride = 0;
+  if (inverse != nullptr && pairs_kept(role.code)) {
+    kept_row = w * kept_bytes_;
+    kept_stride = size_t{height_} * kept_row;
+    kept_plane = kept_.get() + size_t{role.plane} * 2 * kept_stride;
+  }
+  auto keep_rows = [&](uint32_t y) {
+    if (kept_plane == nullptr) return;
+    std::memcpy(kept_plane + y * kept_row, sdk::row_bytes(plane, y), kept_row);
+    std::memcpy(kept_plane + kept_stride + y * kept_row, sdk::row_bytes(*inverse, y), kept_row);
+  };
   if (u8_) {
     uint8_t* word = s.wbyte[byte].get();
     const uint32_t bit = position % 8;
@@ -284,6 +303,7 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
           track_u8(sdk::row_bytes(plane, y), inverse != nullptr ? sdk::row_bytes(*inverse, y) : white + off,
                    inverse != nullptr || black == nullptr ? nullptr : black + off, inverse == nullptr, w,
                    plane_index, first, TrackRow<uint8_t>::at(s.t8, s.t_plane, off));
+        keep_rows(y);
       }
     });
   } else {
@@ -307,6 +327,7 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
                    margin + off, flags + off);
         if (track)
           track_f(row_l.data(), row_lb.data(), w, plane_index, first, TrackRow<float>::at(s.tf, s.t_plane, off));
+        keep_rows(y);
       }
     });
   }
