@@ -263,6 +263,13 @@ const std::vector<sdk::ParamSpec>& gray_param_specs() {
        "chessboard sample 4 keeps 90.0-97.2 % of the plain decode's pixels (85.4-95.1 % "
        "without); on the sim it raises gross errors (metal lamp 3.37 -> 7.65 %, "
        "docs/report/real.md), hence 0 (off) by default: set 4 for real 8-bit captures"},
+      {"fill_min_neighbours", sdk::ParamType::integer, 1, 1.0, 4.0, {},
+       "decoded 4-neighbours a pixel needs before the neighbour fill may choose its column"},
+      {"fill_extrapolate", sdk::ParamType::boolean, true, -kInf, kInf, {},
+       "continue each neighbour's column through the pixel by the pixel behind it (no lag on "
+       "slopes) instead of taking it as is"},
+      {"fill_ties", sdk::ParamType::boolean, true, -kInf, kInf, {},
+       "the neighbour fill also enumerates exactly tied planes (white unclipped)"},
       {"stripe_average", sdk::ParamType::string, "auto", -kInf, kInf, {"auto", "off", "on"},
        "uncertain planes of a rejected pixel decided by their margin averaged over 7 pixels "
        "along the stripe (direction from the structure tensor of the 8..128-column planes; "
@@ -276,13 +283,6 @@ const std::vector<sdk::ParamSpec>& gray_param_specs() {
       {"stripe_average_gate", sdk::ParamType::number, 0.10, 0.0, 1.0, {},
        "share of lit pixels whose finest plane is uncertain with a noise-set threshold at "
        "which stripe_average=auto runs (reported as stripe_average.f_noise)"},
-      {"fill_min_neighbours", sdk::ParamType::integer, 1, 1.0, 4.0, {},
-       "decoded 4-neighbours a pixel needs before the neighbour fill may choose its column"},
-      {"fill_extrapolate", sdk::ParamType::boolean, true, -kInf, kInf, {},
-       "continue each neighbour's column through the pixel by the pixel behind it (no lag on "
-       "slopes) instead of taking it as is"},
-      {"fill_ties", sdk::ParamType::boolean, true, -kInf, kInf, {},
-       "the neighbour fill also enumerates exactly tied planes (white unclipped)"},
   };
   return specs;
 }
