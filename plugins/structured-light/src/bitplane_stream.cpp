@@ -15,6 +15,9 @@
 #include <limits>
 #include <stdexcept>
 #include <utility>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace procam::sl {
 
@@ -257,6 +260,41 @@ bool BitPlaneStream::have_reference() const {
          (layout_.black < 0 || added_[static_cast<size_t>(layout_.black)] != 0);
 }
 
+namespace {
+
+// keep_pairs' copy: the kept rows are read only after the last frame, so they
+// are written with non-temporal stores (no read-for-ownership of the
+// destination, no eviction of the fold's working set). Caller: sfence_kept()
+// before another thread may read them (the pool's join follows it).
+void copy_kept(uint8_t* dst, const uint8_t* src, size_t n) {
+#if defined(__SSE2__)
+  const size_t head = std::min(n, (16 - reinterpret_cast<uintptr_t>(dst) % 16) % 16);
+  std::memcpy(dst, src, head);
+  size_t i = head;
+  for (; i + 64 <= n; i += 64) {
+    const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i));
+    const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 16));
+    const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 32));
+    const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 48));
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i), a);
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 16), b);
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 32), c);
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 48), d);
+  }
+  std::memcpy(dst + i, src + i, n - i);
+#else
+  std::memcpy(dst, src, n);
+#endif
+}
+
+void sfence_kept() {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
+
+}  // namespace
+
 void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
                           const procam_image* inverse) {
   CodeState& s = codes_[role.code];
@@ -278,8 +316,9 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
   }
   auto keep_rows = [&](uint32_t y) {
     if (kept_plane == nullptr) return;
-    std::memcpy(kept_plane + y * kept_row, sdk::row_bytes(plane, y), kept_row);
-    std::memcpy(kept_plane + kept_stride + y * kept_row, sdk::row_bytes(*inverse, y), kept_row);
+    copy_kept(kept_plane + y * kept_row, static_cast<const uint8_t*>(sdk::row_bytes(plane, y)), kept_row);
+    copy_kept(kept_plane + kept_stride + y * kept_row,
+              static_cast<const uint8_t*>(sdk::row_bytes(*inverse, y)), kept_row);
   };
   if (u8_) {
     uint8_t* word = s.wbyte[byte].get();
@@ -305,6 +344,7 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
                    plane_index, first, TrackRow<uint8_t>::at(s.t8, s.t_plane, off));
         keep_rows(y);
       }
+      if (kept_plane != nullptr) sfence_kept();
     });
   } else {
     uint16_t* word = s.word.get();
@@ -329,6 +369,7 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
           track_f(row_l.data(), row_lb.data(), w, plane_index, first, TrackRow<float>::at(s.tf, s.t_plane, off));
         keep_rows(y);
       }
+      if (kept_plane != nullptr) sfence_kept();
     });
   }
   if (inverse != nullptr) ++noise_pairs_;
