@@ -15,6 +15,9 @@
 #include <limits>
 #include <stdexcept>
 #include <utility>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace procam::sl {
 
@@ -153,6 +156,12 @@ void BitPlaneStream::set_format(const procam_image& frame) {
     std::fill_n(noise_sq_.get(), sn, 0.0);
     std::fill_n(noise_bad_.get(), sn, uint8_t{0});
   }
+  if (layout_.inverse && keep_code_ >= 0 && static_cast<size_t>(keep_code_) < codes_.size()) {
+    kept_bytes_ = sdk::bytes_per_sample(frame.pixel_type);
+    // Every byte is written by the fold of its plane (all planes are folded
+    // before the kept samples are read: require_complete).
+    kept_ = make_pixel_array<uint8_t>(2 * size_t{codes_[static_cast<size_t>(keep_code_)].bits} * n * kept_bytes_);
+  }
   for (CodeState& s : codes_) {
     const int margins = s.has_weak ? 2 : 1;
     s.tracked = track_;
@@ -251,6 +260,41 @@ bool BitPlaneStream::have_reference() const {
          (layout_.black < 0 || added_[static_cast<size_t>(layout_.black)] != 0);
 }
 
+namespace {
+
+// keep_pairs' copy: the kept rows are read only after the last frame, so they
+// are written with non-temporal stores (no read-for-ownership of the
+// destination, no eviction of the fold's working set). Caller: sfence_kept()
+// before another thread may read them (the pool's join follows it).
+void copy_kept(uint8_t* dst, const uint8_t* src, size_t n) {
+#if defined(__SSE2__)
+  const size_t head = std::min(n, (16 - reinterpret_cast<uintptr_t>(dst) % 16) % 16);
+  std::memcpy(dst, src, head);
+  size_t i = head;
+  for (; i + 64 <= n; i += 64) {
+    const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i));
+    const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 16));
+    const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 32));
+    const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 48));
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i), a);
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 16), b);
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 32), c);
+    _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 48), d);
+  }
+  std::memcpy(dst + i, src + i, n - i);
+#else
+  std::memcpy(dst, src, n);
+#endif
+}
+
+void sfence_kept() {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
+
+}  // namespace
+
 void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
                           const procam_image* inverse) {
   CodeState& s = codes_[role.code];
@@ -262,6 +306,20 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
   const size_t w = width_;
   const bool track = s.tracked && which == 0;  // strict planes only
   const auto plane_index = static_cast<uint8_t>(role.plane);
+  // keep_pairs: the pair's rows copied as they are folded (in cache then).
+  uint8_t* kept_plane = nullptr;
+  size_t kept_row = 0, kept_stride = 0;
+  if (inverse != nullptr && pairs_kept(role.code)) {
+    kept_row = w * kept_bytes_;
+    kept_stride = size_t{height_} * kept_row;
+    kept_plane = kept_.get() + size_t{role.plane} * 2 * kept_stride;
+  }
+  auto keep_rows = [&](uint32_t y) {
+    if (kept_plane == nullptr) return;
+    copy_kept(kept_plane + y * kept_row, static_cast<const uint8_t*>(sdk::row_bytes(plane, y)), kept_row);
+    copy_kept(kept_plane + kept_stride + y * kept_row,
+              static_cast<const uint8_t*>(sdk::row_bytes(*inverse, y)), kept_row);
+  };
   if (u8_) {
     uint8_t* word = s.wbyte[byte].get();
     const uint32_t bit = position % 8;
@@ -284,7 +342,9 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
           track_u8(sdk::row_bytes(plane, y), inverse != nullptr ? sdk::row_bytes(*inverse, y) : white + off,
                    inverse != nullptr || black == nullptr ? nullptr : black + off, inverse == nullptr, w,
                    plane_index, first, TrackRow<uint8_t>::at(s.t8, s.t_plane, off));
+        keep_rows(y);
       }
+      if (kept_plane != nullptr) sfence_kept();
     });
   } else {
     uint16_t* word = s.word.get();
@@ -307,7 +367,9 @@ void BitPlaneStream::fold(const StreamFrame& role, const procam_image& plane,
                    margin + off, flags + off);
         if (track)
           track_f(row_l.data(), row_lb.data(), w, plane_index, first, TrackRow<float>::at(s.tf, s.t_plane, off));
+        keep_rows(y);
       }
+      if (kept_plane != nullptr) sfence_kept();
     });
   }
   if (inverse != nullptr) ++noise_pairs_;

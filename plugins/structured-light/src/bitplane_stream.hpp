@@ -208,6 +208,31 @@ class BitPlaneStream {
   void track_single_planes(bool on) { track_ = on; }
   // The noise model of this capture (see above); call when complete.
   NoiseFit fit_noise() const;
+  // Keep the raw samples of code `code`'s pattern/inverse pairs ("inverse"
+  // mode only) until the stream is destroyed: the stripe-averaged rule
+  // (stripe_average.hpp) needs every plane's margin d = L - L̄ and pair sum
+  // S = L + L̄ at any pixel, and whether it runs is known only after the last
+  // frame. Call before the first frame; -1 = keep none. Cost: the two rows
+  // of each pair are copied while they are folded (already in cache), in
+  // their own format: 2 x bits x width x height x bytes per sample (8-bit
+  // 1280x1024, 10 column planes: 26 MB; 16-bit: 52 MB).
+  void keep_pairs(int32_t code) { keep_code_ = code; }
+  // True when code `code`'s pairs were kept (keep_pairs, "inverse" mode).
+  bool pairs_kept(size_t code) const {
+    return kept_ != nullptr && static_cast<int64_t>(code) == keep_code_;
+  }
+  // Kept sample of plane p (0 = most significant) of the kept code at pixel
+  // i: the pattern (inverse false) or its inverse, in input units (the
+  // frame's value as a float, as the float kernels read it).
+  float kept(uint32_t plane, bool inverse, size_t i) const {
+    const size_t n = size_t{width_} * height_;
+    const size_t at = (size_t{plane} * 2 + (inverse ? 1 : 0)) * n + i;
+    switch (kept_bytes_) {
+      case 1: return static_cast<float>(kept_[at]);
+      case 2: return static_cast<float>(reinterpret_cast<const uint16_t*>(kept_.get())[at]);
+      default: return reinterpret_cast<const float*>(kept_.get())[at];
+    }
+  }
 
  private:
   struct Copy {  // a waiting frame, copied in its own format
@@ -242,6 +267,9 @@ class BitPlaneStream {
   PixelArray<uint8_t> noise_bad_;               // 1: some value clipped, <= 0 or non-finite
   uint32_t noise_pairs_ = 0;
   bool track_ = false;
+  int32_t keep_code_ = -1;                      // keep_pairs
+  PixelArray<uint8_t> kept_;                    // [plane][pattern, inverse][pixel], raw samples
+  size_t kept_bytes_ = 0;                       // bytes per kept sample
   float* intensity_out_ = nullptr;
   const float* intensity_written_ = nullptr;
 };

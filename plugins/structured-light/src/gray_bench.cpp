@@ -55,11 +55,19 @@ Data& data() {
   return d;
 }
 
-// noise_k > 0: the session's defaults (noise rule k = 3, uncertainty output).
-RoundResult decode_round(uint32_t threads, double noise_k = 0) {
+// noise_k > 0: the session's defaults (noise rule k = 3, uncertainty output,
+// stripe averaging "auto": pairs kept, gate counted; it stays shut on this
+// crisp capture, as on the sim). stripe: that mode instead.
+RoundResult decode_round(uint32_t threads, double noise_k = 0,
+                         StripeAverageMode stripe = StripeAverageMode::automatic) {
   Data& d = data();
   BinaryRoundDecoder dec(d.layout, d.cols, nullptr, kW, kH, threads);
-  if (noise_k > 0) dec.set_uncertain_output(true);
+  if (noise_k > 0) {
+    dec.set_uncertain_output(true);
+    StripeAverageParams p;
+    p.mode = stripe;
+    dec.set_stripe_average(p);
+  }
   for (uint32_t i = 0; i < d.views.size(); ++i)
     if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
   return dec.finish(0.03, 0.1, noise_k);
@@ -87,6 +95,30 @@ void BM_GrayDecodeDefaults(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_GrayDecodeDefaults)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The defaults with stripe_average=off (no pairs kept, no gate): the cost of
+// "auto" on a capture whose gate stays shut is Defaults minus this.
+void BM_GrayDecodeStripeOff(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  for (auto _ : state) {
+    RoundResult r = decode_round(threads, 3.0, StripeAverageMode::off);
+    benchmark::DoNotOptimize(r);
+    recycle_maps(std::move(r));
+  }
+}
+BENCHMARK(BM_GrayDecodeStripeOff)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// stripe_average=on: rule A forced (what a capture whose gate opens pays:
+// structure tensor over the whole image, averaged noise fit, the rejected pixels).
+void BM_GrayDecodeStripeOn(benchmark::State& state) {
+  const auto threads = static_cast<uint32_t>(state.range(0));
+  for (auto _ : state) {
+    RoundResult r = decode_round(threads, 3.0, StripeAverageMode::on);
+    benchmark::DoNotOptimize(r);
+    recycle_maps(std::move(r));
+  }
+}
+BENCHMARK(BM_GrayDecodeStripeOn)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_GrayDecodeAndTriangulate(benchmark::State& state) {
   const auto threads = static_cast<uint32_t>(state.range(0));

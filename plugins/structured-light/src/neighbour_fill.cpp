@@ -86,7 +86,8 @@ size_t fill_from_neighbours(WorkPool& pool, uint32_t width, uint32_t height, int
         std::vector<Decision>& d = decided[y];
         d.clear();
         for (uint32_t j = 0; j < r.x.size(); ++j) {
-          if (done[y][j] != 0) continue;
+          // Decoded since the candidates were listed (stripe_average.hpp): kept.
+          if (done[y][j] != 0 || !std::isnan(coord[size_t{y} * width + r.x[j]])) continue;
           float centre = 0, half = 0;
           if (choose(coord, width, height, r.x[j], y, r.v.data() + r.begin[j],
                      r.begin[j + 1] - r.begin[j], inv_scale, scale, rule, centre, half))

@@ -138,7 +138,7 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(d[7]["patterns"], 3 * 6 * 9);
   std::map<std::string, nlohmann::json> params;
   for (const auto& p : d[0]["params"]) params[p["name"].get<std::string>()] = p;
-  ASSERT_EQ(params.size(), 12u);
+  ASSERT_EQ(params.size(), 14u);
   EXPECT_EQ(params["rows"]["type"], "bool");
   EXPECT_EQ(params["rows"]["default"], false);
   EXPECT_EQ(params["binarize"]["default"], "inverse");
@@ -157,6 +157,13 @@ TEST(PluginAbi, DescribeListsGrayAndItsParams) {
   EXPECT_EQ(params["fill_min_neighbours"]["default"], 1);
   EXPECT_EQ(params["fill_extrapolate"]["default"], true);
   EXPECT_EQ(params["fill_ties"]["default"], true);
+  // Stripe averaging (issue 16): on by its gate, which real 8-bit captures
+  // open (22-32 %) and no sim scene does (<= 1.7 %).
+  EXPECT_EQ(params["stripe_average"]["type"], "string");
+  EXPECT_EQ(params["stripe_average"]["default"], "auto");
+  EXPECT_EQ(params["stripe_average"]["choices"], nlohmann::json({"auto", "off", "on"}));
+  EXPECT_EQ(params["stripe_average_gate"]["type"], "number");
+  EXPECT_EQ(params["stripe_average_gate"]["default"], 0.10);
   for (auto& [name, p] : params) EXPECT_FALSE(p["description"].get<std::string>().empty()) << name;
 }
 
@@ -335,6 +342,20 @@ void run_scan(const std::string& params, bool rows, uint32_t expected_frames) {
   EXPECT_EQ(report["patterns"], expected_frames);
   EXPECT_EQ(report["model"], "direct illumination only (no global-light handling)");
   EXPECT_TRUE(report["why"].is_string());
+  // Stripe averaging (default auto): this crisp, noise-free render is no
+  // noise-bound capture, so its gate stays shut; binarize=white keeps no pairs.
+  const nlohmann::json& stripe = report["stripe_average"];
+  ASSERT_TRUE(stripe.is_object());
+  EXPECT_EQ(stripe["mode"], "auto");
+  EXPECT_EQ(stripe["fired"], false);
+  EXPECT_EQ(stripe["pixels_added"], 0);
+  EXPECT_FALSE(stripe["summary"].get<std::string>().empty());
+  if (params.find("white") != std::string::npos) {
+    EXPECT_EQ(stripe["available"], false);
+  }
+  if (stripe["available"] == true) {
+    EXPECT_LT(stripe["f_noise"].get<double>(), 0.10);
+  }
 }
 
 TEST(PluginAbi, GrayScanInverse) { run_scan("{}", false, 2 + 2 * 10); }
@@ -408,7 +429,7 @@ TEST(PluginAbi, CreateErrors) {
   EXPECT_EQ(create_error("gray", R"({"bits":3})", PROCAM_ERR_INVALID_ARGUMENT),
             "unknown parameter 'bits' for method 'gray' (known: rows, binarize, min_contrast, "
             "min_bit_margin, max_weak_error_px, noise_k, max_uncertainty_px, tie_intervals, fill_passes, "
-            "fill_min_neighbours, fill_extrapolate, fill_ties)");
+            "fill_min_neighbours, fill_extrapolate, fill_ties, stripe_average, stripe_average_gate)");
   EXPECT_EQ(create_error("gray", R"({"rows":"yes"})", PROCAM_ERR_INVALID_ARGUMENT),
             R"(parameter 'rows' must be true or false, got "yes")");
   EXPECT_EQ(create_error("gray", R"({"min_bit_margin":1.5})", PROCAM_ERR_INVALID_ARGUMENT),

@@ -122,6 +122,17 @@ RoundResult BinaryRoundDecoder::finish(double min_contrast, double min_bit_margi
               });
   r.cols_weak = weak[0];
   r.rows_weak = has_rows_ ? weak[1] : 0;
+  // Stripe averaging (stripe_average.hpp): the gate on every scan that kept
+  // its pairs, rule A only when it fires (before the neighbour fill, which
+  // then leaves the pixels it decoded alone).
+  if (stripe_.mode != StripeAverageMode::off && uncertain_) {
+    stripe_gate(stream_.pool(), ctx, 0, r.stripe);
+    const bool run = stripe_.mode == StripeAverageMode::on ||
+                     (r.stripe.available && r.stripe.f_noise >= stripe_.gate);
+    if (run)
+      stripe_average(stream_.pool(), ctx, 0, maps[0], rule[0], tolerable_[0], stripe_.half_length,
+                     r.cols.coord.data(), r.cols.valid.data(), r.cols.uncertainty.data(), r.stripe);
+  }
   if (fill[0]) {
     r.cols_filled = fill_from_neighbours(stream_.pool(), width_, height_, std::max(maps[0].scale, 1),
                                          fill_, fill_rows[0], r.cols.coord.data(), r.cols.valid.data(),

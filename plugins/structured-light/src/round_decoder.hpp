@@ -28,6 +28,7 @@
 #include "neighbour_fill.hpp"
 #include "plan_layout.hpp"
 #include "procam/plugin_sdk.hpp"
+#include "stripe_average.hpp"
 #include "stripe_code.hpp"
 
 namespace procam::sl {
@@ -52,6 +53,7 @@ struct RoundResult {
   size_t cols_weak = 0, rows_weak = 0;  // valid pixels kept through a tolerated weak plane
                                         // (with uncertain output: given an interval)
   size_t cols_filled = 0, rows_filled = 0;  // of those, given by the neighbour fill
+  StripeAverageReport stripe;           // columns' stripe-averaged rule (stripe_average.hpp)
   NoiseFit noise;                       // the capture's noise model (bitplane_stream.hpp)
   double noise_k = 0;                   // the noise rule's k (0: off or not measured)
 };
@@ -108,6 +110,16 @@ class BinaryRoundDecoder {
     fill_ties_ = fill_ties;
   }
 
+  // Stripe-averaged margins behind the image-level gate for the columns
+  // (stripe_average.hpp); needs set_uncertain_output(true) and binarize
+  // "inverse" (the pairs are kept from the first frame on unless the mode
+  // is off: call before the first frame). Default off here; method "gray"
+  // sets its parameters (automatic by default).
+  void set_stripe_average(const StripeAverageParams& p) {
+    stripe_ = p;
+    stream_.keep_pairs(p.mode == StripeAverageMode::off ? -1 : 0);
+  }
+
   const Layout& layout() const { return layout_; }
 
  private:
@@ -121,6 +133,7 @@ class BinaryRoundDecoder {
   bool ties_ = false;
   NeighbourFillRule fill_;
   bool fill_ties_ = true;
+  StripeAverageParams stripe_{StripeAverageMode::off};
   std::vector<uint8_t> tolerable_[2];
   uint32_t width_, height_;
   BitPlaneStream stream_;
