@@ -86,6 +86,16 @@ PROCAM_AVX512_FN inline __m256 hi8(__m512 v) {
 
 // Pixels [0, w16) of one row, w16 a multiple of 16; pad[x + r] = row[x],
 // NaN for the r entries on either side.
+// kFloatSums: accumulate sy and sxy in float (16 lanes per add) instead of
+// double (8). Only for rows where that is exact (quarter_grid_row below):
+// then every yd = c - c0, every d * yd and every partial sum is a multiple
+// of 1/4 well inside float's 24-bit significand, so each float operation
+// gives the exact value, the double kernel's operations give the same exact
+// values (zeros with the same signs: IEEE rounds neither, and x + -x = +0
+// in both precisions), and the sums converted to double for the fit are
+// the double kernel's bits. About half the inner loop's work (issue 17: the
+// refinement was most of outputs() after the last frame).
+template <bool kFloatSums>
 PROCAM_AVX512_FN void refine_row_avx512(const float* pad, int64_t w16, int64_t r, const float* thr,
                                         float* dst) {
   const __m512 abs_mask = _mm512_castsi512_ps(_mm512_set1_epi32(0x7FFFFFFF));
@@ -101,6 +111,7 @@ PROCAM_AVX512_FN void refine_row_avx512(const float* pad, int64_t w16, int64_t r
     __m512 sn = _mm512_setzero_ps(), sx = _mm512_setzero_ps(), sxx = _mm512_setzero_ps();
     __m512d sy_lo = _mm512_setzero_pd(), sy_hi = _mm512_setzero_pd();
     __m512d sxy_lo = _mm512_setzero_pd(), sxy_hi = _mm512_setzero_pd();
+    __m512 sy_f = _mm512_setzero_ps(), sxy_f = _mm512_setzero_ps();
     __m512 cmin = c0, cmax = c0;
     for (int64_t d = -r; d <= r; ++d) {
       const __m512 c = _mm512_loadu_ps(pad + r + x + d);
@@ -113,18 +124,29 @@ PROCAM_AVX512_FN void refine_row_avx512(const float* pad, int64_t w16, int64_t r
       sx = _mm512_mask_add_ps(sx, in, sx, _mm512_set1_ps(df));
       sxx = _mm512_mask_add_ps(sxx, in, sxx, _mm512_set1_ps(df * df));
       const __m512 yd = _mm512_maskz_mov_ps(in, diff);
-      const __m512d ylo = _mm512_cvtps_pd(lo8(yd));
-      const __m512d yhi = _mm512_cvtps_pd(hi8(yd));
-      const __m512d dd = _mm512_set1_pd(static_cast<double>(d));
-      sy_lo = _mm512_add_pd(sy_lo, ylo);
-      sy_hi = _mm512_add_pd(sy_hi, yhi);
-      sxy_lo = _mm512_add_pd(sxy_lo, _mm512_mul_pd(dd, ylo));
-      sxy_hi = _mm512_add_pd(sxy_hi, _mm512_mul_pd(dd, yhi));
+      if constexpr (kFloatSums) {
+        sy_f = _mm512_add_ps(sy_f, yd);
+        sxy_f = _mm512_add_ps(sxy_f, _mm512_mul_ps(_mm512_set1_ps(df), yd));
+      } else {
+        const __m512d ylo = _mm512_cvtps_pd(lo8(yd));
+        const __m512d yhi = _mm512_cvtps_pd(hi8(yd));
+        const __m512d dd = _mm512_set1_pd(static_cast<double>(d));
+        sy_lo = _mm512_add_pd(sy_lo, ylo);
+        sy_hi = _mm512_add_pd(sy_hi, yhi);
+        sxy_lo = _mm512_add_pd(sxy_lo, _mm512_mul_pd(dd, ylo));
+        sxy_hi = _mm512_add_pd(sxy_hi, _mm512_mul_pd(dd, yhi));
+      }
       cmin = _mm512_mask_min_ps(cmin, in, cmin, c);
       cmax = _mm512_mask_max_ps(cmax, in, cmax, c);
     }
     const __mmask16 step =
         finite0 & _mm512_cmp_ps_mask(_mm512_sub_ps(cmax, cmin), one, _CMP_GE_OQ);  // !(cmax - cmin < 1)
+    if constexpr (kFloatSums) {  // exact: the double kernel's sums
+      sy_lo = _mm512_cvtps_pd(lo8(sy_f));
+      sy_hi = _mm512_cvtps_pd(hi8(sy_f));
+      sxy_lo = _mm512_cvtps_pd(lo8(sxy_f));
+      sxy_hi = _mm512_cvtps_pd(hi8(sxy_f));
+    }
     const __m256 out_lo = finish8(lo8(c0), lo8(sn), lo8(sx), lo8(sxx), sy_lo, sxy_lo,
                                   static_cast<__mmask8>(step & 0xFF));
     const __m256 out_hi = finish8(hi8(c0), hi8(sn), hi8(sx), hi8(sxx), sy_hi, sxy_hi,
@@ -132,6 +154,35 @@ PROCAM_AVX512_FN void refine_row_avx512(const float* pad, int64_t w16, int64_t r
     _mm256_storeu_ps(dst + x, out_lo);
     _mm256_storeu_ps(dst + x + 8, out_hi);
   }
+}
+// True when every finite value of row[0, w) is a multiple of 1/4 of at most
+// 2^16 in magnitude (the vote's grid: keys are half columns, a two-code
+// midpoint a quarter; any projector is narrower than 2^16 columns), and the
+// window's sums stay exact in float: each |yd| <= t = max thr (a neighbour
+// farther off is excluded), so |sy| <= (2r + 1) t and |sxy| <= r (2r + 1) t;
+// in quarters below 2^24. Then refine_row_avx512<true>
+// gives the double kernel's bits.
+PROCAM_AVX512_FN bool quarter_grid_row(const float* row, int64_t w, int64_t r, const float* thr) {
+  const float tmax = *std::max_element(thr, thr + r + 1);  // thr[r] unless max_slope < 0
+  const double bound = 4.0 * static_cast<double>(std::max<int64_t>(r, 1)) * static_cast<double>(2 * r + 1) *
+                       static_cast<double>(tmax);
+  if (!(bound < 16777216.0)) return false;  // NaN (max_slope NaN / inf) included
+  const __m512 abs_mask = _mm512_castsi512_ps(_mm512_set1_epi32(0x7FFFFFFF));
+  const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
+  const __m512 four = _mm512_set1_ps(4.0f), limit = _mm512_set1_ps(65536.0f);
+  int64_t x = 0;
+  for (; x < w; x += 16) {
+    const __mmask16 lanes = w - x >= 16 ? __mmask16{0xFFFF} : static_cast<__mmask16>((1u << (w - x)) - 1u);
+    const __m512 v = _mm512_maskz_loadu_ps(lanes, row + x);
+    const __m512 a = _mm512_and_ps(v, abs_mask);
+    const __mmask16 finite = static_cast<__mmask16>(lanes & _mm512_cmp_ps_mask(a, inf, _CMP_LT_OQ));
+    const __m512 q = _mm512_mul_ps(v, four);  // exact: a power of two, |v| <= 2^16
+    const __mmask16 ok = static_cast<__mmask16>(
+        _mm512_cmp_ps_mask(a, limit, _CMP_LE_OQ) &
+        _mm512_cmp_ps_mask(_mm512_roundscale_ps(q, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC), q, _CMP_EQ_OQ));
+    if ((finite & ~ok) != 0) return false;
+  }
+  return true;
 }
 #endif
 
@@ -158,7 +209,10 @@ void refine_columns(const float* col, uint32_t w, uint32_t y0, uint32_t y1,
 #ifdef PROCAM_SDK_X86
     if (vec_end > 0) {
       std::copy(row, row + wi, pad.begin() + r);
-      refine_row_avx512(pad.data(), vec_end, r, thr.data(), dst);
+      if (quarter_grid_row(row, wi, r, thr.data()))
+        refine_row_avx512<true>(pad.data(), vec_end, r, thr.data(), dst);
+      else
+        refine_row_avx512<false>(pad.data(), vec_end, r, thr.data(), dst);
     }
 #endif
     for (int64_t x = vec_end; x < wi; ++x) dst[x] = refine_pixel(row, wi, x, r, thr.data());
