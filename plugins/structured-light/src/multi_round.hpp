@@ -168,6 +168,13 @@ class MultiCodeDecoder {
   MultiResult& finish_vote(double min_contrast, double min_bit_margin, const VoteSpec& spec);
 
   const MultiLayout& layout() const { return layout_; }
+  // The decoder's worker threads (the rig's `threads`), for the session's
+  // own row loops after the round (outputs()): they are the threads that
+  // just ran the vote, still spinning or warm, so a job there starts at
+  // once; the calling thread's sdk::parallel_rows pool would be a second
+  // set of threads woken from sleep while these spin on the same cores.
+  // Same contract as WorkPool (one job at a time, from the session's thread).
+  WorkPool& pool() { return stream_.pool(); }
 
  private:
   void allocate_result(Output output);
