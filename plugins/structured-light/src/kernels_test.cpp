@@ -185,6 +185,49 @@ void expect_same_maps(const std::vector<float>& a, const std::vector<float>& b) 
   for (size_t i = 0; i < a.size(); ++i) ASSERT_TRUE(same_float(a[i], b[i])) << i << " " << a[i] << " " << b[i];
 }
 
+// count_classes (the vote pass's pixel counts) at every level against a
+// plain count written here: random maps with zeros and nonzeros, classes
+// 0..9 (values past kConflict land in the last bin and are not flagged),
+// lengths around the 64-pixel step and offsets off any alignment.
+TEST(Kernels, CountClassesEqualsPlainCount) {
+  std::mt19937 rng(29);
+  std::uniform_int_distribution<int> byte(0, 255), cls_of(0, 9);
+  for (const size_t n : {size_t{0}, size_t{1}, size_t{63}, size_t{64}, size_t{65}, size_t{1920}, size_t{4099}}) {
+    std::vector<uint8_t> lit(n + 3), valid(n + 3), cls(n + 3);
+    for (size_t i = 0; i < n + 3; ++i) {
+      lit[i] = byte(rng) < 128 ? 0 : static_cast<uint8_t>(byte(rng) | 1);
+      valid[i] = byte(rng) < 100 ? 0 : 255;
+      cls[i] = static_cast<uint8_t>(cls_of(rng));
+    }
+    const size_t off = 3;  // unaligned start
+    PixelCounts want;
+    for (size_t i = off; i < off + n; ++i) {
+      want.lit += lit[i] ? 1u : 0u;
+      want.valid += valid[i] ? 1u : 0u;
+      want.flagged += (cls[i] == kError || cls[i] == kConflict) ? 1u : 0u;
+      want.cls[cls[i] < kTransportClassCount ? cls[i] : kTransportClassCount - 1] += 1u;
+    }
+    const auto check = [&](const char* level) {
+      SCOPED_TRACE(std::string(level) + " n " + std::to_string(n));
+      PixelCounts got;
+      got.lit = 5;  // adds to what is there
+      count_classes(lit.data() + off, valid.data() + off, cls.data() + off, n, got);
+      EXPECT_EQ(got.lit, want.lit + 5);
+      EXPECT_EQ(got.valid, want.valid);
+      EXPECT_EQ(got.flagged, want.flagged);
+      for (uint32_t k = 0; k < kTransportClassCount; ++k) EXPECT_EQ(got.cls[k], want.cls[k]) << "class " << k;
+    };
+    {
+      ScalarOnly guard;
+      check("scalar");
+    }
+    for (const SimdLevel& level : kLevels) {
+      const Level guard(level);
+      check(level.name);
+    }
+  }
+}
+
 TEST(Kernels, EnsembleSimdEqualsScalarAndFusedVoteEqualsSeparate) {
   constexpr uint32_t kW = 83, kH = 9, kProj = 1024;  // odd width: SIMD tails
   std::vector<ProjectedCode> codes;

@@ -79,10 +79,8 @@ struct MultiResult {
   // (lit, vote.valid, vote.cls after the conflict rule), taken in the vote's
   // own pass over each row band while it is in cache (issue 17: a second pass
   // over 7 MB after the last frame). flagged: correction.hpp flagged().
-  struct Counts {
-    size_t lit = 0, valid = 0, flagged = 0;
-    size_t cls[kTransportClassCount] = {};  // classes >= kTransportClassCount - 1 in the last
-  } counts;
+  using Counts = PixelCounts;  // vote.hpp count_classes
+  Counts counts;
 };
 
 // Gives every map of `r` to the map cache (map_cache.hpp), as the session

@@ -317,9 +317,49 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
   }
   if (i < n) vote_keys_scalar(key, lit, i, n, agree2, coord, valid, confidence, cls);
 }
+
+// count_classes_scalar, 64 pixels per step.
+__attribute__((target("avx512f,avx512bw,avx512vl"))) size_t count_classes_avx512(
+    const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t n, PixelCounts& c) {
+  const __m512i zero = _mm512_setzero_si512();
+  size_t i = 0;
+  for (; i + 64 <= n; i += 64) {
+    const __m512i l = _mm512_loadu_si512(lit + i), v = _mm512_loadu_si512(valid + i);
+    const __m512i k = _mm512_loadu_si512(cls + i);
+    c.lit += static_cast<size_t>(__builtin_popcountll(_mm512_cmpneq_epi8_mask(l, zero)));
+    c.valid += static_cast<size_t>(__builtin_popcountll(_mm512_cmpneq_epi8_mask(v, zero)));
+    for (uint32_t j = 0; j + 1 < kTransportClassCount; ++j)
+      c.cls[j] += static_cast<size_t>(
+          __builtin_popcountll(_mm512_cmpeq_epi8_mask(k, _mm512_set1_epi8(static_cast<char>(j)))));
+    c.cls[kTransportClassCount - 1] += static_cast<size_t>(__builtin_popcountll(
+        _mm512_cmpge_epu8_mask(k, _mm512_set1_epi8(static_cast<char>(kTransportClassCount - 1)))));
+    c.flagged += static_cast<size_t>(__builtin_popcountll(
+        _mm512_cmpeq_epi8_mask(k, _mm512_set1_epi8(static_cast<char>(kError))) |
+        _mm512_cmpeq_epi8_mask(k, _mm512_set1_epi8(static_cast<char>(kConflict)))));
+  }
+  return i;
+}
 #endif
 
+void count_classes_scalar(const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t b, size_t n,
+                          PixelCounts& c) {
+  for (size_t i = b; i < n; ++i) {
+    c.lit += lit[i] != 0 ? 1u : 0u;
+    c.valid += valid[i] != 0 ? 1u : 0u;
+    c.flagged += cls[i] == kError || cls[i] == kConflict ? 1u : 0u;
+    ++c.cls[std::min<size_t>(cls[i], kTransportClassCount - 1)];
+  }
+}
+
 }  // namespace
+
+void count_classes(const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t n, PixelCounts& c) {
+  size_t i = 0;
+#ifdef PROCAM_SDK_X86
+  if (avx512_active()) i = count_classes_avx512(lit, valid, cls, n, c);
+#endif
+  count_classes_scalar(lit, valid, cls, i, n, c);
+}
 
 void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n,
                int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {
