@@ -85,9 +85,10 @@ TEST(Subpixel, FlatRunsAndIsolatedPixelsKeepTheirColumn) {
 
 // The vector kernel must give the scalar kernel's bits (issue 17 made it the
 // default; the accuracy claims were measured with the scalar one): decoded
-// maps on the 0.25 px grid the vote produces, plus arbitrary floats and
-// infinities the grid never has, with NaN holes, depth jumps, row widths
-// that are no multiple of 16 and several window sizes.
+// maps on the 0.25 px grid the vote produces (the exact float kernel) and
+// arbitrary floats (the double kernel), both with infinities, NaN holes and
+// depth jumps (neighbours left out), row widths that are no multiple of 16
+// and window radii 0 to 33 (past the exact kernel's 32: the double kernel).
 TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
   if (!sdk::cpu_has_avx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the scalar kernel runs";
   std::mt19937 rng(17);
@@ -96,7 +97,8 @@ TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
   const float inf = std::numeric_limits<float>::infinity();
   size_t refined = 0, compared = 0;
   for (const uint32_t w : {1u, 15u, 16u, 17u, 100u, 1920u})
-    for (const SubpixelOptions opt : {SubpixelOptions{}, SubpixelOptions{1, 4.0f}, SubpixelOptions{7, 0.5f}})
+    for (const SubpixelOptions opt : {SubpixelOptions{}, SubpixelOptions{1, 4.0f}, SubpixelOptions{7, 0.5f},
+                                      SubpixelOptions{0, 4.0f}, SubpixelOptions{33, 0.5f}})
       for (const bool grid : {true, false}) {
         const uint32_t h = 6;
         std::vector<float> col(size_t{w} * h);
@@ -110,7 +112,7 @@ TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
             c = grid ? std::round(4.0f * t) / 4.0f : t;
             const float p = u(rng);
             if (p < 0.05f) c = nan;
-            else if (!grid && p < 0.06f) c = p < 0.055f ? inf : -inf;
+            else if (p < 0.06f) c = p < 0.055f ? inf : -inf;
           }
         }
         std::vector<float> fast(col.size()), ref(col.size());
