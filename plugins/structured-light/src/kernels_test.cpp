@@ -228,6 +228,54 @@ TEST(Kernels, CountClassesEqualsPlainCount) {
   }
 }
 
+// report_columns (the ensemble's reported column) at every level against
+// its definition written here: valid bytes 0 / 1 / 255, confidences below,
+// at and above 1 and NaN, refined columns on and off the quarter grid
+// (ties 2x = k + 0.5 round to even), negative, huge (2x overflows), NaN and
+// infinite; lengths around the 16-pixel step, an unaligned start.
+TEST(Kernels, ReportColumnsEqualsDefinition) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const float specials[] = {nan, inf, -inf, std::numeric_limits<float>::max(), -0.0f, 0.25f, 0.75f, 1.25f, -2.75f};
+  const float confs[] = {0.0f, 0.25f, 0.5f, 0.75f, 1.0f, 1.5f, nan};
+  for (const size_t n : {size_t{0}, size_t{1}, size_t{15}, size_t{16}, size_t{17}, size_t{1920}, size_t{4099}}) {
+    const size_t off = 1;
+    std::vector<uint8_t> valid(n + off);
+    std::vector<float> conf(n + off), refined(n + off), coord(n + off);
+    for (size_t i = 0; i < n + off; ++i) {
+      const float p = u(rng);
+      valid[i] = p < 0.2f ? 0 : p < 0.3f ? 1 : 255;
+      conf[i] = confs[static_cast<size_t>(u(rng) * 7.0f) % 7];
+      const float q = u(rng);
+      refined[i] = q < 0.1f ? specials[static_cast<size_t>(u(rng) * 9.0f) % 9]
+                   : q < 0.6f ? std::round(4.0f * 1024.0f * u(rng)) / 4.0f
+                              : 1024.0f * u(rng) - 10.0f;
+      coord[i] = std::round(2.0f * 1024.0f * u(rng)) / 2.0f;
+    }
+    std::vector<float> want = coord;
+    for (size_t i = off; i < off + n; ++i)
+      if (valid[i] != 0 && conf[i] < 1.0f && std::isfinite(refined[i]))
+        want[i] = 0.5f * std::nearbyint(2.0f * refined[i]);
+    const auto check = [&](const char* level) {
+      SCOPED_TRACE(std::string(level) + " n " + std::to_string(n));
+      std::vector<float> got = coord;
+      report_columns(got.data() + off, valid.data() + off, conf.data() + off, refined.data() + off, n);
+      for (size_t i = 0; i < got.size(); ++i)
+        ASSERT_EQ(0, std::memcmp(&got[i], &want[i], sizeof(float))) << i << ": " << got[i] << " vs " << want[i];
+    };
+    {
+      ScalarOnly guard;
+      check("scalar");
+    }
+    for (const SimdLevel& level : kLevels) {
+      const Level guard(level);
+      check(level.name);
+    }
+  }
+}
+
 TEST(Kernels, EnsembleSimdEqualsScalarAndFusedVoteEqualsSeparate) {
   constexpr uint32_t kW = 83, kH = 9, kProj = 1024;  // odd width: SIMD tails
   std::vector<ProjectedCode> codes;

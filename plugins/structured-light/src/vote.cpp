@@ -92,11 +92,51 @@ void vote_pixels(const float* const code[kEnsembleCodes], const uint8_t* lit, si
   }
 }
 
-void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
-                    size_t n) {
-  for (size_t i = 0; i < n; ++i)
+namespace {
+
+void report_columns_scalar(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
+                           size_t b, size_t n) {
+  for (size_t i = b; i < n; ++i)
     if (valid[i] != 0 && confidence[i] < 1.0f && std::isfinite(refined[i]))
       coord[i] = 0.5f * std::nearbyint(2.0f * refined[i]);
+}
+
+#ifdef PROCAM_SDK_X86
+// report_columns_scalar, 16 pixels per step: the same tests (an ordered
+// compare is false for NaN, as the scalar < and isfinite), the same
+// products (2 x and 0.5 x: exact, or the same overflow), and nearbyint as
+// roundscale in the current rounding mode without exceptions (what
+// nearbyint is). Returns the pixels done.
+__attribute__((target("avx512f,avx512bw,avx512vl"))) size_t report_columns_avx512(
+    float* coord, const uint8_t* valid, const float* confidence, const float* refined, size_t n) {
+  const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
+  const __m512 one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f), half = _mm512_set1_ps(0.5f);
+  size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    const __mmask16 v = _mm_test_epi8_mask(_mm_loadu_si128(reinterpret_cast<const __m128i*>(valid + i)),
+                                           _mm_set1_epi8(-1));
+    const __m512 r = _mm512_loadu_ps(refined + i);
+    const __mmask16 take = static_cast<__mmask16>(
+        v & _mm512_cmp_ps_mask(_mm512_loadu_ps(confidence + i), one, _CMP_LT_OQ) &
+        _mm512_cmp_ps_mask(_mm512_abs_ps(r), inf, _CMP_LT_OQ));
+    if (take == 0) continue;
+    const __m512 rounded =
+        _mm512_roundscale_ps(_mm512_mul_ps(two, r), _MM_FROUND_CUR_DIRECTION | _MM_FROUND_NO_EXC);
+    _mm512_mask_storeu_ps(coord + i, take, _mm512_mul_ps(half, rounded));
+  }
+  return i;
+}
+#endif
+
+}  // namespace
+
+void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
+                    size_t n) {
+  size_t i = 0;
+#ifdef PROCAM_SDK_X86
+  if (avx512_active()) i = report_columns_avx512(coord, valid, confidence, refined, n);
+#endif
+  report_columns_scalar(coord, valid, confidence, refined, i, n);
 }
 
 int32_t agree_key_threshold(float agree_px) {

@@ -100,6 +100,8 @@ void count_classes(const uint8_t* lit, const uint8_t* valid, const uint8_t* cls,
 // (refine_columns, subpixel.hpp: clamped to +-1 column of the vote, the
 // vote's value where the row has no consistent neighbours) rounded to the
 // nearest half column; unanimous pixels keep their median. Pixels [0, n).
+// AVX-512 where active (binarize.hpp), else scalar; the same bits
+// (kernels_test.cpp).
 void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
                     size_t n);
 
