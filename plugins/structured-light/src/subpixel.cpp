@@ -84,23 +84,23 @@ PROCAM_AVX512_FN inline __m256 hi8(__m512 v) {
   return _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1));
 }
 
-// Pixels [0, w16) of one row, w16 a multiple of 16; pad[x + r] = row[x],
-// NaN for the r entries on either side. kFloatSums: the exact float kernel
+// Pixels [x0, x1) of one row, a multiple of 16 apart; src[x] = row[x] for
+// every x - r .. x + 15 + r read, NaN outside the row (refine_columns). kFloatSums: the exact float kernel
 // (quarter_grid_row rows, r <= kMaxExactRadius), else the double kernel.
 constexpr int64_t kMaxExactRadius = 32;  // the exact kernel's mask buffer
 template <bool kFloatSums>
-PROCAM_AVX512_FN void refine_row_avx512(const float* pad, int64_t w16, int64_t r, const float* thr,
-                                        float* dst);
+PROCAM_AVX512_FN void refine_row_avx512(const float* src, int64_t x0, int64_t x1, int64_t r,
+                                        const float* thr, float* dst);
 
 // The double kernel: the scalar expressions per lane, in the scalar order.
 template <>
-PROCAM_AVX512_FN void refine_row_avx512<false>(const float* pad, int64_t w16, int64_t r, const float* thr,
-                                               float* dst) {
+PROCAM_AVX512_FN void refine_row_avx512<false>(const float* src, int64_t x0, int64_t x1, int64_t r,
+                                               const float* thr, float* dst) {
   const __m512 abs_mask = _mm512_castsi512_ps(_mm512_set1_epi32(0x7FFFFFFF));
   const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
   const __m512 one = _mm512_set1_ps(1.0f);
-  for (int64_t x = 0; x < w16; x += 16) {
-    const __m512 c0 = _mm512_loadu_ps(pad + r + x);
+  for (int64_t x = x0; x < x1; x += 16) {
+    const __m512 c0 = _mm512_loadu_ps(src + x);
     const __mmask16 finite0 = _mm512_cmp_ps_mask(_mm512_and_ps(c0, abs_mask), inf, _CMP_LT_OQ);
     if (finite0 == 0) {
       _mm512_storeu_ps(dst + x, c0);
@@ -111,7 +111,7 @@ PROCAM_AVX512_FN void refine_row_avx512<false>(const float* pad, int64_t w16, in
     __m512d sxy_lo = _mm512_setzero_pd(), sxy_hi = _mm512_setzero_pd();
     __m512 cmin = c0, cmax = c0;
     for (int64_t d = -r; d <= r; ++d) {
-      const __m512 c = _mm512_loadu_ps(pad + r + x + d);
+      const __m512 c = _mm512_loadu_ps(src + x + d);
       const __m512 diff = _mm512_sub_ps(c, c0);
       const __mmask16 in = static_cast<__mmask16>(
           finite0 & _mm512_cmp_ps_mask(_mm512_and_ps(c, abs_mask), inf, _CMP_LT_OQ) &
@@ -162,8 +162,8 @@ PROCAM_AVX512_FN void refine_row_avx512<false>(const float* pad, int64_t w16, in
 //    common block of 16 pixels whose 2r neighbours all pass they are the
 //    constants 2r + 1, 0 and r (r + 1) (2r + 1) / 3.
 template <>
-PROCAM_AVX512_FN void refine_row_avx512<true>(const float* pad, int64_t w16, int64_t r, const float* thr,
-                                              float* dst) {
+PROCAM_AVX512_FN void refine_row_avx512<true>(const float* src, int64_t x0, int64_t x1, int64_t r,
+                                              const float* thr, float* dst) {
   const __m512 abs_mask = _mm512_castsi512_ps(_mm512_set1_epi32(0x7FFFFFFF));
   const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
   const __m512 one = _mm512_set1_ps(1.0f);
@@ -171,8 +171,8 @@ PROCAM_AVX512_FN void refine_row_avx512<true>(const float* pad, int64_t w16, int
   const __m512 all_n = _mm512_set1_ps(2.0f * rf + 1.0f);
   const __m512 all_xx = _mm512_set1_ps(rf * (rf + 1.0f) * (2.0f * rf + 1.0f) / 3.0f);  // sum of d^2, exact
   __mmask16 in[2 * kMaxExactRadius + 1];
-  for (int64_t x = 0; x < w16; x += 16) {
-    const __m512 c0 = _mm512_loadu_ps(pad + r + x);
+  for (int64_t x = x0; x < x1; x += 16) {
+    const __m512 c0 = _mm512_loadu_ps(src + x);
     const __mmask16 finite0 = _mm512_cmp_ps_mask(_mm512_and_ps(c0, abs_mask), inf, _CMP_LT_OQ);
     if (finite0 == 0) {
       _mm512_storeu_ps(dst + x, c0);
@@ -183,7 +183,7 @@ PROCAM_AVX512_FN void refine_row_avx512<true>(const float* pad, int64_t w16, int
     __mmask16 all_in = finite0;
     for (int64_t d = -r; d <= r; ++d) {
       if (d == 0) continue;
-      const __m512 c = _mm512_loadu_ps(pad + r + x + d);
+      const __m512 c = _mm512_loadu_ps(src + x + d);
       const __m512 diff = _mm512_sub_ps(c, c0);
       const __mmask16 m = _mm512_cmp_ps_mask(_mm512_and_ps(diff, abs_mask),
                                              _mm512_set1_ps(thr[d < 0 ? -d : d]), _CMP_LE_OQ);
@@ -271,11 +271,25 @@ void refine_columns(const float* col, uint32_t w, uint32_t y0, uint32_t y1,
     float* dst = out + static_cast<size_t>(y) * w;
 #ifdef PROCAM_SDK_X86
     if (vec_end > 0) {
-      std::copy(row, row + wi, pad.begin() + r);
-      if (r <= kMaxExactRadius && quarter_grid_row(row, wi, r, thr.data()))
-        refine_row_avx512<true>(pad.data(), vec_end, r, thr.data(), dst);
-      else
-        refine_row_avx512<false>(pad.data(), vec_end, r, thr.data(), dst);
+      // Blocks [xa, xb) read only inside the row: straight from it. The
+      // edge blocks read the padded copy, where only the part they read is
+      // copied (row[0, xa + r) and row[xb - r, w)), not the whole row.
+      const int64_t xa = std::min(vec_end, (r + 15) / 16 * 16);
+      const int64_t xb = std::max(xa, std::min(vec_end, (wi - r) / 16 * 16));
+      const float* padded = pad.data() + r;  // padded[x] = row[x], NaN outside
+      std::copy(row, row + std::min(wi, xa + r), pad.begin() + r);
+      std::copy(row + std::max<int64_t>(0, xb - r), row + wi, pad.begin() + r + std::max<int64_t>(0, xb - r));
+      const bool exact = r <= kMaxExactRadius && quarter_grid_row(row, wi, r, thr.data());
+      const auto run = [&](const float* src, int64_t x0, int64_t x1) {
+        if (x0 >= x1) return;
+        if (exact)
+          refine_row_avx512<true>(src, x0, x1, r, thr.data(), dst);
+        else
+          refine_row_avx512<false>(src, x0, x1, r, thr.data(), dst);
+      };
+      run(padded, 0, xa);
+      run(row, xa, xb);
+      run(padded, xb, vec_end);
     }
 #endif
     for (int64_t x = vec_end; x < wi; ++x) dst[x] = refine_pixel(row, wi, x, r, thr.data());

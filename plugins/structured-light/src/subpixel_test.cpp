@@ -129,5 +129,25 @@ TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
   EXPECT_GT(refined, compared / 4);  // the comparison covered refined pixels, not only copies
 }
 
+// A pixel's window ends at its row's ends, even where the map's next row
+// continues the ramp (a kernel that read across the row's end would find
+// consistent neighbours there and fit them): every row width, vector and
+// scalar alike.
+TEST(Subpixel, VectorKernelReadsOnlyItsRow) {
+  if (!sdk::cpu_has_avx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the scalar kernel runs";
+  for (const uint32_t w : {16u, 17u, 47u, 100u, 1920u})
+    for (const SubpixelOptions opt : {SubpixelOptions{}, SubpixelOptions{1, 4.0f}, SubpixelOptions{33, 4.0f}}) {
+      const uint32_t h = 4;
+      std::vector<float> col(size_t{w} * h);
+      for (size_t i = 0; i < col.size(); ++i) col[i] = std::round(4.0f * 0.6f * static_cast<float>(i)) / 4.0f;
+      std::vector<float> fast(col.size()), ref(col.size());
+      refine_columns(col.data(), w, 0, h, opt, fast.data(), SubpixelKernel::best);
+      refine_columns(col.data(), w, 0, h, opt, ref.data(), SubpixelKernel::scalar);
+      for (size_t i = 0; i < col.size(); ++i)
+        ASSERT_EQ(0, std::memcmp(&fast[i], &ref[i], sizeof(float)))
+            << "w " << w << " radius " << opt.radius << " pixel " << i << ": " << fast[i] << " vs " << ref[i];
+    }
+}
+
 }  // namespace
 }  // namespace procam::sl
