@@ -418,9 +418,6 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     // zeroed and page-faulted on every scan's outputs().
     std::vector<float> subpx;
     sdk::take_map(subpx, coord_.size());
-    sdk::parallel_rows(h, rig_.threads, [&](uint32_t y0, uint32_t y1) {
-      refine_columns(coord_.data(), w, y0, y1, SubpixelOptions{}, subpx.data());
-    });
     // Issue 18 (session 11): where the vote is not unanimous (confidence < 1:
     // fewer than four codes agree pairwise), the reported column is the
     // refined column rounded to the nearest half column (the key grid of
@@ -433,8 +430,24 @@ class CodesSession final : public StreamingSession<MultiCodeDecoder> {
     // value by at most one column. Unanimous pixels keep their median (the
     // refined column was worse there near creases: val-room-corner).
     // Runs before triangulation, so depth uses the reported column.
-    if (codes_.size() > 1)
-      report_columns(coord_.data(), valid_.data(), confidence_.data(), subpx.data(), coord_.size());
+    // One pass (issue 17): each band of rows is refined and then reported
+    // while it is in cache. Both are row-local -- refine_columns reads only
+    // the pixel's own row of coord_, report_columns writes only that pixel
+    // -- so a band's report cannot change what another band refines, and
+    // the result is the same as refining the whole map first. The bands run
+    // on the decoder's threads (MultiCodeDecoder::pool), several per thread
+    // so a thread that is not scheduled delays only its band.
+    const bool reported = codes_.size() > 1;
+    const auto refine_and_report = [&](uint32_t y0, uint32_t y1) {
+      refine_columns(coord_.data(), w, y0, y1, SubpixelOptions{}, subpx.data());
+      if (!reported) return;
+      const size_t b = size_t{y0} * w, e = size_t{y1} * w;
+      report_columns(coord_.data() + b, valid_.data() + b, confidence_.data() + b, subpx.data() + b, e - b);
+    };
+    if (decoder_)
+      decoder_->pool().run(h, refine_and_report);
+    else
+      sdk::parallel_rows(h, rig_.threads, refine_and_report);
     std::optional<sdk::DepthResult> depth;
     if (rig_.can_triangulate(0)) {
       const ScopedMs timed(decode_ms_);

@@ -8,6 +8,8 @@
 //   BM_EnsembleAfterLastFrame/threads: the streaming latency — the last
 //     frame's add_frame + decode + vote + releasing the decoder (as the
 //     session's end_round), with the other 40 frames already in.
+//   BM_EnsembleRefine/0|1: outputs()' sub-pixel refinement and reported
+//     column on the vote map, one thread (see the bench).
 //   BM_GrayColRowDecode/threads vs BM_OpenCvGetProjPixel: Gray code columns
 //     and rows with inverses on the *same frames* (OpenCV's own generated
 //     patterns, checked equal to ours); OpenCV's getProjPixel is called for
@@ -28,6 +30,7 @@
 #include "multi_round.hpp"
 #include "plan_layout.hpp"
 #include "round_decoder.hpp"
+#include "subpixel.hpp"
 #include "vote.hpp"
 
 #ifdef PROCAM_SL_HAVE_OPENCV_SL
@@ -141,6 +144,38 @@ void BM_EnsembleStages(benchmark::State& state) {
 }
 BENCHMARK(BM_EnsembleStages)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "fused_vote"})
     ->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// What structured-light's outputs() does with the voted columns, on one
+// thread (the session splits it over the rig's threads in row bands):
+// refine_columns (subpixel.hpp) and report_columns (vote.hpp) on the
+// ensemble's real vote map. Arg 0: the vote's map as it is (multiples of
+// 1/4: the kernel sums in float, exactly); arg 1: the same map shifted by
+// 1/8 column, off the quarter grid, so the kernel takes its double-sum path
+// (the cost before issue 17's float sums; same pixels, same neighbours).
+void BM_EnsembleRefine(benchmark::State& state) {
+  static const MultiResult voted = [] {
+    EnsembleData& d = ens();
+    MultiCodeDecoder dec(d.layout, d.codes, kCamW, kCamH, 2, 1, MultiCodeDecoder::Output::vote);
+    for (uint32_t i = 0; i < d.views.size(); ++i)
+      if (!dec.add_frame(i, d.views[i]).ok()) std::abort();
+    return std::move(decode_and_vote(dec));
+  }();
+  std::vector<float> coord = voted.vote.coord;
+  if (state.range(0) == 1)
+    for (float& c : coord) c += 0.125f;
+  std::vector<float> refined(coord.size()), reported(coord.size());
+  for (auto _ : state) {
+    state.PauseTiming();
+    reported = coord;
+    state.ResumeTiming();
+    refine_columns(coord.data(), kCamW, 0, kCamH, SubpixelOptions{}, refined.data());
+    report_columns(reported.data(), voted.vote.valid.data(), voted.vote.confidence.data(), refined.data(),
+                   reported.size());
+    benchmark::DoNotOptimize(reported.data());
+  }
+  state.SetLabel(state.range(0) == 0 ? "vote map: float sums" : "off-grid map: double sums");
+}
+BENCHMARK(BM_EnsembleRefine)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 struct GrayData {
   StripeCode cols = make_gray_code(kProjW), rows = make_gray_code(kProjH);

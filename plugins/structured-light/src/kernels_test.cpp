@@ -185,6 +185,102 @@ void expect_same_maps(const std::vector<float>& a, const std::vector<float>& b) 
   for (size_t i = 0; i < a.size(); ++i) ASSERT_TRUE(same_float(a[i], b[i])) << i << " " << a[i] << " " << b[i];
 }
 
+// count_classes (the vote pass's pixel counts) at every level against a
+// plain count written here: random maps with zeros and nonzeros, classes
+// 0..9 (values past kConflict land in the last bin and are not flagged),
+// lengths around the 64-pixel step and offsets off any alignment.
+TEST(Kernels, CountClassesEqualsPlainCount) {
+  std::mt19937 rng(29);
+  std::uniform_int_distribution<int> byte(0, 255), cls_of(0, 9);
+  for (const size_t n : {size_t{0}, size_t{1}, size_t{63}, size_t{64}, size_t{65}, size_t{1920}, size_t{4099}}) {
+    std::vector<uint8_t> lit(n + 3), valid(n + 3), cls(n + 3);
+    for (size_t i = 0; i < n + 3; ++i) {
+      lit[i] = byte(rng) < 128 ? 0 : static_cast<uint8_t>(byte(rng) | 1);
+      valid[i] = byte(rng) < 100 ? 0 : 255;
+      cls[i] = static_cast<uint8_t>(cls_of(rng));
+    }
+    const size_t off = 3;  // unaligned start
+    PixelCounts want;
+    for (size_t i = off; i < off + n; ++i) {
+      want.lit += lit[i] ? 1u : 0u;
+      want.valid += valid[i] ? 1u : 0u;
+      want.flagged += (cls[i] == kError || cls[i] == kConflict) ? 1u : 0u;
+      want.cls[cls[i] < kTransportClassCount ? cls[i] : kTransportClassCount - 1] += 1u;
+    }
+    const auto check = [&](const char* level) {
+      SCOPED_TRACE(std::string(level) + " n " + std::to_string(n));
+      PixelCounts got;
+      got.lit = 5;  // adds to what is there
+      count_classes(lit.data() + off, valid.data() + off, cls.data() + off, n, got);
+      EXPECT_EQ(got.lit, want.lit + 5);
+      EXPECT_EQ(got.valid, want.valid);
+      EXPECT_EQ(got.flagged, want.flagged);
+      for (uint32_t k = 0; k < kTransportClassCount; ++k) EXPECT_EQ(got.cls[k], want.cls[k]) << "class " << k;
+    };
+    {
+      ScalarOnly guard;
+      check("scalar");
+    }
+    for (const SimdLevel& level : kLevels) {
+      const Level guard(level);
+      check(level.name);
+    }
+  }
+}
+
+// report_columns (the ensemble's reported column) at every level against
+// its definition written here: valid bytes 0 / 1 / 255, confidences below,
+// at and above 1 and NaN, refined columns on and off the quarter grid
+// (ties 2x = k + 0.5 round to even), negative, huge (2x overflows), NaN and
+// infinite; lengths around the 16-pixel step, an unaligned start.
+TEST(Kernels, ReportColumnsEqualsDefinition) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const float specials[] = {nan, inf, -inf, std::numeric_limits<float>::max(), -0.0f, 0.25f, 0.75f, 1.25f, -2.75f};
+  const float confs[] = {0.0f, 0.25f, 0.5f, 0.75f, 1.0f, 1.5f, nan};
+  for (const size_t n : {size_t{0}, size_t{1}, size_t{15}, size_t{16}, size_t{17}, size_t{1920}, size_t{4099}}) {
+    const size_t off = 1;
+    std::vector<uint8_t> valid(n + off);
+    std::vector<float> conf(n + off), refined(n + off), coord(n + off);
+    for (size_t i = 0; i < n + off; ++i) {
+      const float p = u(rng);
+      valid[i] = p < 0.2f ? 0 : p < 0.3f ? 1 : 255;
+      conf[i] = confs[static_cast<size_t>(u(rng) * 7.0f) % 7];
+      const float q = u(rng);
+      refined[i] = q < 0.1f ? specials[static_cast<size_t>(u(rng) * 9.0f) % 9]
+                   : q < 0.6f ? std::round(4.0f * 1024.0f * u(rng)) / 4.0f
+                              : 1024.0f * u(rng) - 10.0f;
+      // the vote's value: near the refined column (within 0, 0.5, 1 or 1.5
+      // columns, so the half-column clamp both holds and fires) or anywhere
+      const float shifts[] = {-1.5f, -1.0f, -0.5f, 0.0f, 0.5f, 1.0f, 1.5f};
+      coord[i] = u(rng) < 0.6f && std::isfinite(refined[i]) && std::abs(refined[i]) < 4096.0f
+                     ? std::round(2.0f * refined[i]) / 2.0f + shifts[static_cast<size_t>(u(rng) * 7.0f) % 7]
+                     : std::round(2.0f * 1024.0f * u(rng)) / 2.0f;
+    }
+    std::vector<float> want = coord;
+    for (size_t i = off; i < off + n; ++i)
+      if (valid[i] != 0 && conf[i] < 1.0f && std::isfinite(refined[i]))
+        want[i] = std::clamp(0.5f * std::nearbyint(2.0f * refined[i]), coord[i] - 0.5f, coord[i] + 0.5f);
+    const auto check = [&](const char* level) {
+      SCOPED_TRACE(std::string(level) + " n " + std::to_string(n));
+      std::vector<float> got = coord;
+      report_columns(got.data() + off, valid.data() + off, conf.data() + off, refined.data() + off, n);
+      for (size_t i = 0; i < got.size(); ++i)
+        ASSERT_EQ(0, std::memcmp(&got[i], &want[i], sizeof(float))) << i << ": " << got[i] << " vs " << want[i];
+    };
+    {
+      ScalarOnly guard;
+      check("scalar");
+    }
+    for (const SimdLevel& level : kLevels) {
+      const Level guard(level);
+      check(level.name);
+    }
+  }
+}
+
 TEST(Kernels, EnsembleSimdEqualsScalarAndFusedVoteEqualsSeparate) {
   constexpr uint32_t kW = 83, kH = 9, kProj = 1024;  // odd width: SIMD tails
   std::vector<ProjectedCode> codes;

@@ -334,15 +334,7 @@ MultiResult& MultiCodeDecoder::finish_vote(double min_contrast, double min_bit_m
                 }
                 if (spec.count) {  // the final maps of this band, still in cache
                   MultiResult::Counts c;
-                  const uint8_t* lit = r.lit.data() + b;
-                  const uint8_t* valid = r.vote.valid.data() + b;
-                  const uint8_t* cls = r.vote.cls.data() + b;
-                  for (size_t i = 0; i < e - b; ++i) {
-                    c.lit += lit[i] != 0 ? 1u : 0u;
-                    c.valid += valid[i] != 0 ? 1u : 0u;
-                    c.flagged += flagged(cls[i]) ? 1u : 0u;
-                    ++c.cls[std::min<size_t>(cls[i], kTransportClassCount - 1)];
-                  }
+                  count_classes(r.lit.data() + b, r.vote.valid.data() + b, r.vote.cls.data() + b, e - b, c);
                   const std::lock_guard<std::mutex> lock(conflicts_mutex);
                   r.counts.lit += c.lit;
                   r.counts.valid += c.valid;

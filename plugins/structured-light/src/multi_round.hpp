@@ -79,10 +79,8 @@ struct MultiResult {
   // (lit, vote.valid, vote.cls after the conflict rule), taken in the vote's
   // own pass over each row band while it is in cache (issue 17: a second pass
   // over 7 MB after the last frame). flagged: correction.hpp flagged().
-  struct Counts {
-    size_t lit = 0, valid = 0, flagged = 0;
-    size_t cls[kTransportClassCount] = {};  // classes >= kTransportClassCount - 1 in the last
-  } counts;
+  using Counts = PixelCounts;  // vote.hpp count_classes
+  Counts counts;
 };
 
 // Gives every map of `r` to the map cache (map_cache.hpp), as the session
@@ -168,6 +166,13 @@ class MultiCodeDecoder {
   MultiResult& finish_vote(double min_contrast, double min_bit_margin, const VoteSpec& spec);
 
   const MultiLayout& layout() const { return layout_; }
+  // The decoder's worker threads (the rig's `threads`), for the session's
+  // own row loops after the round (outputs()): they are the threads that
+  // just ran the vote, still spinning or warm, so a job there starts at
+  // once; the calling thread's sdk::parallel_rows pool would be a second
+  // set of threads woken from sleep while these spin on the same cores.
+  // Same contract as WorkPool (one job at a time, from the session's thread).
+  WorkPool& pool() { return stream_.pool(); }
 
  private:
   void allocate_result(Output output);

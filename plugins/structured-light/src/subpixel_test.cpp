@@ -85,9 +85,10 @@ TEST(Subpixel, FlatRunsAndIsolatedPixelsKeepTheirColumn) {
 
 // The vector kernel must give the scalar kernel's bits (issue 17 made it the
 // default; the accuracy claims were measured with the scalar one): decoded
-// maps on the 0.25 px grid the vote produces, plus arbitrary floats and
-// infinities the grid never has, with NaN holes, depth jumps, row widths
-// that are no multiple of 16 and several window sizes.
+// maps on the 0.25 px grid the vote produces (the exact float kernel) and
+// arbitrary floats (the double kernel), both with infinities, NaN holes and
+// depth jumps (neighbours left out), row widths that are no multiple of 16
+// and window radii 0 to 33 (past the exact kernel's 32: the double kernel).
 TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
   if (!sdk::cpu_has_avx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the scalar kernel runs";
   std::mt19937 rng(17);
@@ -96,7 +97,8 @@ TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
   const float inf = std::numeric_limits<float>::infinity();
   size_t refined = 0, compared = 0;
   for (const uint32_t w : {1u, 15u, 16u, 17u, 100u, 1920u})
-    for (const SubpixelOptions opt : {SubpixelOptions{}, SubpixelOptions{1, 4.0f}, SubpixelOptions{7, 0.5f}})
+    for (const SubpixelOptions opt : {SubpixelOptions{}, SubpixelOptions{1, 4.0f}, SubpixelOptions{7, 0.5f},
+                                      SubpixelOptions{0, 4.0f}, SubpixelOptions{33, 0.5f}})
       for (const bool grid : {true, false}) {
         const uint32_t h = 6;
         std::vector<float> col(size_t{w} * h);
@@ -110,7 +112,7 @@ TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
             c = grid ? std::round(4.0f * t) / 4.0f : t;
             const float p = u(rng);
             if (p < 0.05f) c = nan;
-            else if (!grid && p < 0.06f) c = p < 0.055f ? inf : -inf;
+            else if (p < 0.06f) c = p < 0.055f ? inf : -inf;
           }
         }
         std::vector<float> fast(col.size()), ref(col.size());
@@ -125,6 +127,26 @@ TEST(Subpixel, VectorKernelBitIdenticalToScalar) {
         }
       }
   EXPECT_GT(refined, compared / 4);  // the comparison covered refined pixels, not only copies
+}
+
+// A pixel's window ends at its row's ends, even where the map's next row
+// continues the ramp (a kernel that read across the row's end would find
+// consistent neighbours there and fit them): every row width, vector and
+// scalar alike.
+TEST(Subpixel, VectorKernelReadsOnlyItsRow) {
+  if (!sdk::cpu_has_avx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the scalar kernel runs";
+  for (const uint32_t w : {16u, 17u, 47u, 100u, 1920u})
+    for (const SubpixelOptions opt : {SubpixelOptions{}, SubpixelOptions{1, 4.0f}, SubpixelOptions{33, 4.0f}}) {
+      const uint32_t h = 4;
+      std::vector<float> col(size_t{w} * h);
+      for (size_t i = 0; i < col.size(); ++i) col[i] = std::round(4.0f * 0.6f * static_cast<float>(i)) / 4.0f;
+      std::vector<float> fast(col.size()), ref(col.size());
+      refine_columns(col.data(), w, 0, h, opt, fast.data(), SubpixelKernel::best);
+      refine_columns(col.data(), w, 0, h, opt, ref.data(), SubpixelKernel::scalar);
+      for (size_t i = 0; i < col.size(); ++i)
+        ASSERT_EQ(0, std::memcmp(&fast[i], &ref[i], sizeof(float)))
+            << "w " << w << " radius " << opt.radius << " pixel " << i << ": " << fast[i] << " vs " << ref[i];
+    }
 }
 
 }  // namespace

@@ -100,14 +100,58 @@ namespace {
 // report_columns: the refined column moves the vote's value by at most half
 // a column (issue 18, session 15).
 constexpr float kMaxReportShift = 0.5f;
+
+void report_columns_scalar(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
+                           size_t b, size_t n) {
+  for (size_t i = b; i < n; ++i)
+    if (valid[i] != 0 && confidence[i] < 1.0f && std::isfinite(refined[i]))
+      coord[i] = std::clamp(0.5f * std::nearbyint(2.0f * refined[i]), coord[i] - kMaxReportShift,
+                            coord[i] + kMaxReportShift);
+}
+
+#ifdef PROCAM_SDK_X86
+// report_columns_scalar, 16 pixels per step: the same tests (an ordered
+// compare is false for NaN, as the scalar < and isfinite), the same
+// products (2 x and 0.5 x: exact, or the same overflow), and nearbyint as
+// roundscale in the current rounding mode without exceptions (what
+// nearbyint is). Returns the pixels done.
+__attribute__((target("avx512f,avx512bw,avx512vl"))) size_t report_columns_avx512(
+    float* coord, const uint8_t* valid, const float* confidence, const float* refined, size_t n) {
+  const __m512 inf = _mm512_set1_ps(std::numeric_limits<float>::infinity());
+  const __m512 one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f), half = _mm512_set1_ps(0.5f);
+  const __m512 shift = _mm512_set1_ps(kMaxReportShift);
+  size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    const __mmask16 v = _mm_test_epi8_mask(_mm_loadu_si128(reinterpret_cast<const __m128i*>(valid + i)),
+                                           _mm_set1_epi8(-1));
+    const __m512 r = _mm512_loadu_ps(refined + i);
+    const __mmask16 take = static_cast<__mmask16>(
+        v & _mm512_cmp_ps_mask(_mm512_loadu_ps(confidence + i), one, _CMP_LT_OQ) &
+        _mm512_cmp_ps_mask(_mm512_abs_ps(r), inf, _CMP_LT_OQ));
+    if (take == 0) continue;
+    const __m512 rounded =
+        _mm512_roundscale_ps(_mm512_mul_ps(two, r), _MM_FROUND_CUR_DIRECTION | _MM_FROUND_NO_EXC);
+    // std::clamp(x, c - 0.5, c + 0.5) bit for bit: max/min return their
+    // second operand when either is NaN or both compare equal, as clamp
+    // returns x when neither x < lo nor hi < x.
+    const __m512 c = _mm512_loadu_ps(coord + i);
+    const __m512 x = _mm512_mul_ps(half, rounded);
+    const __m512 clamped = _mm512_min_ps(_mm512_add_ps(c, shift), _mm512_max_ps(_mm512_sub_ps(c, shift), x));
+    _mm512_mask_storeu_ps(coord + i, take, clamped);
+  }
+  return i;
+}
+#endif
+
 }  // namespace
 
 void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
                     size_t n) {
-  for (size_t i = 0; i < n; ++i)
-    if (valid[i] != 0 && confidence[i] < 1.0f && std::isfinite(refined[i]))
-      coord[i] = std::clamp(0.5f * std::nearbyint(2.0f * refined[i]), coord[i] - kMaxReportShift,
-                            coord[i] + kMaxReportShift);
+  size_t i = 0;
+#ifdef PROCAM_SDK_X86
+  if (avx512_active()) i = report_columns_avx512(coord, valid, confidence, refined, n);
+#endif
+  report_columns_scalar(coord, valid, confidence, refined, i, n);
 }
 
 int32_t agree_key_threshold(float agree_px) {
@@ -338,9 +382,49 @@ __attribute__((target("avx512f,avx512bw,avx512vl"))) void vote_keys_avx512(
   }
   if (i < n) vote_keys_scalar(key, lit, i, n, agree2, coord, valid, confidence, cls);
 }
+
+// count_classes_scalar, 64 pixels per step.
+__attribute__((target("avx512f,avx512bw,avx512vl"))) size_t count_classes_avx512(
+    const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t n, PixelCounts& c) {
+  const __m512i zero = _mm512_setzero_si512();
+  size_t i = 0;
+  for (; i + 64 <= n; i += 64) {
+    const __m512i l = _mm512_loadu_si512(lit + i), v = _mm512_loadu_si512(valid + i);
+    const __m512i k = _mm512_loadu_si512(cls + i);
+    c.lit += static_cast<size_t>(__builtin_popcountll(_mm512_cmpneq_epi8_mask(l, zero)));
+    c.valid += static_cast<size_t>(__builtin_popcountll(_mm512_cmpneq_epi8_mask(v, zero)));
+    for (uint32_t j = 0; j + 1 < kTransportClassCount; ++j)
+      c.cls[j] += static_cast<size_t>(
+          __builtin_popcountll(_mm512_cmpeq_epi8_mask(k, _mm512_set1_epi8(static_cast<char>(j)))));
+    c.cls[kTransportClassCount - 1] += static_cast<size_t>(__builtin_popcountll(
+        _mm512_cmpge_epu8_mask(k, _mm512_set1_epi8(static_cast<char>(kTransportClassCount - 1)))));
+    c.flagged += static_cast<size_t>(__builtin_popcountll(
+        _mm512_cmpeq_epi8_mask(k, _mm512_set1_epi8(static_cast<char>(kError))) |
+        _mm512_cmpeq_epi8_mask(k, _mm512_set1_epi8(static_cast<char>(kConflict)))));
+  }
+  return i;
+}
 #endif
 
+void count_classes_scalar(const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t b, size_t n,
+                          PixelCounts& c) {
+  for (size_t i = b; i < n; ++i) {
+    c.lit += lit[i] != 0 ? 1u : 0u;
+    c.valid += valid[i] != 0 ? 1u : 0u;
+    c.flagged += cls[i] == kError || cls[i] == kConflict ? 1u : 0u;
+    ++c.cls[std::min<size_t>(cls[i], kTransportClassCount - 1)];
+  }
+}
+
 }  // namespace
+
+void count_classes(const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t n, PixelCounts& c) {
+  size_t i = 0;
+#ifdef PROCAM_SDK_X86
+  if (avx512_active()) i = count_classes_avx512(lit, valid, cls, n, c);
+#endif
+  count_classes_scalar(lit, valid, cls, i, n, c);
+}
 
 void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, size_t n,
                int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls) {

@@ -88,6 +88,20 @@ void vote_keys(const int32_t* const key[kEnsembleCodes], const uint8_t* lit, siz
                int32_t agree2, float* coord, uint8_t* valid, float* confidence, uint8_t* cls);
 int32_t agree_key_threshold(float agree_px);  // floor(2 * agree_px), agree_px >= 0
 
+// Per-pixel counts of final ensemble maps (multi_round.hpp VoteSpec::count):
+// lit != 0, valid != 0, flagged (cls kError or kConflict: correction.hpp
+// flagged()) and the transport-class histogram, classes >= kTransportClassCount - 1
+// in the last entry.
+struct PixelCounts {
+  size_t lit = 0, valid = 0, flagged = 0;
+  size_t cls[kTransportClassCount] = {};
+};
+// Adds pixels [0, n) of the three maps to `c`. AVX-512 (64 pixels per step,
+// mask popcounts) where active (binarize.hpp), else scalar; the same counts
+// (kernels_test.cpp). Issue 17: the scalar histogram was ~1 ms of the vote
+// pass at 1920x1200.
+void count_classes(const uint8_t* lit, const uint8_t* valid, const uint8_t* cls, size_t n, PixelCounts& c);
+
 // The column the ensemble reports (issue 18, session 11; docs/structured-
 // light.md "Ensemble vote"): where the vote is not unanimous (valid and
 // confidence < 1), coord becomes the row-refined column `refined`
@@ -100,6 +114,8 @@ int32_t agree_key_threshold(float agree_px);  // floor(2 * agree_px), agree_px >
 // crease follows the other face's slope and, at the old +-1 clamp, moved
 // right votes a full column off (val4-near-box-far-floor: 307 of its 308
 // wrong pixels had a right vote, 47 wrong with the 0.5 clamp). Pixels [0, n).
+// AVX-512 where active (binarize.hpp), else scalar; the same bits
+// (kernels_test.cpp).
 void report_columns(float* coord, const uint8_t* valid, const float* confidence, const float* refined,
                     size_t n);
 
