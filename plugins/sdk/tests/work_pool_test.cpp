@@ -5,11 +5,17 @@
 // bands of sdk::parallel_rows (rows*i/n) and the simulator's split.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <mutex>
 #include <set>
+#include <string>
 #include <stdexcept>
 #include <thread>
 #include <utility>
@@ -75,6 +81,39 @@ TEST(WorkPool, KeepsItsThreadsBetweenJobs) {
   });
   EXPECT_LE(first.size(), 3u);
   for (const std::thread::id& id : second) EXPECT_TRUE(first.count(id) || id == std::this_thread::get_id());
+}
+
+// Between jobs a worker spins, then yields its CPU for a bounded time (the
+// header's "Why the yield phase"), then sleeps: an idle pool must not keep
+// burning a CPU. Reads each thread's state from /proc/self/task: after a
+// job and 200 ms (kYieldSpin is 2 ms), every thread of the pool sleeps
+// ('S'); a yield loop without its deadline leaves them runnable ('R').
+TEST(WorkPool, IdleWorkersSleepAfterTheYieldPhase) {
+  const auto states_of_others = [] {
+    std::string states;
+    const std::string self = std::to_string(::gettid());
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator("/proc/self/task", ec)) {
+      if (e.path().filename() == self) continue;
+      std::ifstream f(e.path() / "stat");
+      std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+      const size_t paren = stat.rfind(')');
+      if (paren != std::string::npos && paren + 2 < stat.size()) states += stat[paren + 2];
+    }
+    return states;
+  };
+  if (!states_of_others().empty()) GTEST_SKIP() << "the test process already runs other threads";
+  procam::WorkPool pool(3);
+  std::atomic<int> ran{0};
+  pool.for_each_band(64, [&](uint32_t) { ran++; });
+  ASSERT_EQ(ran.load(), 64);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::string states = states_of_others();
+  ASSERT_EQ(states.size(), 2u) << "the pool's two workers";
+  EXPECT_EQ(states, "SS") << "thread states (R: still spinning or yielding 200 ms after the last job)";
+  // And they still take the next job.
+  pool.for_each_band(64, [&](uint32_t) { ran++; });
+  EXPECT_EQ(ran.load(), 128);
 }
 
 TEST(ParallelBands, NestedCallsRunInlineAndCoverEverything) {

@@ -7,9 +7,22 @@
 // Why a pool: starting and joining std::threads costs tens of microseconds per
 // call; a streaming decoder folds 41 frames per round and the simulator runs a
 // dozen row loops per frame, so both keep threads alive between jobs. Between
-// jobs a worker spins briefly (kSpin pauses) before sleeping on a condition
-// variable, and run() spins briefly before waiting, so a job does not pay two
+// jobs a worker spins briefly (kSpin pauses), then keeps offering its CPU
+// with sched_yield() for kYieldSpin, and only then sleeps on a condition
+// variable; run() spins briefly before waiting, so a job does not pay two
 // futex wake-ups.
+//
+// Why the yield phase: a worker that sleeps lets its (virtual) CPU halt, and
+// the next job pays a wake-up of that CPU -- 0.07-0.3 ms on the project's
+// 2-core VM, where the pause phase is ~0.3 ms (18 ns per pause). A plugin
+// running in a worker process (daemon/plugin_host) gets its calls one
+// control round trip apart, 0.2-0.6 ms, so its helpers slept between every
+// call of a scan while in-process they never did: the isolated 41-frame
+// ensemble scan measured 1.24x in-process with the pause phase alone and
+// 1.09-1.15x with a 2 ms yield phase (docs/benchmarks.md, "Plugin
+// isolation"). sched_yield() hands the CPU to any runnable thread first, so
+// the phase burns only CPU time nobody else wants; it ends after kYieldSpin
+// at the latest, so an idle pool sleeps ~2.3 ms after its last job.
 //
 // Contract of WorkPool::for_each_band(bands, fn): fn(i) is called exactly once
 // for every band index i in [0, bands), at most threads() at a time (the
@@ -26,7 +39,10 @@
 #pragma once
 
 #include <algorithm>
+#include <sched.h>
+
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <exception>
@@ -106,6 +122,7 @@ class WorkPool {
  private:
   static constexpr uint32_t kChunksPerThread = 8;
   static constexpr int kSpin = 1 << 14;  // 0.1-0.5 ms of pause instructions (CPU dependent)
+  static constexpr std::chrono::microseconds kYieldSpin{2000};  // then offering the CPU (see above)
   struct Job {
     const std::function<void(uint32_t)>* fn = nullptr;
     uint32_t bands = 0;
@@ -155,6 +172,13 @@ class WorkPool {
       for (int i = 0; i < kSpin && g == seen; ++i) {
         pause();
         g = generation_.load(std::memory_order_acquire);
+      }
+      if (g == seen) {
+        const auto until = std::chrono::steady_clock::now() + kYieldSpin;
+        while (g == seen && std::chrono::steady_clock::now() < until) {
+          sched_yield();
+          g = generation_.load(std::memory_order_acquire);
+        }
       }
       Job j;
       {
