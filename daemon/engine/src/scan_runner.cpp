@@ -111,7 +111,9 @@ Result<ScanOutcome> run_scan(hw::Rig& rig, host::Session& session, const Capture
     out.capture_ms += ms_since(t0) - add_ms;
     if (progress) progress({"decode", round, 0, 1, ""});
     auto td = Clock::now();
-    Status s = session.end_round();
+    // The loop asks for the next plan at once: an isolated worker may send
+    // it (and the outputs after the last round) ahead.
+    Status s = session.end_round(host::Session::AfterRound::next_plan);
     out.decode_ms += ms_since(td) + add_ms;  // streaming work in add_frame is decode time
     if (!s) return s.with_context("decoding round " + std::to_string(round));
     if (progress) progress({"decode", round, 1, 1, ""});
@@ -171,12 +173,19 @@ Result<ScanOutcome> run_offline(host::Session& session, const std::string& frame
     return Error(Code::not_found, "frames folder '" + frames_dir + "' does not exist");
   std::error_code ec;
   const bool recorded = fs::is_regular_file(fs::path(frames_dir) / recorded_frame_name(1, 0), ec);
+  const auto round_dir = [&](int round) {
+    return round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
+  };
+  // Round 2 and later exist only where the capture has their frames.
+  const auto captured = [&](int round) {
+    return recorded ? fs::is_regular_file(fs::path(frames_dir) / recorded_frame_name(round, 0), ec)
+                    : fs::is_directory(round_dir(round), ec);
+  };
   for (int round = 1;; ++round) {
-    std::string dir = round == 1 ? frames_dir : (fs::path(frames_dir) / ("round" + std::to_string(round))).string();
+    std::string dir = round_dir(round);
     // A capture with fewer rounds than the method may plan: stop before
     // planning one that has no frames (a planned round cannot be abandoned).
-    if (round > 1 && (recorded ? !fs::is_regular_file(fs::path(frames_dir) / recorded_frame_name(round, 0), ec)
-                               : !fs::is_directory(dir, ec))) {
+    if (round > 1 && !captured(round)) {
       if (Status s = session.stop(); !s) return s.with_context("stopping after round " + std::to_string(round - 1));
       if (options.multi_round)
         out.rounds_skipped = "round " + std::to_string(round) + " and later not run: the capture has " +
@@ -261,7 +270,10 @@ Result<ScanOutcome> run_offline(host::Session& session, const std::string& frame
       if (!s) return s.with_context(frame_context(round, static_cast<size_t>(f), p.frames[static_cast<size_t>(f)].label) +
                                     " (synthesized)");
     }
-    Status s = session.end_round();
+    // Where the capture has the next round, the loop asks for its plan at
+    // once (an isolated worker may send it ahead); else it may stop.
+    Status s = session.end_round(captured(round + 1) ? host::Session::AfterRound::next_plan
+                                                     : host::Session::AfterRound::next_plan_or_stop);
     if (!s) return s.with_context("decoding round " + std::to_string(round));
     out.decode_ms += ms_since(t0);
   }

@@ -28,7 +28,11 @@
 // Run: <build>/bin/procam_ensemble_scan_bench --benchmark_repetitions=5
 //      --benchmark_report_aggregates_only=true   (report the medians)
 //  - BM_EnsembleAfterLastFramePaired: /0 and /2 alternating in one run (see
-//    its comment); run it on its own: --benchmark_filter=Paired
+//    its comment); run it on its own: --benchmark_filter=Paired/1 (the
+//    goal's figure; /0: without replies ahead)
+// The timed scans end their rounds as procamd's scan loop does,
+// end_round(AfterRound::next_plan): an isolated worker sends the closing
+// next_plan and the outputs ahead (WORKER_PROTOCOL.md "Replies ahead").
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -122,7 +126,7 @@ struct Phases {
 // end_round, the closing next_plan (no correction rounds: none) and outputs.
 bool finish(Session& s, benchmark::State& state, Phases& ph) {
   auto t = Clock::now();
-  Status st = s.end_round();
+  Status st = s.end_round(Session::AfterRound::next_plan);  // as procamd's scan loop
   ph.end_round += ms_since(t);
   t = Clock::now();
   auto more = st ? s.next_plan() : Result<std::optional<Plan>>(st);
@@ -206,7 +210,7 @@ void run(benchmark::State& state, bool after_last_only) {
 // One scan after the last frame (the other frames added untimed): wall ms
 // of the last add_frame, end_round, the closing next_plan and outputs(), or
 // a negative value (and `why`) on an error.
-double after_last_frame_once(Isolation mode, uint32_t max_idle, std::string& why) {
+double after_last_frame_once(Isolation mode, uint32_t max_idle, Session::AfterRound after, std::string& why) {
   const auto& px = frames();
   uint32_t n = 0;
   auto s = planned_session(mode, max_idle, true, &n);
@@ -224,7 +228,7 @@ double after_last_frame_once(Isolation mode, uint32_t max_idle, std::string& why
     why = st.to_string();
     return -1;
   }
-  if (Status st = s->end_round(); !st) {
+  if (Status st = s->end_round(after); !st) {
     why = st.to_string();
     return -1;
   }
@@ -256,19 +260,23 @@ double median_of(std::vector<double> v) {
 // runs measures the drift; pairs within one run share it. Counters: the
 // medians over the iterations (in_process_ms, isolated_ms) and
 // isolated_over_in_process, their ratio (goal <= 1.10). The benchmark's own
-// time is the pair's.
+// time is the pair's. /1: the round ends as procamd's scan loop ends it,
+// end_round(AfterRound::next_plan), so the worker sends the closing plan and
+// the outputs ahead (WORKER_PROTOCOL.md "Replies ahead"); /0: the plain
+// exchange, one round trip per call (as `procam decode` ends its last round).
 void BM_EnsembleAfterLastFramePaired(benchmark::State& state) {
+  const auto after = state.range(0) == 1 ? Session::AfterRound::next_plan : Session::AfterRound::next_plan_or_stop;
   std::vector<double> in_ms, iso_ms;
   std::string why;
   bool iso_first = false;
   for (auto _ : state) {
     double a = 0, b = 0;
     if (iso_first) {
-      b = after_last_frame_once(Isolation::process, 1, why);
-      if (b >= 0) a = after_last_frame_once(Isolation::in_process, 0, why);
+      b = after_last_frame_once(Isolation::process, 1, after, why);
+      if (b >= 0) a = after_last_frame_once(Isolation::in_process, 0, after, why);
     } else {
-      a = after_last_frame_once(Isolation::in_process, 0, why);
-      if (a >= 0) b = after_last_frame_once(Isolation::process, 1, why);
+      a = after_last_frame_once(Isolation::in_process, 0, after, why);
+      if (a >= 0) b = after_last_frame_once(Isolation::process, 1, after, why);
     }
     if (a < 0 || b < 0) {
       state.SkipWithError(why.c_str());
@@ -283,14 +291,15 @@ void BM_EnsembleAfterLastFramePaired(benchmark::State& state) {
   state.counters["in_process_ms"] = in_med;
   state.counters["isolated_ms"] = iso_med;
   state.counters["isolated_over_in_process"] = in_med > 0 ? iso_med / in_med : 0;
-  state.SetLabel(std::to_string(frames().size()) + " frames, in-process and isolated (warm worker) alternating");
+  state.SetLabel(std::to_string(frames().size()) + " frames, in-process and isolated (warm worker) alternating, " +
+                 (state.range(0) == 1 ? "replies ahead" : "plain exchange"));
 }
 
 void BM_EnsembleScan(benchmark::State& state) { run(state, false); }
 void BM_EnsembleAfterLastFrame(benchmark::State& state) { run(state, true); }
 BENCHMARK(BM_EnsembleScan)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_EnsembleAfterLastFrame)->Arg(0)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_EnsembleAfterLastFramePaired)->Unit(benchmark::kMillisecond)->UseManualTime()->MinTime(2.0);
+BENCHMARK(BM_EnsembleAfterLastFramePaired)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseManualTime()->MinTime(2.0);
 
 }  // namespace
 

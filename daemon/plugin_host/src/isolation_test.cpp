@@ -47,7 +47,10 @@ protected:
 
   // Runs one whole scan of 3 frames whose pixels are all `value`; returns
   // the first failure, or the outputs' frame_sum.
-  Result<double> scan(const std::string& plugin, const std::string& method, uint8_t value = 7) {
+  // `after`: how each round ends (AfterRound::next_plan: the worker sends
+  // the next plan and the outputs ahead, WORKER_PROTOCOL.md "Replies ahead").
+  Result<double> scan(const std::string& plugin, const std::string& method, uint8_t value = 7,
+                      Session::AfterRound after = Session::AfterRound::next_plan_or_stop) {
     auto s = host_.create_session(plugin, method, "{}", "{}");
     if (!s) return s.status();
     EXPECT_TRUE(s->isolated());
@@ -58,7 +61,7 @@ protected:
       if (!plan) return plan.status();
       if (!plan->has_value()) break;
       for (uint32_t i = 0; i < (*plan)->frames.size(); ++i) PROCAM_TRY(s->add_frame(i, frame.view()));
-      PROCAM_TRY(s->end_round());
+      PROCAM_TRY(s->end_round(after));
     }
     auto outs = s->outputs();
     if (!outs) return outs.status();
@@ -153,6 +156,7 @@ struct Fault {
   const char* call;
   Code code;
   const char* cause;
+  bool ahead = false;  // rounds end with AfterRound::next_plan
 };
 
 class FaultTest : public IsolationTest, public ::testing::WithParamInterface<Fault> {};
@@ -160,7 +164,8 @@ class FaultTest : public IsolationTest, public ::testing::WithParamInterface<Fau
 TEST_P(FaultTest, FailsTheScanNamingPluginCallAndCauseThenRecovers) {
   const Fault& f = GetParam();
   const auto t0 = Clock::now();
-  auto r = scan("faults", f.method);
+  auto r = scan("faults", f.method, 7,
+                f.ahead ? Session::AfterRound::next_plan : Session::AfterRound::next_plan_or_stop);
   const auto took = Clock::now() - t0;
   ASSERT_FALSE(r.ok()) << f.method << " did not fail";
   const Status& st = r.status();
@@ -179,8 +184,64 @@ INSTANTIATE_TEST_SUITE_P(
                       Fault{"hang", "in end_round", Code::timeout, "did not answer within 1600 ms"},
                       Fault{"oom", "end_round", Code::plugin_error, "address-space limit is 512 MiB"},
                       Fault{"garbage", "in end_round", Code::plugin_error, "garbage on the control channel"},
-                      Fault{"write_frame", "in add_frame", Code::plugin_error, "SIGSEGV"}),
-    [](const ::testing::TestParamInfo<Fault>& i) { return std::string(i.param.method); });
+                      Fault{"write_frame", "in add_frame", Code::plugin_error, "SIGSEGV"},
+                      Fault{"segv_outputs", "in get_outputs", Code::plugin_error, "killed by signal 11 (SIGSEGV)"},
+                      // The worker went on unasked after end_round: each
+                      // fault is still reported by the call it happened in.
+                      Fault{"abort", "in end_round", Code::plugin_error, "killed by signal 6 (SIGABRT)", true},
+                      Fault{"segv_outputs", "in get_outputs", Code::plugin_error, "killed by signal 11 (SIGSEGV)",
+                            true}),
+    [](const ::testing::TestParamInfo<Fault>& i) {
+      return std::string(i.param.method) + (i.param.ahead ? "_ahead" : "");
+    });
+
+// Replies ahead (WORKER_PROTOCOL.md): with AfterRound::next_plan the worker
+// sends the next plan, and after the last round the outputs, unasked. The
+// results are those of the plain exchange, over one round and over two
+// (where the plan sent ahead is a real round), and the plugin sees the same
+// calls: its outputs count every frame of every round once.
+TEST_F(IsolationTest, RepliesAheadGiveTheResultsOfThePlainExchange) {
+  for (const auto after : {Session::AfterRound::next_plan_or_stop, Session::AfterRound::next_plan}) {
+    SCOPED_TRACE(after == Session::AfterRound::next_plan ? "ahead" : "plain");
+    auto one = scan("faults", "ok", 5, after);
+    ASSERT_TRUE(one.ok()) << one.status().to_string();
+    EXPECT_DOUBLE_EQ(*one, 3 * 12 * 5.0);
+    auto two = scan("faults", "two_rounds", 5, after);
+    ASSERT_TRUE(two.ok()) << two.status().to_string();
+    EXPECT_DOUBLE_EQ(*two, 2 * 3 * 12 * 5.0);
+    auto good = scan("null", "null", 6, after);
+    ASSERT_TRUE(good.ok()) << good.status().to_string();
+    EXPECT_DOUBLE_EQ(*good, 6.0);
+  }
+  EXPECT_TRUE(no_children());
+}
+
+// The promise is checked where the plugin runs in-process too, so a caller
+// that breaks it finds out without isolation.
+TEST_F(IsolationTest, StopAfterPromisingNextPlanIsRefused) {
+  for (const auto mode : {Isolation::process, Isolation::in_process}) {
+    IsolationOptions iso;
+    iso.mode = mode;
+    host_.set_isolation(iso);
+    auto s = host_.create_session("faults", "two_rounds", "{}", "{}");
+    ASSERT_TRUE(s.ok()) << s.status().to_string();
+    Image frame(4, 3, PixelType::u8);
+    ASSERT_TRUE(s->next_plan().ok());
+    for (uint32_t i = 0; i < 3; ++i) ASSERT_TRUE(s->add_frame(i, frame.view()).ok());
+    ASSERT_TRUE(s->end_round(Session::AfterRound::next_plan).ok());
+    const Status st = s->stop();
+    EXPECT_EQ(st.code(), Code::failed_precondition) << st.to_string();
+    EXPECT_TRUE(contains(st.message(), "promised next_plan")) << st.message();
+    // Keeping the promise still works: the second round, then the outputs.
+    auto plan = s->next_plan();
+    ASSERT_TRUE(plan.ok() && plan->has_value()) << plan.status().to_string();
+    for (uint32_t i = 0; i < 3; ++i) ASSERT_TRUE(s->add_frame(i, frame.view()).ok());
+    ASSERT_TRUE(s->end_round().ok());
+    ASSERT_TRUE(s->stop().ok());  // no promise this time: the host may stop
+    auto outs = s->outputs();
+    ASSERT_TRUE(outs.ok()) << outs.status().to_string();
+  }
+}
 
 TEST_F(IsolationTest, HangDeadlineScalesWithTheRoundsFrames) {
   // end_round of 3 frames: 1000 ms + 3 x 200 ms; killed soon after, not before.

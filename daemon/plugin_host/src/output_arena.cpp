@@ -153,6 +153,12 @@ const uint8_t* OutputSnapshot::heap_range(uint64_t offset, uint64_t bytes, std::
   // ms on the project's VM), so it only settles the pages mincore()
   // reports absent, one at a time (a swapped-out page has data there).
   const uint64_t first = offset / kPage * kPage, last = (offset + bytes + kPage - 1) / kPage * kPage;
+  if (populated_.size() != heap_.size() / kPage) populated_.assign(heap_.size() / kPage, 0);
+  // Pages checked before stay written where the worker cannot remove them.
+  if (pages_stay_ && std::all_of(populated_.begin() + static_cast<ptrdiff_t>(first / kPage),
+                                 populated_.begin() + static_cast<ptrdiff_t>(last / kPage),
+                                 [](uint8_t p) { return p != 0; }))
+    return heap_.data() + offset;
   std::vector<unsigned char> resident((last - first) / kPage);
   if (::mincore(const_cast<uint8_t*>(heap_.data()) + first, last - first, resident.data()) != 0) {
     why = std::string("mincore on the shared heap: ") + std::strerror(errno);
@@ -173,7 +179,6 @@ const uint8_t* OutputSnapshot::heap_range(uint64_t offset, uint64_t bytes, std::
   // blocks scan after scan (the SDK's map cache), so this is paid once per
   // worker; populating again costs ~0.08 ms per MB even when mapped, hence
   // the record. Best effort: kernels before 5.14 lack MADV_POPULATE_READ.
-  if (populated_.size() != heap_.size() / kPage) populated_.assign(heap_.size() / kPage, 0);
   for (size_t i = 0; i < resident.size();) {
     const size_t page = first / kPage + i;
     if (populated_[page]) {

@@ -72,9 +72,11 @@ public:
   // A new arena from the worker: it must be a memfd sealed against
   // shrinking (so a mapped page never vanishes: no SIGBUS), at most
   // kMaxBlob bytes, fully written (no holes), then it is mapped read-only.
-  // A worker that punches holes later makes take() read zero pages, which
-  // the kernel allocates: at most the arena's size, which it had allocated
-  // itself when it was adopted; the decode checks catch the zeros.
+  // A worker that punches holes later (only one without the default
+  // sandbox: its seccomp filter denies that, hello flag 256) makes take()
+  // read zero pages, which the kernel allocates: at most the arena's size,
+  // which it had allocated itself when it was adopted; the decode checks
+  // catch the zeros.
   Status adopt(int fd);
   // Copies bytes [0, used) of the arena into the private buffer (grown as
   // needed); corrupt_data if no arena was adopted or `used` is beyond it.
@@ -101,6 +103,11 @@ public:
   // resident: a hole would make this process allocate what it reads).
   HeapResolver heap_in_place();
   HeapResolver heap_copied();
+  // True only when the worker cannot remove pages from its heap (its
+  // sandbox denies it: hello's kSandboxPagesStay): a page found written
+  // once stays written, and the resolvers check only pages not checked
+  // before (~0.1 ms less per outputs reply of 32 MB on the project's VM).
+  void set_pages_stay(bool stay) { pages_stay_ = stay; }
 
 private:
   const uint8_t* heap_range(uint64_t offset, uint64_t bytes, std::string& why);
@@ -109,7 +116,8 @@ private:
   UniqueFd heap_fd_;
   Mapping heap_;                    // read-only, shared with the worker
   std::vector<Mapping> heap_copies_;  // heap_copied()'s ranges
-  std::vector<uint8_t> populated_;    // per heap page: mapped here already (heap_range)
+  std::vector<uint8_t> populated_;    // per heap page: checked written and mapped here (heap_range)
+  bool pages_stay_ = false;           // set_pages_stay
   const uint8_t* data_ = nullptr;  // copy_ after take(), arena_ after view()
   uint64_t used_ = 0;
 };

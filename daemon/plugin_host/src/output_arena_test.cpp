@@ -9,6 +9,7 @@
 #include <fcntl.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
+#include <linux/falloc.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -139,6 +140,18 @@ std::string mapping_of(const void* p) {
   return "";
 }
 
+// A shared heap as the worker makes one: a sparse memfd of `size` bytes,
+// sealed against resizing, and the worker's read-write mapping of it.
+void make_heap(size_t size, int& fd, wire::Mapping& worker_view) {
+  fd = ::memfd_create("procam-outputs-heap", MFD_CLOEXEC | MFD_ALLOW_SEALING);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::ftruncate(fd, static_cast<off_t>(size)), 0);
+  ASSERT_EQ(::fcntl(fd, F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL), 0);
+  void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+  ASSERT_NE(p, MAP_FAILED);
+  worker_view = wire::Mapping(p, size);
+}
+
 // The worker's shared heap, daemon side: adopted only sealed against
 // resizing; a reference resolves in place to the heap's own bytes only when
 // every page of its range was written (a hole would make the daemon
@@ -158,13 +171,9 @@ TEST(OutputArenaTest, SharedHeapReferencesAreCheckedAndResolved) {
     ::close(loose);
     EXPECT_FALSE(snap.has_heap());
   }
-  const int fd = ::memfd_create("procam-outputs-heap", MFD_CLOEXEC | MFD_ALLOW_SEALING);
-  ASSERT_GE(fd, 0);
-  ASSERT_EQ(::ftruncate(fd, static_cast<off_t>(size)), 0);
-  ASSERT_EQ(::fcntl(fd, F_ADD_SEALS, F_SEAL_SHRINK | F_SEAL_GROW | F_SEAL_SEAL), 0);
-  void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
-  ASSERT_NE(p, MAP_FAILED);
-  wire::Mapping worker_view(p, size);
+  int fd = -1;
+  wire::Mapping worker_view;
+  ASSERT_NO_FATAL_FAILURE(make_heap(size, fd, worker_view));
   // The worker writes [1 MiB, 1 MiB + 64 KiB); the rest stays sparse.
   auto* w = worker_view.mutable_data();
   for (size_t i = 0; i < 65536; ++i) w[(1 << 20) + i] = static_cast<uint8_t>(i * 7);
@@ -197,6 +206,43 @@ TEST(OutputArenaTest, SharedHeapReferencesAreCheckedAndResolved) {
   // The worker writing afterwards changes the heap, not the copy.
   w[(1 << 20) + 5] ^= 0xff;
   EXPECT_NE(c[5], r[5]);
+}
+
+// A worker whose sandbox denies removing pages (hello's kSandboxPagesStay,
+// set_pages_stay) gets each heap page checked once: a range checked before
+// resolves without a check, a range with a page never checked is checked
+// as before. The test plays the forbidden part: it punches a hole into
+// checked pages, which only a worker without that rule could do. Without
+// pages_stay the same hole is found.
+TEST(OutputArenaTest, HeapPagesCheckedOnceWhereTheWorkerCannotRemoveThem) {
+  const size_t size = size_t{1} << 20;
+  for (const bool stay : {false, true}) {
+    SCOPED_TRACE(stay ? "pages stay" : "pages may be removed");
+    wire::OutputSnapshot snap;
+    snap.set_pages_stay(stay);
+    int fd = -1;
+    wire::Mapping worker_view;
+    ASSERT_NO_FATAL_FAILURE(make_heap(size, fd, worker_view));
+    std::memset(worker_view.mutable_data(), 9, 65536);  // pages 0..15 written
+    ASSERT_TRUE(snap.adopt_heap(fd).ok());
+    auto in_place = snap.heap_in_place();
+    std::string why;
+    ASSERT_NE(in_place(0, 32768, why), nullptr) << why;  // pages 0..7 checked
+    ASSERT_EQ(::fallocate(fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, 4096, 4096), 0);  // page 1
+    why.clear();
+    const uint8_t* again = in_place(0, 32768, why);
+    if (stay) {
+      EXPECT_NE(again, nullptr) << why;  // not checked again
+    } else {
+      EXPECT_EQ(again, nullptr);
+      EXPECT_NE(why.find("unwritten"), std::string::npos) << why;
+    }
+    // Pages 0..15, half of them never checked: checked now, and the hole found.
+    why.clear();
+    EXPECT_EQ(in_place(0, 65536, why), nullptr);
+    EXPECT_NE(why.find("unwritten"), std::string::npos) << why;
+    ::close(fd);
+  }
 }
 
 // The scribbler's marker in any worker scratch folder under `scratch`, or "".

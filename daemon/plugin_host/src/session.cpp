@@ -38,6 +38,7 @@ Session::Session(Session&& o) noexcept
       method_(std::move(o.method_)),
       in_round_(o.in_round_),
       finished_(o.finished_),
+      plan_promised_(o.plan_promised_),
       rounds_(o.rounds_),
       added_(std::move(o.added_)),
       bridge_(std::move(o.bridge_)),
@@ -53,6 +54,7 @@ Session& Session::operator=(Session&& o) noexcept {
     method_ = std::move(o.method_);
     in_round_ = o.in_round_;
     finished_ = o.finished_;
+    plan_promised_ = o.plan_promised_;
     rounds_ = o.rounds_;
     added_ = std::move(o.added_);
     proxy_ = std::move(o.proxy_);
@@ -105,6 +107,7 @@ Result<std::optional<Plan>> Session::next_plan() {
     return Error(Code::failed_precondition,
                  "next_plan called before end_round of the current round");
   if (finished_) return std::optional<Plan>{};
+  plan_promised_ = false;
   const std::string who = "plugin '" + plugin_->name + "'";
   if (rounds_ >= kMaxRounds)
     return Error(Code::plugin_error, who + " asked for more than " + std::to_string(kMaxRounds) +
@@ -177,7 +180,7 @@ Status Session::add_frame(uint32_t index, const procam_image& frame) {
   return {};
 }
 
-Status Session::end_round() {
+Status Session::end_round(AfterRound after) {
   if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (!in_round_)
     return Error(Code::failed_precondition,
@@ -199,7 +202,10 @@ Status Session::end_round() {
   }
   if (proxy_) {
     in_round_ = false;
-    return proxy_->end_round(added_.size());
+    const bool ahead = after == AfterRound::next_plan;
+    PROCAM_TRY(proxy_->end_round(added_.size(), ahead));
+    plan_promised_ = ahead;
+    return {};
   }
   procam_error err{};
   int rc = 0;
@@ -209,6 +215,7 @@ Status Session::end_round() {
   }
   in_round_ = false;  // after a failed decode the session should be discarded
   if (rc != PROCAM_OK) return plugin_failure("end_round", rc, err);
+  plan_promised_ = after == AfterRound::next_plan;  // checked the same way in-process
   return {};
 }
 
@@ -216,6 +223,10 @@ Status Session::stop() {
   if (moved_from()) return Error(Code::failed_precondition, "session was moved from");
   if (in_round_) return Error(Code::failed_precondition, "stop called during a round: call end_round first");
   if (rounds_ == 0) return Error(Code::failed_precondition, "stop called before any round was decoded");
+  if (plan_promised_)
+    return Error(Code::failed_precondition,
+                 "stop called after end_round(AfterRound::next_plan), which promised next_plan: call next_plan, "
+                 "or end the round with AfterRound::next_plan_or_stop where the host may stop");
   if (proxy_)
     if (Status s = proxy_->stop(); !s) return s;
   finished_ = true;

@@ -205,6 +205,7 @@ Status WorkerProxy::read_hello(const wire::Message& hello) {
   }
   // The worker's shared heap (version 5), mapped once; without it (or if
   // it is unusable) outputs are copied into the arena as before.
+  outputs_copy_.set_pages_stay(options_.sandbox && (flags & wire::kSandboxPagesStay) != 0);
   if (hello.fd) {
     if (Status st = outputs_copy_.adopt_heap(hello.fd.get()); !st)
       PROCAM_LOG(plugins, warn) << "plugin '" << plugin_ << "': its worker's shared heap is not used: " << st.message();
@@ -411,10 +412,36 @@ Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, c
   // as a net: a frozen worker would never answer, and its deadline must not
   // count time it was kept stopped.
   thaw();
+  // Replies ahead (WORKER_PROTOCOL.md): after an end_round that asked for
+  // them, the worker sends the next_plan reply, and after "no more rounds"
+  // the get_outputs reply, without waiting for the requests. The call that
+  // expects one sends nothing and takes it; any other call first takes the
+  // pending ones (and drops them: its caller did not ask).
+  const bool unasked = (type == wire::Msg::next_plan && ahead_ == Ahead::plan) ||
+                       (type == wire::Msg::get_outputs && ahead_ == Ahead::outputs);
+  if (!unasked && ahead_ != Ahead::none) {
+    if (ahead_ == Ahead::plan) {
+      auto dropped = call(wire::Msg::next_plan, "next_plan", {}, -1, options_.call_timeout);
+      if (!dropped && broken_) return dropped.status();
+    }
+    if (ahead_ == Ahead::outputs) {  // pending, or the plan said "no more rounds"
+      auto outs = call(wire::Msg::get_outputs, "get_outputs", {}, -1, round_deadline(last_round_frames_));
+      if (!outs && broken_) return outs.status();
+      // A new output arena comes with the reply that first needs it: keep
+      // it, or the next session's outputs would be read from the old one.
+      if (outs && outs->fd && ahead_mode_ != 0) {
+        if (Status s = outputs_copy_.adopt(outs->fd.get()); !s)
+          return fail("get_outputs", Code::plugin_error, "sent bad outputs: " + s.message());
+      }
+    }
+  }
+  const Ahead was = std::exchange(ahead_, Ahead::none);
   const uint32_t seq = ++seq_;
-  if (Status s = wire::send_msg(sock_.get(), type, seq, payload, fd); !s) {
-    const std::string how = reap(false);
-    return fail(call_name, Code::plugin_error, "worker is gone (" + (how.empty() ? s.message() : how) + ")");
+  if (!unasked) {
+    if (Status s = wire::send_msg(sock_.get(), type, seq, payload, fd); !s) {
+      const std::string how = reap(false);
+      return fail(call_name, Code::plugin_error, "worker is gone (" + (how.empty() ? s.message() : how) + ")");
+    }
   }
   const auto until = Clock::now() + deadline;
   for (;;) {
@@ -449,7 +476,10 @@ Result<wire::Message> WorkerProxy::call(wire::Msg type, const char* call_name, c
     }
     wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
     switch (static_cast<wire::Msg>(m->type)) {
-      case wire::Msg::ok: return m;
+      case wire::Msg::ok:
+        // "No more rounds" ahead: the outputs follow unasked.
+        if (was == Ahead::plan && !m->payload.empty() && m->payload[0] == '\0') ahead_ = Ahead::outputs;
+        return m;
       case wire::Msg::error: {
         Status st;
         if (Status bad = wire::decode_error(m->payload, st); !bad)
@@ -555,9 +585,30 @@ Status WorkerProxy::add_frame(uint32_t index, const procam_image& frame) {
   return m ? Status::Ok() : m.status();
 }
 
-Status WorkerProxy::end_round(size_t frames) {
-  auto m = call(wire::Msg::end_round, "end_round", {}, -1, round_deadline(frames));
-  return m ? Status::Ok() : m.status();
+Status WorkerProxy::end_round(size_t frames, bool then_next_plan) {
+  // Version 6: ask the worker to go on with next_plan (and get_outputs
+  // after the last round) on its own; the payload names the outputs' mode.
+  std::string payload;
+  if (then_next_plan) payload.push_back(static_cast<char>(1 + outputs_mode()));
+  auto m = call(wire::Msg::end_round, "end_round", payload, -1, round_deadline(frames));
+  if (!m) return m.status();
+  if (then_next_plan) {
+    ahead_ = Ahead::plan;
+    ahead_mode_ = outputs_mode();
+  }
+  return {};
+}
+
+uint8_t WorkerProxy::outputs_mode() const {
+  // A worker that can serve another session keeps its output arena, which
+  // this side copies from; one that cannot (reuse off) sends a sealed blob,
+  // mapped without a copy (WORKER_PROTOCOL.md "Output arena"). Maps already
+  // in the worker's shared heap are named, not copied, only when this side
+  // will read them frozen (README.md "Speed"): a worker that keeps running
+  // would send them through the arena anyway.
+  const bool arena = options_.max_idle_workers > 0;
+  const bool heap = arena && outputs_copy_.has_heap() && may_freeze();
+  return heap ? 2 : arena ? 1 : 0;
 }
 
 Status WorkerProxy::stop() {
@@ -572,15 +623,11 @@ Result<std::vector<Output>> WorkerProxy::outputs() {
   // Views of the first call stay valid until the session ends: never take a
   // second copy under them.
   if (outputs_) return *outputs_;
-  // A worker that can serve another session keeps its output arena, which
-  // this side copies from; one that cannot (reuse off) sends a sealed blob,
-  // mapped without a copy (WORKER_PROTOCOL.md "Output arena").
-  const bool arena = options_.max_idle_workers > 0;
-  // Maps already in the worker's shared heap are named, not copied, only
-  // when this side will read them frozen (README.md "Speed"): a worker that
-  // keeps running would send them through the arena anyway.
-  const bool heap = arena && outputs_copy_.has_heap() && may_freeze();
-  auto m = call(wire::Msg::get_outputs, "get_outputs", std::string(1, heap ? '\2' : arena ? '\1' : '\0'), -1,
+  // The mode end_round asked for if the reply is on its way, else now's
+  // (the same: nothing it depends on changes within a session).
+  const uint8_t mode = ahead_ == Ahead::outputs ? ahead_mode_ : outputs_mode();
+  const bool arena = mode != 0, heap = mode == 2;
+  auto m = call(wire::Msg::get_outputs, "get_outputs", std::string(1, static_cast<char>(mode)), -1,
                 round_deadline(last_round_frames_));
   if (!m) return m.status();
   wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());

@@ -136,7 +136,9 @@ public:
   // (session_checks.hpp) before they are returned.
   Result<std::optional<Plan>> next_plan(uint32_t round);
   Status add_frame(uint32_t index, const procam_image& frame);
-  Status end_round(size_t frames);
+  // `then_next_plan`: the Session's caller promised next_plan() next; the
+  // worker sends that reply, and the outputs after the last round, ahead.
+  Status end_round(size_t frames, bool then_next_plan);
   Result<std::vector<Output>> outputs();
   Status stop();  // the worker's Session::stop
 
@@ -153,6 +155,7 @@ private:
   bool freeze();
   void thaw();  // SIGCONT if frozen; before any later request
   bool may_freeze() const;
+  uint8_t outputs_mode() const;  // get_outputs' mode byte (WORKER_PROTOCOL.md)
   WorkerProxy(const IsolationOptions& options, std::string plugin);
   Status spawn(const std::string& worker_path);
   // Sends a request and waits for its ok (returned) or error reply, handling
@@ -183,6 +186,12 @@ private:
   std::optional<wire::Ring> ring_;
   uint32_t next_slot_ = 0;
   size_t last_round_frames_ = 0;
+  // Replies the worker sends without a request (WORKER_PROTOCOL.md "Replies
+  // ahead"): the next_plan reply after an end_round that asked for it, then
+  // the get_outputs reply (in `ahead_mode_`) after "no more rounds".
+  enum class Ahead : uint8_t { none, plan, outputs };
+  Ahead ahead_ = Ahead::none;
+  uint8_t ahead_mode_ = 0;
   wire::Mapping plan_blob_;     // the last plan's patterns, kept until the next plan or the session's end
   // The outputs' images and points: the worker's output arena itself while
   // the worker is frozen, else the daemon's private copy of it

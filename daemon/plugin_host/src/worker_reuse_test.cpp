@@ -98,6 +98,45 @@ TEST_F(WorkerReuseTest, CleanSessionsOfOnePluginShareAWorker) {
   EXPECT_EQ(scan("null", "null"), b);
 }
 
+// Replies ahead (WORKER_PROTOCOL.md) on a reused worker: the sequence
+// numbers stay in step across sessions, and a session that ends without
+// asking for the outputs the worker already sent (its caller dropped the
+// scan) leaves a worker that serves the next one. That first outputs reply
+// also carried the worker's new output arena: the next session's outputs
+// are read from it, so they are right only if the dropped reply's arena was
+// kept.
+TEST_F(WorkerReuseTest, RepliesAheadKeepAReusedWorkerInStep) {
+  const auto run = [&](bool fetch_outputs, double* sum) {
+    auto s = host_.create_session("faults", "ok", "{}", "{}");
+    if (!s) return -1;
+    Image frame(4, 3, PixelType::u8);
+    for (size_t i = 0; i < 12; ++i) frame.ptr<uint8_t>()[i] = 3;
+    auto plan = s->next_plan();
+    if (!plan || !plan->has_value()) return -1;
+    for (uint32_t i = 0; i < 3; ++i)
+      if (!s->add_frame(i, frame.view())) return -1;
+    if (!s->end_round(Session::AfterRound::next_plan)) return -1;
+    auto none = s->next_plan();
+    if (!none || none->has_value()) return -1;
+    if (fetch_outputs) {
+      auto outs = s->outputs();
+      if (!outs || outs->empty()) return -1;
+      *sum = outs->front().scalar;
+    }
+    return s->worker_pid();
+  };
+  double sum = 0;
+  const int a = run(/*fetch_outputs=*/false, &sum);
+  ASSERT_GT(a, 0);
+  EXPECT_TRUE(alive(a));
+  EXPECT_EQ(run(true, &sum), a);
+  EXPECT_DOUBLE_EQ(sum, 3 * 12 * 3.0);
+  sum = 0;
+  EXPECT_EQ(run(true, &sum), a);
+  EXPECT_DOUBLE_EQ(sum, 3 * 12 * 3.0);
+  EXPECT_EQ(scan("faults", "ok"), a);  // and the plain exchange after them
+}
+
 TEST_F(WorkerReuseTest, ReuseOffGivesAFreshWorkerPerSession) {
   iso_.max_idle_workers = 0;
   host_.set_isolation(iso_);

@@ -33,8 +33,9 @@ namespace procam::host::wire {
 inline constexpr uint32_t kMagic = 0x4b574350u;  // "PCWK" little-endian
 // 3: outputs through the output arena; 4: the daemon may stop the worker
 // (SIGSTOP) between a get_outputs reply and its next request; 5: hello may
-// carry the worker's shared heap, and outputs may refer into it.
-inline constexpr uint16_t kVersion = 5;
+// carry the worker's shared heap, and outputs may refer into it; 6: end_round
+// may ask for the next_plan and get_outputs replies ahead (sent unasked).
+inline constexpr uint16_t kVersion = 6;
 inline constexpr size_t kHeaderSize = 16;
 inline constexpr size_t kMaxPayload = 64 * 1024;      // control messages stay small
 inline constexpr size_t kMaxBlob = size_t{4} << 30;   // plans/outputs/requests, bytes
@@ -43,6 +44,7 @@ inline constexpr int kControlFd = 3;                  // the socket's number in 
 inline constexpr uint32_t kSandboxLandlockScope = 1u << 5;
 inline constexpr uint32_t kSandboxSeccomp = 1u << 6;
 inline constexpr uint32_t kSandboxFreezeSafe = 1u << 7;
+inline constexpr uint32_t kSandboxPagesStay = 1u << 8;
 
 enum class Msg : uint16_t {
   // daemon -> worker

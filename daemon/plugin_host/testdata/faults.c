@@ -8,6 +8,9 @@
  *                all pixels of all frames), sum_image (2x2 F32: 1, 2, 3, NaN),
  *                points (2 points x 4 floats) and report (JSON)
  *   segv         dereferences NULL in add_frame of frame 1 (mid-round)
+ *   segv_outputs behaves as "ok" until get_outputs, which dereferences NULL
+ *   two_rounds   behaves as "ok" over two rounds (the second planned after
+ *                the first's end_round): frame_sum sums all 6 frames
  *   abort        calls abort() in end_round
  *   hang         never returns from end_round
  *   oom          allocates 16 MiB blocks in end_round until malloc fails
@@ -36,7 +39,9 @@
  *                joining the parent's process group ("setpgid"), native AIO
  *                ("aio"), PTRACE_TRACEME ("traceme"; only tried with
  *                $PROCAM_TEST_TRACEME set: without the sandbox it would make
- *                the test process its tracer)
+ *                the test process its tracer), and removing a written page
+ *                from a memfd with fallocate(FALLOC_FL_PUNCH_HOLE)
+ *                ("punch_hole") and madvise(MADV_REMOVE) ("madv_remove")
  *   scribble     behaves as "ok" plus a fifth output, "heap_image": a
  *                512x512 F32 map (pixel i = i % 251) allocated with the
  *                host's operator new[] (in a worker: its shared heap,
@@ -63,6 +68,8 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <pthread.h>
+#include <linux/falloc.h>
+#include <sys/mman.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <sys/prctl.h>
@@ -77,7 +84,7 @@
 
 FX_EXPORT const procam_plugin_info fx_info __asm__(PROCAM_PLUGIN_INFO_SYMBOL) = {
     PROCAM_PLUGIN_MAGIC, PROCAM_PLUGIN_ABI_VERSION, sizeof(procam_plugin_info), 0, "faults", "0.0.1",
-    "ok,segv,abort,hang,oom,garbage,write_frame,scribble,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps,try_unix,try_read,try_freeze_escape"};
+    "ok,segv,abort,hang,oom,garbage,write_frame,scribble,stream,try_network,try_write_outside,try_write_scratch,try_signal,try_caps,try_unix,try_read,try_freeze_escape,two_rounds,segv_outputs"};
 
 struct procam_session {
   char method[32];
@@ -111,7 +118,8 @@ static const char* fx_describe(void) {
          " {\"name\": \"oom\"}, {\"name\": \"garbage\"}, {\"name\": \"write_frame\"},"
          " {\"name\": \"scribble\"}, {\"name\": \"stream\"}, {\"name\": \"try_network\"}, {\"name\": \"try_write_outside\"},"
          " {\"name\": \"try_write_scratch\"}, {\"name\": \"try_signal\"}, {\"name\": \"try_caps\"},"
-         " {\"name\": \"try_unix\"}, {\"name\": \"try_read\"}, {\"name\": \"try_freeze_escape\"}]";
+         " {\"name\": \"try_unix\"}, {\"name\": \"try_read\"}, {\"name\": \"try_freeze_escape\"},"
+         " {\"name\": \"two_rounds\"}, {\"name\": \"segv_outputs\"}]";
 }
 
 static int fx_session_create(const char* method, const char* params_json, const char* rig_json,
@@ -164,8 +172,8 @@ static int fx_set_host(procam_session* s, const procam_host_services* host, proc
 
 static int fx_next_plan(procam_session* s, const procam_plan** plan, procam_error* err) {
   int i;
-  if (s->planned) return 0;
-  s->planned = 1;
+  if (s->planned >= (is(s, "two_rounds") ? 2 : 1)) return 0;
+  ++s->planned;
   for (i = 0; i < 3; ++i) {
     procam_pattern_frame* f = &s->frames[i];
     f->label = i == 0 ? "a" : i == 1 ? "b" : "c";
@@ -305,6 +313,21 @@ static void fx_try(procam_session* s) {
       if (ok) syscall(SYS_io_destroy, ctx);
     }
     if (getenv("PROCAM_TEST_TRACEME") != NULL) fx_verdict(s, "traceme", ptrace(PTRACE_TRACEME, 0, NULL, NULL) == 0);
+    {
+      int fd = memfd_create("fx-holes", 0);
+      char* page = NULL;
+      if (fd >= 0 && ftruncate(fd, 8192) == 0) {
+        page = mmap(NULL, 8192, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+        if (page == MAP_FAILED) page = NULL;
+      }
+      if (page != NULL) {
+        memset(page, 1, 8192);
+        fx_verdict(s, "punch_hole", fallocate(fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, 0, 4096) == 0);
+        fx_verdict(s, "madv_remove", madvise(page + 4096, 4096, MADV_REMOVE) == 0);
+        munmap(page, 8192);
+      }
+      if (fd >= 0) close(fd);
+    }
   } else if (is(s, "try_signal")) {
     fx_verdict(s, "signal", kill(getppid(), SIGCONT) == 0);
   } else if (is(s, "try_caps")) {
@@ -396,6 +419,7 @@ static void* fx_scribbler(void* arg) {
 static int fx_get_outputs(procam_session* s, const procam_output** outs, uint32_t* count, procam_error* err) {
   int i;
   (void)err;
+  if (is(s, "segv_outputs")) *(volatile int*)(uintptr_t)0 = 1;
   memset(s->outputs, 0, sizeof s->outputs);
   s->outputs[0].name = "frame_sum";
   s->outputs[0].kind = PROCAM_OUTPUT_SCALAR;

@@ -43,6 +43,12 @@ enum SandboxFlags : uint32_t {
   // unsound (new processes, delayed SIGCONT, parent-death signal, process
   // group changes, ptrace, native AIO): set with kSeccomp.
   kFreezeSafe = 1u << 7,
+  // The seccomp filter also denies removing pages from shared memory
+  // (madvise MADV_REMOVE, fallocate FALLOC_FL_PUNCH_HOLE or
+  // FALLOC_FL_COLLAPSE_RANGE): a page of the shared heap, once written,
+  // stays written, so the daemon checks each page once per worker instead
+  // of on every outputs reply (README.md "Speed"). Set with kSeccomp.
+  kPagesStay = 1u << 8,
 };
 
 struct SandboxReport {

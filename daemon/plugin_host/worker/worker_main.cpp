@@ -39,7 +39,7 @@ using namespace procam;
 using namespace procam::host;
 
 static_assert(wire::kSandboxLandlockScope == worker::kLandlockScope && wire::kSandboxSeccomp == worker::kSeccomp &&
-              wire::kSandboxFreezeSafe == worker::kFreezeSafe);
+              wire::kSandboxFreezeSafe == worker::kFreezeSafe && wire::kSandboxPagesStay == worker::kPagesStay);
 
 namespace {
 
@@ -185,6 +185,46 @@ void serve_add_frame(Served& s, const wire::Message& m) {
   reply_ok();
 }
 
+// next_plan; true when it replied "no more rounds".
+bool serve_next_plan(Served& s) {
+  auto plan = s.session->next_plan();
+  if (!plan) {
+    reply_error(plan.status());
+    return false;
+  }
+  if (!plan->has_value()) {
+    reply_ok(std::string(1, '\0'));
+    return true;
+  }
+  reply_blob(1, [&](wire::Writer& w) { wire::write_plan(w, **plan); }, "procam-plan");
+  return false;
+}
+
+// get_outputs. `mode` (checked <= 2): 1 = into the output arena (a worker
+// the daemon may reuse), 2 = the same, naming maps that lie in the shared
+// heap instead of copying them (the daemon reads them with this worker
+// stopped), 0 = a sealed blob of its own (WORKER_PROTOCOL.md).
+void serve_get_outputs(Served& s, uint8_t mode) {
+  auto outs = s.session->outputs();
+  if (!outs) return reply_error(outs.status());
+  const wire::HeapSpan heap{worker::heap::base(), worker::heap::size()};
+  const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs, mode == 2 ? &heap : nullptr); };
+  if (mode == 0) {
+    auto blob = wire::make_sealed_blob(encode, "procam-outputs-blob");
+    if (!blob) return reply_error(blob.status());
+    wire::Writer w;
+    w.u8(1);
+    w.u64(0);
+    return reply_ok(w.bytes(), blob->get());
+  }
+  auto written = s.outputs.write(encode);
+  if (!written) return reply_error(written.status());
+  wire::Writer w;
+  w.u8(1);
+  w.u64(written->used);
+  reply_ok(w.bytes(), written->new_fd);
+}
+
 int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std::string> readable) {
   wire::Writer hello;
   hello.u32(sandbox.flags);
@@ -217,13 +257,7 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
       continue;
     }
     switch (type) {
-      case wire::Msg::next_plan: {
-        auto plan = s.session->next_plan();
-        if (!plan) reply_error(plan.status());
-        else if (!plan->has_value()) reply_ok(std::string(1, '\0'));
-        else reply_blob(1, [&](wire::Writer& w) { wire::write_plan(w, **plan); }, "procam-plan");
-        break;
-      }
+      case wire::Msg::next_plan: (void)serve_next_plan(s); break;
       case wire::Msg::set_ring: {
         wire::Reader r(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
         const uint32_t slots = r.u32("slots");
@@ -245,9 +279,29 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
       }
       case wire::Msg::add_frame: serve_add_frame(s, *m); break;
       case wire::Msg::end_round: {
+        // Payload (version 6): empty, or u8 `ahead`: 0 = only end_round;
+        // 1 + m = after the ok, go on with next_plan and, when it says no
+        // more rounds, get_outputs in mode m, each reply sent unasked with
+        // the request numbers the daemon counts for them (seq + 1, seq + 2)
+        // (WORKER_PROTOCOL.md "Replies ahead").
+        wire::Reader req(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
+        const uint8_t ahead = m->payload.empty() ? 0 : req.u8("ahead flag");
+        if (!req.ok() || !req.at_end() || ahead > 3) {
+          reply_error(Error(Code::invalid_argument,
+                            "malformed end_round: " + (req.ok() ? "ahead " + std::to_string(ahead) : req.error())));
+          break;
+        }
         Status st = s.session->end_round();
-        if (!st) reply_error(st);
-        else reply_ok();
+        if (!st) {
+          reply_error(st);
+          break;
+        }
+        reply_ok();
+        if (ahead == 0) break;
+        g_seq = m->seq + 1;
+        if (!serve_next_plan(s)) break;  // a plan (or an error): the daemon asks again
+        g_seq = m->seq + 2;
+        serve_get_outputs(s, static_cast<uint8_t>(ahead - 1));
         break;
       }
       case wire::Msg::stop: {
@@ -261,46 +315,14 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
         reply_ok();
         break;
       case wire::Msg::get_outputs: {
-        auto outs = s.session->outputs();
-        if (!outs) {
-          reply_error(outs.status());
-          break;
-        }
-        // Payload u8: 1 = into the output arena (a worker the daemon may
-        // reuse), 2 = the same, naming maps that lie in the shared heap
-        // instead of copying them (the daemon reads them with this worker
-        // stopped), 0 = a sealed blob of its own (WORKER_PROTOCOL.md).
         wire::Reader req(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
         const uint8_t mode = req.u8("arena flag");
-        const bool arena = mode != 0;
-        const wire::HeapSpan heap{worker::heap::base(), worker::heap::size()};
-        const auto encode = [&](wire::Writer& w) { wire::write_outputs(w, *outs, mode == 2 ? &heap : nullptr); };
         if (!req.ok() || mode > 2) {
           reply_error(Error(Code::invalid_argument, "malformed get_outputs: " +
                                                         (req.ok() ? "mode " + std::to_string(mode) : req.error())));
           break;
         }
-        if (!arena) {
-          auto blob = wire::make_sealed_blob(encode, "procam-outputs-blob");
-          if (!blob) {
-            reply_error(blob.status());
-            break;
-          }
-          wire::Writer w;
-          w.u8(1);
-          w.u64(0);
-          reply_ok(w.bytes(), blob->get());
-          break;
-        }
-        auto written = s.outputs.write(encode);
-        if (!written) {
-          reply_error(written.status());
-          break;
-        }
-        wire::Writer w;
-        w.u8(1);
-        w.u64(written->used);
-        reply_ok(w.bytes(), written->new_fd);
+        serve_get_outputs(s, mode);
         break;
       }
       default:
