@@ -108,6 +108,7 @@ public:
   // once stays written, and the resolvers check only pages not checked
   // before (~0.1 ms less per outputs reply of 32 MB on the project's VM).
   void set_pages_stay(bool stay) { pages_stay_ = stay; }
+  bool pages_stay() const { return pages_stay_; }
 
 private:
   const uint8_t* heap_range(uint64_t offset, uint64_t bytes, std::string& why);
