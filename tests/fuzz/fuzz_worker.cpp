@@ -67,7 +67,11 @@ extern "C" int PROCAM_FUZZ_ENTRY(const uint8_t* data, size_t size) {
   switch (which) {
     case 0: {
       wire::Message m;
-      (void)wire::parse_packet(reinterpret_cast<const char*>(data), size, m);
+      if (!wire::parse_packet(reinterpret_cast<const char*>(data), size, m).ok()) break;
+      // A request's payload the worker decodes itself (version 6).
+      uint8_t ahead = 0;
+      if (m.type == static_cast<uint16_t>(wire::Msg::end_round) && wire::decode_end_round(m.payload, ahead).ok())
+        g_sink = ahead;
       break;
     }
     case 1: {

@@ -90,7 +90,10 @@ procam::Status decode_worker_seed(const std::string& seed) {
   const int which = static_cast<uint8_t>(seed[0]) % 5;
   if (which == 0) {
     wire::Message m;
-    return wire::parse_packet(reinterpret_cast<const char*>(data), size, m);
+    PROCAM_TRY(wire::parse_packet(reinterpret_cast<const char*>(data), size, m));
+    uint8_t ahead = 0;
+    if (m.type == static_cast<uint16_t>(wire::Msg::end_round)) return wire::decode_end_round(m.payload, ahead);
+    return {};
   }
   if (which == 1) {
     procam::Status out;
@@ -207,6 +210,7 @@ TEST(FuzzRegression, WorkerSeedsFromTheEncoders) {
     p.u64(32u << 20);
     add("packet-outputs-reply", 0, packet(wire::Msg::ok, 12, p.bytes()));
   }
+  add("packet-end-round-ahead", 0, packet(wire::Msg::end_round, 10, wire::encode_end_round(3)));
   add("error-reply", 1,
       wire::encode_error(procam::Error(procam::Code::plugin_error,
                                        "plugin 'x' end_round failed (PROCAM_ERR_INTERNAL): boom", "a hint")));

@@ -589,8 +589,7 @@ Status WorkerProxy::add_frame(uint32_t index, const procam_image& frame) {
 Status WorkerProxy::end_round(size_t frames, bool then_next_plan) {
   // Version 6: ask the worker to go on with next_plan (and get_outputs
   // after the last round) on its own; the payload names the outputs' mode.
-  std::string payload;
-  if (then_next_plan) payload.push_back(static_cast<char>(1 + outputs_mode()));
+  const std::string payload = wire::encode_end_round(then_next_plan ? static_cast<uint8_t>(1 + outputs_mode()) : 0);
   auto m = call(wire::Msg::end_round, "end_round", payload, -1, round_deadline(frames));
   if (!m) return m.status();
   if (then_next_plan) {

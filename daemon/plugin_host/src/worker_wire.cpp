@@ -693,6 +693,20 @@ Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_outpu
   return {};
 }
 
+std::string encode_end_round(uint8_t ahead) { return ahead == 0 ? std::string() : std::string(1, static_cast<char>(ahead)); }
+
+Status decode_end_round(std::string_view payload, uint8_t& ahead) {
+  ahead = 0;
+  if (payload.empty()) return {};
+  if (payload.size() != 1 || static_cast<uint8_t>(payload[0]) > kMaxAhead)
+    return Error(Code::invalid_argument,
+                 "malformed end_round: " + (payload.size() != 1 ? std::to_string(payload.size()) + " payload bytes"
+                                                                : "ahead " + std::to_string(static_cast<uint8_t>(payload[0]))) +
+                     ", expected none or one byte of 0.." + std::to_string(kMaxAhead));
+  ahead = static_cast<uint8_t>(payload[0]);
+  return {};
+}
+
 std::string encode_error(const Status& st) {
   Writer w;
   w.u32(static_cast<uint32_t>(st.code()));

@@ -283,6 +283,15 @@ Status decode_outputs(const Mapping& blob, std::vector<procam_output>& out);
 Status decode_outputs(const uint8_t* data, size_t size, std::vector<procam_output>& out,
                       const HeapResolver& heap = {});
 
+// The end_round request's payload (version 6, "Replies ahead"): `ahead` 0
+// is end_round alone, 1 + m asks for the next_plan reply and, after "no
+// more rounds", the get_outputs reply in mode m ahead (so 1..3). Encoded
+// as nothing for 0, else one byte; decoded from nothing or one byte 0..3,
+// anything else (more bytes, a byte above 3) is invalid_argument.
+inline constexpr uint8_t kMaxAhead = 3;
+std::string encode_end_round(uint8_t ahead);
+Status decode_end_round(std::string_view payload, uint8_t& ahead);
+
 // An error reply: code, message, hint.
 std::string encode_error(const Status& st);
 // Decodes an error reply into `out`; corrupt_data if the payload is malformed.

@@ -46,6 +46,28 @@ Plan sample_plan(std::vector<uint8_t>& pixels) {
   return p;
 }
 
+// end_round's payload (version 6, "Replies ahead"): empty or one byte 1..3;
+// everything else is refused with what was wrong.
+TEST(WorkerWire, EndRoundAheadRoundTripsAndIsBounded) {
+  for (uint8_t ahead = 0; ahead <= wire::kMaxAhead; ++ahead) {
+    const std::string payload = wire::encode_end_round(ahead);
+    EXPECT_EQ(payload.size(), ahead == 0 ? 0u : 1u);
+    uint8_t got = 99;
+    ASSERT_TRUE(wire::decode_end_round(payload, got).ok()) << int{ahead};
+    EXPECT_EQ(got, ahead);
+  }
+  uint8_t got = 0;
+  uint8_t zero = 9;  // the one-byte form of 0, as the protocol allows
+  ASSERT_TRUE(wire::decode_end_round(std::string(1, '\0'), zero).ok());
+  EXPECT_EQ(zero, 0);
+  for (const std::string& bad : {std::string(1, '\4'), std::string(1, '\xff'), std::string("\1\1")}) {
+    const Status st = wire::decode_end_round(bad, got);
+    EXPECT_EQ(st.code(), Code::invalid_argument) << bad.size();
+    EXPECT_NE(st.message().find("malformed end_round"), std::string::npos) << st.message();
+    EXPECT_EQ(got, 0);
+  }
+}
+
 TEST(WorkerWire, PlanRoundTripsThroughASealedBlob) {
   std::vector<uint8_t> px;
   const Plan p = sample_plan(px);

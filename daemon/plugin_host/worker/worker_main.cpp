@@ -284,11 +284,9 @@ int serve(const worker::SandboxReport& sandbox, bool sandbox_on, std::vector<std
         // more rounds, get_outputs in mode m, each reply sent unasked with
         // the request numbers the daemon counts for them (seq + 1, seq + 2)
         // (WORKER_PROTOCOL.md "Replies ahead").
-        wire::Reader req(reinterpret_cast<const uint8_t*>(m->payload.data()), m->payload.size());
-        const uint8_t ahead = m->payload.empty() ? 0 : req.u8("ahead flag");
-        if (!req.ok() || !req.at_end() || ahead > 3) {
-          reply_error(Error(Code::invalid_argument,
-                            "malformed end_round: " + (req.ok() ? "ahead " + std::to_string(ahead) : req.error())));
+        uint8_t ahead = 0;
+        if (Status bad = wire::decode_end_round(m->payload, ahead); !bad) {
+          reply_error(bad);
           break;
         }
         Status st = s.session->end_round();
