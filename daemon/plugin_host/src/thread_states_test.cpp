@@ -24,14 +24,20 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// A thread that spins for 3 ms, starts its successor and ends: the child's
-// threads are new ones every few milliseconds, and one is always running.
-void* relay(void*) {
+void spin(std::chrono::microseconds d) {
   const auto t0 = Clock::now();
-  while (Clock::now() - t0 < 3ms) {
+  while (Clock::now() - t0 < d) {
   }
+}
+
+// A thread that spins for 3 ms, starts its successor, spins 2 ms more beside
+// it and ends: the child's threads are new ones every few milliseconds, and
+// one is always running.
+void* relay(void*) {
+  spin(3ms);
   pthread_t next;
   if (pthread_create(&next, nullptr, relay, nullptr) == 0) pthread_detach(next);
+  spin(2ms);
   return nullptr;
 }
 
@@ -96,8 +102,13 @@ TEST(ThreadStatesTest, NewThreadsAreSeenAndGoneOnesDoNotCount) {
     }
   }
   end(pid);
-  // Every call on the running child saw a thread that was not stopped.
-  EXPECT_EQ(running_seen, 40);
+  // The calls on the running child saw a thread that was not stopped. Not
+  // every one need: on a running process a thread listed and gone before
+  // its file is read, with its successor born after the listing, leaves
+  // nothing running to see (a CI run under load hit that once in 40; on a
+  // stopped worker no thread is born). One that skips threads it did not
+  // keep sees ~1 in 40.
+  EXPECT_GE(running_seen, 34);
   EXPECT_EQ(stops, 8);
 }
 
